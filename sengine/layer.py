@@ -1,0 +1,228 @@
+"""The Layer: the columnar batch of features that streams between nodes.
+
+A layer is a geometry column (a numpy object array of shapely 2 geometries),
+stable integer feature ids, the id of each feature's parent in the layer it
+was made from (``-1`` for none), and any number of attribute columns, each a
+numpy array of the same length.  Layers are immutable by convention: methods
+return new layers and never change their inputs.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable, Mapping
+
+import numpy as np
+import shapely
+
+__all__ = ["Layer"]
+
+
+def _column(values: Any, n: int, name: str) -> np.ndarray:
+    arr = np.asarray(values)
+    if arr.ndim == 0:
+        arr = np.full(n, arr.item() if arr.dtype != object else values)
+    if arr.shape != (n,):
+        raise ValueError(f"column {name!r} has shape {arr.shape}, expected ({n},)")
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class Layer:
+    """A columnar batch of features.
+
+    Parameters
+    ----------
+    geometry : numpy.ndarray of shapely.Geometry
+        One geometry per feature, in metres in the city's planar frame.
+    ids : numpy.ndarray of int64
+        Stable feature ids, unique within the layer.
+    parent : numpy.ndarray of int64
+        Id of each feature's parent feature upstream, ``-1`` for none.
+    attrs : dict of str to numpy.ndarray
+        Attribute columns, each of the same length as ``geometry``.
+    meta : dict
+        Layer-wide facts (for example the geographic origin); copied along.
+    """
+
+    geometry: np.ndarray
+    ids: np.ndarray
+    parent: np.ndarray
+    attrs: Mapping[str, np.ndarray] = field(default_factory=dict)
+    meta: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self):
+        n = len(self.geometry)
+        for name, col in (("ids", self.ids), ("parent", self.parent)):
+            if len(col) != n:
+                raise ValueError(f"{name} has length {len(col)}, expected {n}")
+        for name, col in self.attrs.items():
+            if len(col) != n:
+                raise ValueError(f"column {name!r} has length {len(col)}, expected {n}")
+
+    # -- construction -------------------------------------------------------
+    @classmethod
+    def from_geoms(
+        cls,
+        geoms: Iterable[Any],
+        *,
+        ids: Iterable[int] | None = None,
+        parent: Iterable[int] | int | None = None,
+        meta: Mapping[str, Any] | None = None,
+        **attrs: Any,
+    ) -> "Layer":
+        """Build a layer from geometries; ids default to ``0..n-1``."""
+        geometry = np.empty(0, dtype=object)
+        geoms = list(geoms) if not isinstance(geoms, np.ndarray) else geoms
+        geometry = np.empty(len(geoms), dtype=object)
+        geometry[:] = list(geoms)
+        n = len(geometry)
+        ids_arr = np.arange(n, dtype=np.int64) if ids is None else np.asarray(ids, np.int64)
+        par = np.full(n, -1, np.int64) if parent is None else _column(parent, n, "parent").astype(np.int64)
+        cols = {k: _column(v, n, k) for k, v in attrs.items()}
+        return cls(geometry, ids_arr, par, cols, dict(meta or {}))
+
+    @classmethod
+    def empty(cls, meta: Mapping[str, Any] | None = None, **columns: np.dtype) -> "Layer":
+        """An empty layer, optionally with typed empty columns."""
+        attrs = {k: np.empty(0, dtype=v) for k, v in columns.items()}
+        return cls(np.empty(0, object), np.empty(0, np.int64), np.empty(0, np.int64), attrs, dict(meta or {}))
+
+    @classmethod
+    def concat(cls, layers: Iterable["Layer"], *, renumber: bool = True) -> "Layer":
+        """Stack layers; columns missing from a layer are filled with defaults."""
+        layers = [lay for lay in layers]
+        if not layers:
+            return cls.empty()
+        names: list[str] = []
+        for lay in layers:
+            names += [k for k in lay.attrs if k not in names]
+        cols = {}
+        for name in names:
+            parts = []
+            proto = next(lay.attrs[name] for lay in layers if name in lay.attrs)
+            for lay in layers:
+                if name in lay.attrs:
+                    parts.append(lay.attrs[name])
+                else:
+                    parts.append(np.full(len(lay), _default(proto.dtype), dtype=proto.dtype))
+            cols[name] = np.concatenate(parts)
+        geometry = np.concatenate([lay.geometry for lay in layers])
+        parent = np.concatenate([lay.parent for lay in layers])
+        ids = np.arange(len(geometry), dtype=np.int64) if renumber else np.concatenate([lay.ids for lay in layers])
+        meta: dict[str, Any] = {}
+        for lay in layers:
+            meta.update(lay.meta)
+        return cls(geometry, ids, parent, cols, meta)
+
+    # -- access ---------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self.geometry)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name == "id":
+            return self.ids
+        if name == "parent_id":
+            return self.parent
+        return self.attrs[name]
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.attrs or name in ("id", "parent_id")
+
+    def get(self, name: str, default: Any = None) -> Any:
+        return self.attrs.get(name, default)
+
+    @property
+    def columns(self) -> list[str]:
+        return list(self.attrs)
+
+    def take(self, index: np.ndarray) -> "Layer":
+        """The features selected by a boolean mask or an integer index."""
+        index = np.asarray(index)
+        return Layer(
+            self.geometry[index],
+            self.ids[index],
+            self.parent[index],
+            {k: v[index] for k, v in self.attrs.items()},
+            dict(self.meta),
+        )
+
+    def with_columns(self, **columns: Any) -> "Layer":
+        """A copy with columns added or replaced."""
+        n = len(self)
+        attrs = dict(self.attrs)
+        attrs.update({k: _column(v, n, k) for k, v in columns.items()})
+        return Layer(self.geometry, self.ids, self.parent, attrs, dict(self.meta))
+
+    def with_geometry(self, geometry: np.ndarray) -> "Layer":
+        """A copy with the geometry column replaced (same length)."""
+        g = np.empty(len(self), dtype=object)
+        g[:] = list(geometry)
+        return Layer(g, self.ids, self.parent, dict(self.attrs), dict(self.meta))
+
+    def with_meta(self, **meta: Any) -> "Layer":
+        return Layer(self.geometry, self.ids, self.parent, dict(self.attrs), {**self.meta, **meta})
+
+    def area(self) -> float:
+        """Total area of the features (m2)."""
+        return float(shapely.area(self.geometry).sum()) if len(self) else 0.0
+
+    # -- GeoJSON --------------------------------------------------------------
+    def to_geojson(
+        self, transform: Callable[[np.ndarray], np.ndarray] | None = None, *, precision: int = 7
+    ) -> dict:
+        """A GeoJSON FeatureCollection with every attribute as a property.
+
+        ``transform`` maps an (n, 2) array of planar coordinates to the output
+        frame (for RFC 7946 output: WGS84 lon/lat); identity when omitted.
+        """
+        geoms = self.geometry
+        if transform is not None and len(geoms):
+            geoms = shapely.transform(geoms, transform)
+        if len(geoms):
+            geoms = shapely.set_precision(geoms, 10.0 ** -precision) if precision else geoms
+        texts = shapely.to_geojson(geoms) if len(geoms) else []
+        features = []
+        cols = {k: v.tolist() for k, v in self.attrs.items()}
+        ids = self.ids.tolist()
+        parents = self.parent.tolist()
+        for i, text in enumerate(texts):
+            props = {"id": ids[i], "parent_id": parents[i]}
+            props.update({k: _jsonable(cols[k][i]) for k in cols})
+            features.append({"type": "Feature", "id": ids[i], "geometry": json.loads(text), "properties": props})
+        return {"type": "FeatureCollection", "features": features}
+
+    @classmethod
+    def from_geojson(cls, data: Mapping[str, Any]) -> "Layer":
+        """Read a FeatureCollection written by :meth:`to_geojson` (planar)."""
+        feats = data.get("features", [])
+        geoms = shapely.from_geojson([json.dumps(f["geometry"]) for f in feats]) if feats else []
+        props = [dict(f.get("properties") or {}) for f in feats]
+        ids = [p.pop("id", i) for i, p in enumerate(props)]
+        parent = [p.pop("parent_id", -1) for p in props]
+        names: list[str] = []
+        for p in props:
+            names += [k for k in p if k not in names]
+        cols = {k: np.asarray([p.get(k) for p in props]) for k in names}
+        return cls.from_geoms(geoms, ids=ids, parent=parent, **cols)
+
+
+def _default(dtype: np.dtype) -> Any:
+    if dtype.kind in "iu":
+        return -1
+    if dtype.kind == "f":
+        return np.nan
+    if dtype.kind == "b":
+        return False
+    if dtype.kind in "US":
+        return ""
+    return None
+
+
+def _jsonable(v: Any) -> Any:
+    if isinstance(v, float) and v != v:
+        return None
+    if isinstance(v, (np.generic,)):
+        return v.item()
+    return v

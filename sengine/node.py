@@ -1,0 +1,265 @@
+"""SENode: the abstract base of every node (skylineEngine §5.1).
+
+A node is a declaration plus one method.  It declares its input and output
+ports (each carrying a layer of a named *kind*), and its parameters (type,
+default, inclusive bounds or choices, unit, one-line doc).  ``run`` takes the
+input layers as keyword arguments named after the input ports and returns a
+dict of output layers keyed by output port name.
+
+The engine knows nothing about what the kinds mean: ``"roads"`` or
+``"blocks"`` are just labels that must match between connected ports.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Any, ClassVar, Mapping
+
+import numpy as np
+
+from .errors import ParameterError
+from .layer import Layer
+
+__all__ = ["Param", "Port", "SENode", "Context", "stable_hash"]
+
+ANY = "any"
+_TYPES = {"float": float, "int": int, "str": str, "bool": bool, "path": str}
+
+
+def stable_hash(text: str) -> int:
+    """A 64-bit integer from a string, the same on every run and machine."""
+    return int.from_bytes(hashlib.blake2b(text.encode(), digest_size=8).digest(), "little")
+
+
+@dataclass(frozen=True)
+class Port:
+    """An input or output of a node.
+
+    Parameters
+    ----------
+    kind : str
+        Label of the layer the port carries; ``"any"`` matches every kind.
+    doc : str
+        One line saying what flows through the port.
+    required : bool
+        Inputs only: whether the network must connect it.
+    """
+
+    kind: str
+    doc: str = ""
+    required: bool = True
+
+    def accepts(self, kind: str) -> bool:
+        return ANY in (self.kind, kind) or self.kind == kind
+
+
+@dataclass(frozen=True)
+class Param:
+    """A declared, typed node parameter.
+
+    Parameters
+    ----------
+    type : {"float", "int", "str", "bool", "path"}
+        Python type of the value; ``path`` is a file path resolved against
+        the configuration file's folder.
+    default : object
+        Value used when the configuration sets none; ``None`` means required.
+    min, max : float, optional
+        Inclusive bounds for numbers.
+    choices : tuple of str, optional
+        Allowed values for strings.
+    unit : str
+        ``m``, ``m2``, ``deg``, ``1`` ... (empty for none).
+    doc : str
+        One line for ``sengine nodes`` and error messages.
+    """
+
+    type: str
+    default: Any = None
+    min: float | None = None
+    max: float | None = None
+    choices: tuple[str, ...] | None = None
+    unit: str = ""
+    doc: str = ""
+
+    def __post_init__(self):
+        if self.type not in _TYPES:
+            raise TypeError(f"unknown parameter type {self.type!r}; expected one of {sorted(_TYPES)}")
+
+    def coerce(self, value: Any, where: str, name: str) -> Any:
+        """Return ``value`` converted to the declared type, or raise ParameterError."""
+        unit = f" {self.unit}" if self.unit and self.unit != "1" else ""
+        try:
+            if self.type == "bool" and isinstance(value, str):
+                low = value.strip().lower()
+                if low not in ("true", "false", "1", "0", "yes", "no"):
+                    raise ValueError(value)
+                value = low in ("true", "1", "yes")
+            elif self.type == "int" and isinstance(value, str):
+                value = int(value.strip())
+            elif self.type == "float" and isinstance(value, str):
+                value = float(value.strip())
+            else:
+                value = _TYPES[self.type](value)
+        except (TypeError, ValueError):
+            raise ParameterError(
+                f"{name}={value!r} is not a valid {self.type}", where=where
+            ) from None
+        if self.type in ("float", "int"):
+            if value != value:
+                raise ParameterError(f"{name} is NaN", where=where)
+            if self.min is not None and value < self.min:
+                raise ParameterError(f"{name}={value}{unit} is below the minimum {self.min}{unit}", where=where)
+            if self.max is not None and value > self.max:
+                raise ParameterError(f"{name}={value}{unit} is above the maximum {self.max}{unit}", where=where)
+        if self.choices is not None and value not in self.choices:
+            raise ParameterError(
+                f"{name}={value!r} is not one of {', '.join(self.choices)}", where=where
+            )
+        return value
+
+    def describe(self, name: str) -> dict:
+        return {
+            "name": name,
+            "type": self.type,
+            "default": self.default,
+            "min": self.min,
+            "max": self.max,
+            "choices": list(self.choices) if self.choices else None,
+            "unit": self.unit,
+            "doc": self.doc,
+        }
+
+
+class Params(Mapping[str, Any]):
+    """Checked parameter values; read as ``p["spacing"]`` or ``p.spacing``."""
+
+    def __init__(self, values: Mapping[str, Any]):
+        self._values = MappingProxyType(dict(values))
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return self._values[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def __getitem__(self, name: str) -> Any:
+        return self._values[name]
+
+    def __iter__(self):
+        return iter(self._values)
+
+    def __len__(self) -> int:
+        return len(self._values)
+
+    def __repr__(self) -> str:
+        return f"Params({dict(self._values)!r})"
+
+
+@dataclass
+class Context:
+    """What a network run shares with its nodes.
+
+    Attributes
+    ----------
+    seed : int
+        The network seed.
+    plan : object
+        The city plan from the configuration (opaque to the engine).
+    base_dir : pathlib.Path or None
+        Folder that relative paths in the configuration are relative to.
+    out : pathlib.Path or None
+        Folder the run writes into (a temporary folder until it completes).
+    formats : frozenset of str
+        Output formats asked for (``--format``).
+    """
+
+    seed: int = 0
+    plan: Any = None
+    base_dir: Any = None
+    out: Any = None
+    formats: frozenset = frozenset()
+
+
+class SENode:
+    """Abstract base of every node.
+
+    Subclasses set the class attributes and implement :meth:`run`.
+    ``maps_features`` says that the node maps each input feature on its own
+    (lots per block, buildings per lot), so the executor may chunk its input.
+    """
+
+    name: ClassVar[str] = ""
+    inputs: ClassVar[Mapping[str, Port]] = {}
+    outputs: ClassVar[Mapping[str, Port]] = {}
+    params: ClassVar[Mapping[str, Param]] = {}
+    maps_features: ClassVar[bool] = False
+
+    def __init__(self, node_id: str, values: Mapping[str, Any] | None = None,
+                 context: Context | None = None, *, where: str | None = None):
+        self.id = node_id
+        self.context = context or Context()
+        self.where = where or f"node '{node_id}' ({self.name})"
+        self.p = self.check_params(values or {}, self.where)
+
+    # -- declaration checks --------------------------------------------------
+    @classmethod
+    def check_params(cls, values: Mapping[str, Any], where: str) -> Params:
+        """Check ``values`` against the declaration; fill in defaults."""
+        unknown = sorted(set(values) - set(cls.params))
+        if unknown:
+            known = ", ".join(cls.params) or "none"
+            raise ParameterError(f"unknown parameter {unknown[0]!r} (parameters: {known})", where=where)
+        out = {}
+        for name, decl in cls.params.items():
+            if name in values:
+                out[name] = decl.coerce(values[name], where, name)
+            elif decl.default is None:
+                raise ParameterError(f"parameter {name!r} is required", where=where)
+            else:
+                out[name] = decl.default
+        return Params(out)
+
+    @classmethod
+    def check_declaration(cls) -> None:
+        """Raise TypeError when ``run``'s keywords differ from the input ports."""
+        sig = inspect.signature(cls.run)
+        names = [n for n, p in sig.parameters.items() if n != "self" and p.kind is p.KEYWORD_ONLY]
+        if set(names) != set(cls.inputs):
+            raise TypeError(
+                f"{cls.__name__}.run keyword-only arguments {sorted(names)} "
+                f"differ from its input ports {sorted(cls.inputs)}"
+            )
+        for name, decl in cls.params.items():
+            if decl.default is not None:
+                decl.coerce(decl.default, cls.__name__, name)
+
+    # -- randomness ----------------------------------------------------------
+    def rng(self, *key: int | str) -> np.random.Generator:
+        """A generator seeded from (network seed, node id, *key).
+
+        Called with a feature id it gives the per-feature generator, so a
+        feature's draws do not depend on which other features share its batch.
+        """
+        words = [int(self.context.seed) & 0xFFFFFFFFFFFFFFFF, stable_hash(self.id)]
+        words += [stable_hash(k) if isinstance(k, str) else int(k) & 0xFFFFFFFFFFFFFFFF for k in key]
+        return np.random.default_rng(np.random.SeedSequence(words))
+
+    # -- work ----------------------------------------------------------------
+    def run(self, **inputs: Layer) -> dict[str, Layer]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    @classmethod
+    def describe(cls) -> dict:
+        """The declaration as plain data (``sengine nodes --json``)."""
+        return {
+            "name": cls.name,
+            "doc": (inspect.getdoc(cls) or "").split("\n\n")[0].replace("\n", " "),
+            "inputs": [{"name": k, "kind": p.kind, "required": p.required, "doc": p.doc} for k, p in cls.inputs.items()],
+            "outputs": [{"name": k, "kind": p.kind, "doc": p.doc} for k, p in cls.outputs.items()],
+            "params": [p.describe(k) for k, p in cls.params.items()],
+            "maps_features": cls.maps_features,
+        }

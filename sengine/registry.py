@@ -1,0 +1,184 @@
+"""The factory: a dictionary of (nameId -> node class), as in skylineEngine §5.1.
+
+Nodes register with :func:`register`.  Plugins are modules that register
+nodes when imported; they arrive four ways, all through :func:`load_plugin`:
+
+* the entry-point group ``sengine.nodes`` (the built-in nodes are the first
+  such plugin, see :mod:`sengine.builtin`);
+* ``<plugin module="..."/>`` in a configuration file;
+* ``<plugin path="..."/>`` (a ``.py`` file or a package folder);
+* ``--plugin MODULE_OR_PATH`` on the command line.
+"""
+
+from __future__ import annotations
+
+import difflib
+import importlib
+import importlib.metadata
+import importlib.util
+import logging
+import re
+import sys
+import warnings
+from pathlib import Path
+from typing import Callable, TypeVar
+
+from .errors import RegistryError
+from .node import SENode, stable_hash
+
+__all__ = ["REGISTRY", "register", "get", "load_plugin", "load_entry_points", "broken_plugins"]
+
+log = logging.getLogger(__name__)
+
+ENTRY_POINT_GROUP = "sengine.nodes"
+NAME_RE = re.compile(r"^[a-z][a-z0-9_]*(\.[a-z][a-z0-9_]*)*$", re.IGNORECASE)
+
+REGISTRY: dict[str, type[SENode]] = {}
+_loaded: dict[str, str] = {}  # plugin key -> module name
+_broken: dict[str, str] = {}
+_entry_points_loaded = False
+
+N = TypeVar("N", bound=type[SENode])
+
+
+def register(cls: N | None = None, *, name: str | None = None, replace: bool = False) -> N | Callable[[N], N]:
+    """Class decorator adding a node class to the registry under ``cls.name``.
+
+    A second class under the same name is an error unless ``replace=True``,
+    never a silent override.
+    """
+
+    def deco(c: N) -> N:
+        if name:
+            c.name = name
+        if not isinstance(c, type) or not issubclass(c, SENode):
+            raise TypeError(f"{c!r} is not an SENode subclass")
+        if not c.name or not NAME_RE.match(c.name):
+            raise RegistryError(f"{c.__qualname__}: node name {c.name!r} must be dotted identifiers like 'lots.paris'")
+        c.check_declaration()
+        old = REGISTRY.get(c.name)
+        if old is not None and old is not c and not replace and _qualname(old) != _qualname(c):
+            raise RegistryError(
+                f"node name {c.name!r} is registered twice: {_qualname(old)} and {_qualname(c)}"
+            )
+        REGISTRY[c.name] = c
+        return c
+
+    return deco(cls) if cls is not None else deco
+
+
+def _qualname(c: type) -> str:
+    return f"{c.__module__}.{c.__qualname__}"
+
+
+def get(name: str, *, where: str | None = None) -> type[SENode]:
+    """The node class registered as ``name``; the error lists close names."""
+    load_entry_points()
+    try:
+        return REGISTRY[name]
+    except KeyError:
+        close = difflib.get_close_matches(name, REGISTRY, n=3, cutoff=0.5)
+        hint = f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
+        raise RegistryError(f"unknown node type {name!r}{hint}", where=where) from None
+
+
+def names() -> list[str]:
+    load_entry_points()
+    return sorted(REGISTRY)
+
+
+def load_entry_points() -> None:
+    """Load every plugin of the ``sengine.nodes`` entry-point group once.
+
+    A plugin that fails to load is a warning and is skipped; the failure is
+    kept for :func:`broken_plugins` (``sengine nodes --check``).
+    """
+    global _entry_points_loaded
+    if _entry_points_loaded:
+        return
+    _entry_points_loaded = True
+    eps = sorted(importlib.metadata.entry_points(group=ENTRY_POINT_GROUP), key=lambda e: (e.name != "builtin", e.name))
+    for ep in eps:
+        try:
+            obj = ep.load()
+            if callable(obj) and not isinstance(obj, type):
+                obj()
+        except RegistryError:
+            raise
+        except Exception as exc:  # a broken third-party plugin must not break sengine
+            _broken[ep.name] = f"{type(exc).__name__}: {exc}"
+            warnings.warn(f"sengine plugin {ep.name!r} ({ep.value}) failed to load: {exc}", stacklevel=2)
+    if not any(ep.name == "builtin" for ep in eps):  # running from a source tree, not installed
+        from .builtin import load
+
+        load()
+
+
+def broken_plugins() -> dict[str, str]:
+    load_entry_points()
+    return dict(_broken)
+
+
+def load_plugin(spec: str, *, base_dir: Path | None = None, where: str | None = None) -> str:
+    """Import a plugin given as a module name or a path; return its module name.
+
+    Parameters
+    ----------
+    spec : str
+        A dotted module name, or a path to a ``.py`` file or a package folder
+        (relative paths are resolved against ``base_dir``).
+    """
+    load_entry_points()
+    looks_like_path = spec.endswith(".py") or "/" in spec or "\\" in spec
+    if looks_like_path:
+        path = Path(spec)
+        if not path.is_absolute() and base_dir is not None:
+            path = Path(base_dir) / path
+        return load_path(path, where=where)
+    if spec in _loaded:
+        return _loaded[spec]
+    try:
+        importlib.import_module(spec)
+    except ModuleNotFoundError as exc:
+        raise RegistryError(f"plugin module {spec!r} not found ({exc.name} is missing)", where=where) from None
+    except RegistryError:
+        raise
+    except Exception as exc:
+        raise RegistryError(f"plugin module {spec!r} failed to import: {type(exc).__name__}: {exc}", where=where) from None
+    _loaded[spec] = spec
+    return spec
+
+
+def load_path(path: Path, *, module_name: str | None = None, where: str | None = None) -> str:
+    """Import a ``.py`` file or a package folder by path (idempotent)."""
+    path = Path(path).resolve()
+    key = str(path)
+    if key in _loaded:
+        return _loaded[key]
+    if not path.exists():
+        raise RegistryError(f"plugin path {str(path)!r} does not exist", where=where)
+    if module_name is None:
+        stem = re.sub(r"\W", "_", path.stem if path.is_file() else path.name)
+        module_name = f"sengine_plugin_{stem}_{stable_hash(key) % 10**8}"
+    if path.is_dir():
+        init = path / "__init__.py"
+        if not init.exists():
+            raise RegistryError(f"plugin folder {str(path)!r} has no __init__.py", where=where)
+        spec = importlib.util.spec_from_file_location(module_name, init, submodule_search_locations=[str(path)])
+    else:
+        spec = importlib.util.spec_from_file_location(module_name, path)
+    if spec is None or spec.loader is None:
+        raise RegistryError(f"cannot import plugin {str(path)!r}", where=where)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[module_name] = module
+    try:
+        spec.loader.exec_module(module)
+    except RegistryError:
+        del sys.modules[module_name]
+        raise
+    except Exception as exc:
+        del sys.modules[module_name]
+        raise RegistryError(f"plugin {str(path)!r} failed to import: {type(exc).__name__}: {exc}", where=where) from None
+    _loaded[key] = module_name
+    log.debug("loaded plugin %s as %s", path, module_name)
+    return module_name
