@@ -1,0 +1,236 @@
+"""The ``sengine`` command: run | batch | validate | nodes | graph | osm.
+
+A user mistake prints one line (``sengine: error: WHERE: WHAT``) and exits
+with status 2; ``--debug`` shows the traceback instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import tempfile
+from pathlib import Path
+from typing import Sequence
+
+from . import __version__
+from .errors import SEngineError
+
+log = logging.getLogger("sengine")
+
+EXIT_USER_ERROR = 2
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--plugin", action="append", default=[], metavar="P",
+                   help="load a plugin module or .py path before reading the config (repeatable)")
+    p.add_argument("--debug", action="store_true", help="show tracebacks")
+    p.add_argument("--quiet", "-q", action="store_true", help="no progress on stderr")
+
+
+def _run_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("-o", "--out", required=True, type=Path, help="output folder")
+    p.add_argument("--seed", type=int, help="network seed (overrides the config's)")
+    p.add_argument("--set", dest="sets", action="append", default=[], metavar="NODE.PARAM=VALUE",
+                   help="set a node parameter (repeatable)")
+    p.add_argument("--format", dest="formats", default="",
+                   help="comma list of outputs: glb,geojson,osm,png,obj,cityjson (default: the exporter's)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="sengine", description="A procedural city engine after skylineEngine.")
+    parser.add_argument("--version", action="version", version=f"sengine {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("run", help="run a city config and write its outputs")
+    p.add_argument("config", type=Path)
+    _run_options(p)
+    p.add_argument("--map", dest="maps", action="append", default=[], metavar="KIND=PATH",
+                   help="replace the config's map of a kind (district, landuse, height, osm ...)")
+    _common(p)
+
+    p = sub.add_parser("batch", help="run a config once per seed into OUT/seed-N")
+    p.add_argument("config", type=Path)
+    _run_options(p)
+    p.add_argument("--seeds", default="1-4", help="seeds as a list or range, e.g. 1,2,5 or 1-10")
+    p.add_argument("--map", dest="maps", action="append", default=[], metavar="KIND=PATH")
+    _common(p)
+
+    p = sub.add_parser("osm", help="one command from an OpenStreetMap file to a city")
+    p.add_argument("file", type=Path, help=".osm, .osm.bz2 or .osm.pbf")
+    _run_options(p)
+    _common(p)
+
+    p = sub.add_parser("validate", help="check a config without running it")
+    p.add_argument("config", type=Path)
+    p.add_argument("--set", dest="sets", action="append", default=[], metavar="NODE.PARAM=VALUE")
+    p.add_argument("--map", dest="maps", action="append", default=[], metavar="KIND=PATH")
+    _common(p)
+
+    p = sub.add_parser("nodes", help="list every registered node with its ports and parameters")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--check", action="store_true", help="also list plugins that failed to load")
+    _common(p)
+
+    p = sub.add_parser("graph", help="draw a config's network (.dot, .svg or .png)")
+    p.add_argument("config", type=Path)
+    p.add_argument("-o", "--out", required=True, type=Path, help="output file: .dot, .svg or .png")
+    _common(p)
+    return parser
+
+
+def _progress(args: argparse.Namespace):
+    if args.quiet or not sys.stderr.isatty():
+        return None
+    from .network import _stderr_progress
+
+    return _stderr_progress
+
+
+def _formats(text: str) -> frozenset[str]:
+    return frozenset(f.strip().lower() for f in text.split(",") if f.strip())
+
+
+def _seeds(text: str) -> list[int]:
+    seeds: list[int] = []
+    for part in text.split(","):
+        a, dash, b = part.strip().partition("-")
+        try:
+            seeds += list(range(int(a), int(b) + 1)) if dash else [int(a)]
+        except ValueError:
+            raise SEngineError(f"--seeds {text!r} must be numbers or ranges like 1-10") from None
+    return seeds
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from .xmlconfig import load_config
+
+    net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin, seed=args.seed)
+    result = net.run(out=args.out, formats=_formats(args.formats), progress=_progress(args))
+    if not args.quiet:
+        counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
+        print(f"{args.out}: {counts} in {result.stats['seconds']['total']:.2f} s")
+    return 0
+
+
+def cmd_batch(args: argparse.Namespace) -> int:
+    from .xmlconfig import load_config
+
+    net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin)
+    net.validate()
+    rows = []
+    for seed in _seeds(args.seeds):
+        result = net.run(seed=seed, out=args.out / f"seed-{seed}", formats=_formats(args.formats),
+                         progress=_progress(args))
+        rows.append({"seed": seed, "counts": result.stats["counts"], "areas": result.stats["areas"]})
+        if not args.quiet:
+            print(f"seed {seed}: " + ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items()))
+    (args.out / "batch.json").write_text(json.dumps({"config": str(args.config), "runs": rows}, indent=2) + "\n")
+    return 0
+
+
+def cmd_osm(args: argparse.Namespace) -> int:
+    """Run ``networks/loadmap.xml`` on one OSM file with default parameters."""
+    from .xmlconfig import load_config
+
+    if not args.file.exists():
+        raise SEngineError(f"{args.file}: file not found")
+    with tempfile.TemporaryDirectory() as tmp:
+        config = Path(tmp) / "osm.xml"
+        config.write_text(
+            '<sengine version="1">\n'
+            f'  <city name="{_xml_attr(args.file.name)}"><map kind="osm" src="{_xml_attr(str(args.file.resolve()))}"/></city>\n'
+            '  <network base="loadmap"/>\n'
+            "</sengine>\n"
+        )
+        net = load_config(config, sets=args.sets, plugins=args.plugin, seed=args.seed)
+        net.source = str(args.file)
+        result = net.run(out=args.out, formats=_formats(args.formats), progress=_progress(args))
+    if not args.quiet:
+        counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
+        print(f"{args.out}: {counts} in {result.stats['seconds']['total']:.2f} s")
+    return 0
+
+
+def _xml_attr(text: str) -> str:
+    return text.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")
+
+
+def cmd_validate(args: argparse.Namespace) -> int:
+    from .xmlconfig import load_config
+
+    net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin)
+    bound = net.validate()
+    print(f"{args.config}: valid, {len(bound.nodes)} nodes, {len(bound.edges)} connections")
+    return 0
+
+
+def cmd_nodes(args: argparse.Namespace) -> int:
+    from . import registry
+
+    for spec in args.plugin:
+        registry.load_plugin(spec, base_dir=Path.cwd(), where=f"--plugin {spec}")
+    described = [registry.get(name).describe() for name in registry.names()]
+    if args.json:
+        print(json.dumps(described, indent=2))
+    else:
+        for d in described:
+            ins = ", ".join(f"{p['name']}:{p['kind']}{'' if p['required'] else '?'}" for p in d["inputs"])
+            outs = ", ".join(f"{p['name']}:{p['kind']}" for p in d["outputs"])
+            print(f"{d['name']}  ({ins}) -> ({outs})")
+            if d["doc"]:
+                print(f"    {d['doc']}")
+            for p in d["params"]:
+                bounds = ""
+                if p["min"] is not None or p["max"] is not None:
+                    bounds = f" [{'' if p['min'] is None else p['min']}, {'' if p['max'] is None else p['max']}]"
+                if p["choices"]:
+                    bounds = f" {{{', '.join(p['choices'])}}}"
+                unit = f" {p['unit']}" if p["unit"] else ""
+                print(f"    - {p['name']}: {p['type']} = {p['default']!r}{unit}{bounds}  {p['doc']}")
+    if args.check:
+        broken = registry.broken_plugins()
+        for name, why in broken.items():
+            print(f"broken plugin {name}: {why}", file=sys.stderr)
+        return 1 if broken else 0
+    return 0
+
+
+def cmd_graph(args: argparse.Namespace) -> int:
+    from .graphview import write_graph
+    from .xmlconfig import load_config
+
+    net = load_config(args.config, plugins=args.plugin)
+    write_graph(net, args.out)
+    if not args.quiet:
+        print(f"wrote {args.out}")
+    return 0
+
+
+COMMANDS = {"run": cmd_run, "batch": cmd_batch, "osm": cmd_osm, "validate": cmd_validate,
+            "nodes": cmd_nodes, "graph": cmd_graph}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.DEBUG if args.debug else logging.WARNING,
+                        format="sengine: %(levelname)s: %(message)s")
+    try:
+        return COMMANDS[args.command](args)
+    except SEngineError as err:
+        if args.debug:
+            raise
+        print(f"sengine: error: {_one_line(str(err))}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    except KeyboardInterrupt:
+        print("sengine: interrupted", file=sys.stderr)
+        return 130
+
+
+def _one_line(text: str) -> str:
+    return " ".join(text.split())
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

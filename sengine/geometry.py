@@ -1,0 +1,506 @@
+"""Generic planar-geometry helpers shared by the node library.
+
+Nothing here knows about cities: these are segment graphs, faces, rings,
+oriented boxes and half-planes, vectorized over numpy / shapely 2 arrays.
+
+Public API
+----------
+Segment graphs
+    :func:`segments_from_lines` -- LineStrings to ``(xy, u, v, src)`` arrays
+    (optionally noded with ``shapely.node``).
+    :func:`planarize` -- split crossing segments of a ``(xy, u, v)`` graph.
+Faces
+    :func:`trace_faces` -- the half-edge "next" permutation and its cycles.
+    :func:`planar_faces` -- bounded faces of a plane graph as polygons with
+    holes; bridges (dead ends) removed; the outer face(s) returned apart.
+Rings and polygons
+    :func:`signed_area` -- shoelace area of rings given as grouped vertices.
+    :func:`obb_frame` -- centre, long-axis unit vector, length and width of
+    the minimum-area oriented bounding box of each polygon.
+    :func:`frame_boxes` -- rectangles given in an OBB frame, in world frame.
+    :func:`inset` -- inward offset (negative mitred buffer) by per-polygon
+    distances.
+    :func:`split_by_line` -- both sides of each polygon cut by a line.
+    :func:`boundary_segments` -- every boundary segment of each geometry.
+    :func:`segments_on` -- which segments lie on a reference boundary.
+
+Half-edge convention: input edge ``e`` (from ``u[e]`` to ``v[e]``) gives
+half-edges ``2 e`` (u -> v) and ``2 e + 1`` (v -> u); each half-edge bounds
+the face on its left, so bounded faces are counter-clockwise (positive
+signed area) and the outer face of each connected component is clockwise.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
+
+__all__ = [
+    "segments_from_lines",
+    "planarize",
+    "trace_faces",
+    "planar_faces",
+    "PlanarFaces",
+    "signed_area",
+    "obb_frame",
+    "frame_boxes",
+    "inset",
+    "split_by_line",
+    "boundary_segments",
+    "segments_on",
+]
+
+log = logging.getLogger(__name__)
+
+
+# -- segment graphs ----------------------------------------------------------------
+
+def _node_ids(coords: np.ndarray, decimals: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Unique points of ``coords`` (n, 2) and the index of each row in them."""
+    key = np.round(coords, decimals) if decimals is not None else coords
+    key = np.ascontiguousarray(key, dtype=np.float64) + 0.0  # -0.0 == 0.0
+    view = key.view(np.dtype((np.void, 16))).ravel()
+    _, first, inv = np.unique(view, return_index=True, return_inverse=True)
+    return coords[first], inv.ravel()
+
+
+def segments_from_lines(lines, *, node: bool = False, decimals: int | None = 9):
+    """Explode LineStrings into straight segments with shared node ids.
+
+    Parameters
+    ----------
+    lines : array_like of shapely.LineString or MultiLineString
+        Street centre lines (m).
+    node : bool
+        Run ``shapely.node`` first so that every crossing, T-junction and
+        collinear overlap becomes a shared node.  Without it, segments meet
+        only where they share an exact vertex.
+    decimals : int or None
+        Vertices equal after rounding to this many decimals (m) are one node.
+
+    Returns
+    -------
+    xy : ndarray, shape (n, 2)
+        Node coordinates.
+    u, v : ndarray of int64, shape (m,)
+        End node ids of each segment.
+    src : ndarray of int64, shape (m,)
+        Index in ``lines`` of the line each segment comes from (with
+        ``node=True``: the nearest input line to the segment's midpoint).
+    """
+    lines = np.asarray(lines, dtype=object).ravel()
+    empty = (np.empty((0, 2)), np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, np.int64))
+    if len(lines) == 0:
+        return empty
+    work = lines
+    if node:
+        noded = shapely.node(shapely.multilinestrings(shapely.get_parts(lines)))
+        work = shapely.get_parts(noded)
+    parts, pidx = shapely.get_parts(work, return_index=True)
+    coords, cidx = shapely.get_coordinates(parts, return_index=True)
+    if len(coords) < 2:
+        return empty
+    same = cidx[1:] == cidx[:-1]
+    a = np.flatnonzero(same)
+    xy, inv = _node_ids(coords, decimals)
+    u, v = inv[a], inv[a + 1]
+    if node:
+        mid = (coords[a] + coords[a + 1]) / 2.0
+        tree = shapely.STRtree(lines)
+        src = tree.query_nearest(shapely.points(mid), all_matches=False)[1]
+    else:
+        src = pidx[cidx[a]]
+    keep = u != v
+    return xy, u[keep].astype(np.int64), v[keep].astype(np.int64), np.asarray(src)[keep].astype(np.int64)
+
+
+def planarize(xy, u, v, *, decimals: int | None = 9):
+    """Split segments that cross or touch without a shared node.
+
+    The graph ``(xy, u, v)`` may come from a source that knows its topology
+    (OSM node ids) but is not plane (bridges, tunnels, missing nodes).  Only
+    segments involved in a crossing are re-noded with ``shapely.node``;
+    every other segment keeps its node ids.
+
+    Returns
+    -------
+    xy, u, v, src : as :func:`segments_from_lines`; ``src`` indexes the input
+        segments.  ``crossings`` (int) is the number of crossing pairs found.
+    """
+    xy = np.asarray(xy, np.float64)
+    u = np.asarray(u, np.int64)
+    v = np.asarray(v, np.int64)
+    m = len(u)
+    src = np.arange(m, dtype=np.int64)
+    if m == 0:
+        return xy, u, v, src, 0
+    segs = shapely.linestrings(np.stack([xy[u], xy[v]], axis=1))
+    tree = shapely.STRtree(segs)
+    i, j = tree.query(segs, predicate="intersects")
+    sel = i < j
+    i, j = i[sel], j[sel]
+    shared = (u[i] == u[j]) | (u[i] == v[j]) | (v[i] == u[j]) | (v[i] == v[j])
+    i, j = i[~shared], j[~shared]
+    if len(i) == 0:
+        return xy, u, v, src, 0
+    bad = np.zeros(m, bool)
+    bad[i] = True
+    bad[j] = True
+    bad_idx = np.flatnonzero(bad)
+    pieces = shapely.get_parts(shapely.node(shapely.multilinestrings(segs[bad_idx])))
+    pc, pi = shapely.get_coordinates(pieces, return_index=True)
+    a = np.flatnonzero(pi[1:] == pi[:-1])
+    p0, p1 = pc[a], pc[a + 1]
+    mid = shapely.points((p0 + p1) / 2.0)
+    near = shapely.STRtree(segs[bad_idx]).query_nearest(mid, all_matches=False)[1]
+    good = ~bad
+    allc = np.concatenate([xy, p0, p1])
+    nxy, inv = _node_ids(allc, decimals)
+    n0 = len(xy)
+    k = len(a)
+    nu = np.concatenate([inv[u[good]], inv[n0:n0 + k]])
+    nv = np.concatenate([inv[v[good]], inv[n0 + k:]])
+    nsrc = np.concatenate([src[good], bad_idx[near]])
+    keep = nu != nv
+    log.info("planarize: %d crossing pairs; %d segments re-noded into %d", len(i), len(bad_idx), k)
+    return nxy, nu[keep], nv[keep], nsrc[keep], int(len(i))
+
+
+# -- faces ---------------------------------------------------------------------
+
+def trace_faces(xy: np.ndarray, u: np.ndarray, v: np.ndarray):
+    """Cycles of the half-edge "next" permutation of a plane graph.
+
+    Around each node, outgoing half-edges are sorted by angle (one
+    ``numpy.lexsort``); the successor of half-edge ``h`` (a -> b) is the
+    outgoing half-edge of ``b`` that comes clockwise right after the twin
+    (b -> a): the lowest positive turn, skylineEngine §5.4 / Fig. 8.  Faces
+    are the cycles of that permutation (``scipy`` connected components).
+
+    Parameters
+    ----------
+    xy : ndarray (n, 2)
+        Node coordinates.
+    u, v : ndarray of int (m,)
+        Edges; no self-loops, no duplicates (see :func:`planar_faces`).
+
+    Returns
+    -------
+    nxt : ndarray of int64 (2 m,)
+        Successor of each half-edge in its face.
+    face : ndarray of int64 (2 m,)
+        Face label of each half-edge, ``0 .. nfaces-1``.
+    area : ndarray of float (nfaces,)
+        Signed area of each face walk (m2): positive for bounded faces.
+    """
+    m = len(u)
+    h = np.arange(2 * m, dtype=np.int64)
+    org = np.empty(2 * m, np.int64)
+    org[0::2] = u
+    org[1::2] = v
+    dst = np.empty(2 * m, np.int64)
+    dst[0::2] = v
+    dst[1::2] = u
+    d = xy[dst] - xy[org]
+    ang = np.arctan2(d[:, 1], d[:, 0])
+    order = np.lexsort((ang, org))
+    pos = np.empty(2 * m, np.int64)
+    pos[order] = h
+    so = org[order]
+    # start and size of each node's group in sorted order
+    brk = np.flatnonzero(np.r_[True, so[1:] != so[:-1]])
+    size = np.diff(np.r_[brk, 2 * m])
+    grp = np.repeat(np.arange(len(brk)), size)
+    start = brk[grp]
+    cnt = size[grp]
+    prev_pos = start + (h - start - 1) % cnt  # clockwise neighbour in sorted order
+    cw = np.empty(2 * m, np.int64)
+    cw[order] = order[prev_pos]
+    nxt = cw[h ^ 1]
+    graph = csr_matrix((np.ones(2 * m, np.int8), (h, nxt)), shape=(2 * m, 2 * m))
+    nf, face = connected_components(graph, directed=True, connection="weak")
+    face = face.astype(np.int64)
+    cross = xy[org, 0] * xy[dst, 1] - xy[dst, 0] * xy[org, 1]
+    area = np.bincount(face, weights=cross, minlength=nf) / 2.0
+    return nxt, face, area
+
+
+def _cycle_order(nxt: np.ndarray, face: np.ndarray, nf: int) -> tuple[np.ndarray, np.ndarray]:
+    """Half-edges listed face by face in walk order, and each face's start offset.
+
+    List ranking by pointer jumping: O(n log L) numpy gathers, L the longest
+    face.
+    """
+    n = len(nxt)
+    h = np.arange(n, dtype=np.int64)
+    head = np.full(nf, n, np.int64)
+    np.minimum.at(head, face, h)
+    pred = np.empty(n, np.int64)
+    pred[nxt] = h
+    tail = pred[head]
+    succ = nxt.copy()
+    succ[tail] = tail
+    dist = (succ != h).astype(np.int64)
+    while True:
+        ss = succ[succ]
+        if np.array_equal(ss, succ):
+            break
+        dist = dist + dist[succ]
+        succ = ss
+    size = np.bincount(face, minlength=nf)
+    offset = np.r_[0, np.cumsum(size)[:-1]]
+    rank = size[face] - 1 - dist
+    ordered = np.empty(n, np.int64)
+    ordered[offset[face] + rank] = h
+    return ordered, offset
+
+
+def _split_walk(vids: list[int]) -> list[list[int]]:
+    """Split a closed walk that revisits vertices into simple closed walks."""
+    stack: list[int] = []
+    where: dict[int, int] = {}
+    out = []
+    for vid in vids:
+        j = where.get(vid)
+        if j is not None:
+            out.append(stack[j:])
+            for w in stack[j + 1:]:
+                where.pop(w, None)
+            del stack[j + 1:]
+        else:
+            where[vid] = len(stack)
+            stack.append(vid)
+    if len(stack) >= 3:
+        out.append(stack)
+    return [c for c in out if len(c) >= 3]
+
+
+def signed_area(xy: np.ndarray, index: np.ndarray, n: int | None = None) -> np.ndarray:
+    """Shoelace signed area of rings given as grouped, ordered vertices.
+
+    Parameters
+    ----------
+    xy : ndarray (k, 2)
+        Ring vertices, not repeated at the end, grouped contiguously by ring.
+    index : ndarray of int (k,)
+        Ring index of each vertex, non-decreasing.
+    n : int, optional
+        Number of rings (default ``index.max() + 1``).
+
+    Returns
+    -------
+    ndarray (n,)
+        Signed areas (m2), positive for counter-clockwise rings.
+    """
+    index = np.asarray(index)
+    n = int(index.max()) + 1 if n is None else n
+    if len(index) == 0:
+        return np.zeros(n)
+    brk = np.flatnonzero(np.r_[True, index[1:] != index[:-1]])
+    size = np.diff(np.r_[brk, len(index)])
+    start = np.repeat(brk, size)
+    k = np.arange(len(index))
+    nxt = np.where(k + 1 < start + np.repeat(size, size), k + 1, start)
+    cross = xy[:, 0] * xy[nxt, 1] - xy[nxt, 0] * xy[:, 1]
+    return np.bincount(index, weights=cross, minlength=n) / 2.0
+
+
+@dataclass
+class PlanarFaces:
+    """The faces of a plane graph (result of :func:`planar_faces`).
+
+    Attributes
+    ----------
+    polygons : ndarray of shapely.Polygon
+        Bounded faces; a face holding a disconnected component has it as a
+        hole.  Together they partition the area inside the outer rings.
+    edge_faces : ndarray of int64, shape (m, 2)
+        For each input edge, the polygon on its left (u -> v) and on its
+        right; ``-1`` for the outside, for a dropped edge (self-loop,
+        bridge) or a degenerate face.
+    outline : ndarray of shapely.Polygon
+        One polygon per outermost connected component: its outer boundary.
+    bridge : ndarray of bool, shape (m,)
+        Edges removed because the same face lies on both sides (dead ends
+        and connectors between components).
+    counts : dict
+        ``edges``, ``duplicates``, ``self_loops``, ``bridges``, ``faces``,
+        ``holes``, ``degenerate``, ``pinched`` (faces split at a vertex).
+    """
+
+    polygons: np.ndarray
+    edge_faces: np.ndarray
+    outline: np.ndarray
+    bridge: np.ndarray
+    counts: dict = field(default_factory=dict)
+
+
+def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
+    """Bounded faces of a plane graph as polygons with holes.
+
+    Parameters
+    ----------
+    xy : array_like (n, 2)
+        Node coordinates (m).
+    u, v : array_like of int (m,)
+        Edge end node ids.  The graph must be plane (edges meet only at
+        nodes; see :func:`planarize`).  Self-loops are ignored, duplicate
+        edges (either direction) count once.
+    area_eps : float
+        Faces whose absolute signed area is at most this (m2) are degenerate
+        (collinear overlaps) and dropped.
+
+    Returns
+    -------
+    PlanarFaces
+
+    Notes
+    -----
+    1. Half-edges are traced with :func:`trace_faces`.
+    2. An edge with the same face on both sides is a bridge (a dead end, or
+       a path joining two components); all bridges are removed at once and
+       the faces traced again (a bridgeless graph has no new bridges).
+    3. A walk that passes a vertex twice is split there into simple rings:
+       the positive one is the shell, negative ones are holes touching it.
+    4. The clockwise outer walk of each component becomes a hole of the
+       smallest bounded face containing it, or an outline ring when none
+       does.
+    """
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    u0 = np.asarray(u, np.int64).ravel()
+    v0 = np.asarray(v, np.int64).ravel()
+    m0 = len(u0)
+    n = len(xy)
+    counts = {"edges": m0}
+    loop = u0 == v0
+    a = np.minimum(u0, v0)
+    b = np.maximum(u0, v0)
+    key = a[~loop] * n + b[~loop]
+    uniq, inv = np.unique(key, return_inverse=True)
+    emap = np.full(m0, -1, np.int64)
+    emap[~loop] = inv.ravel()
+    flip = u0 > v0
+    eu, ev = uniq // n, uniq % n
+    counts["self_loops"] = int(loop.sum())
+    counts["duplicates"] = int((~loop).sum() - len(uniq))
+    bridge_u = np.zeros(len(uniq), bool)
+    live = np.arange(len(uniq))
+    empty = PlanarFaces(np.empty(0, object), np.full((m0, 2), -1, np.int64), np.empty(0, object),
+                        np.zeros(m0, bool), {**counts, "bridges": 0, "faces": 0, "holes": 0,
+                                             "degenerate": 0, "pinched": 0})
+    if len(uniq) == 0:
+        return empty
+    nxt, face, area = trace_faces(xy, eu, ev)
+    br = face[0::2] == face[1::2]
+    if br.any():
+        bridge_u[br] = True
+        live = np.flatnonzero(~br)
+        if len(live) == 0:
+            empty.bridge = bridge_u[np.maximum(emap, 0)] & (emap >= 0)
+            empty.counts["bridges"] = int(br.sum())
+            return empty
+        nxt, face, area = trace_faces(xy, eu[live], ev[live])
+    counts["bridges"] = int(bridge_u.sum())
+    nf = len(area)
+    lu, lv = eu[live], ev[live]
+    org = np.empty(2 * len(live), np.int64)
+    org[0::2] = lu
+    org[1::2] = lv
+    ordered, offset = _cycle_order(nxt, face, nf)
+    fsize = np.bincount(face, minlength=nf)
+    degenerate = np.abs(area) <= area_eps
+    counts["degenerate"] = int(degenerate.sum())
+    # pinched walks: a vertex repeated within one face
+    pair = face * n + org
+    ps = np.sort(pair)
+    rep = ps[1:][ps[1:] == ps[:-1]] // n
+    pinched = np.zeros(nf, bool)
+    pinched[rep] = True
+    pinched &= ~degenerate
+    counts["pinched"] = int(pinched.sum())
+    # ring units: simple faces directly, pinched faces split in Python
+    simple = ~pinched & ~degenerate
+    ovid = org[ordered]
+    oface = np.repeat(np.arange(nf), fsize)
+    take = simple[oface]
+    unit_vid = [ovid[take]]
+    sf = np.flatnonzero(simple)
+    unit_face = [sf]
+    unit_of_entry = [np.repeat(np.arange(len(sf)), fsize[sf])]
+    nunit = len(sf)
+    extra_v, extra_u, extra_f = [], [], []
+    for f in np.flatnonzero(pinched):
+        walk = ovid[offset[f]:offset[f] + fsize[f]].tolist()
+        for cyc in _split_walk(walk):
+            extra_v.append(np.asarray(cyc, np.int64))
+            extra_u.append(np.full(len(cyc), nunit, np.int64))
+            extra_f.append(f)
+            nunit += 1
+    if extra_v:
+        unit_vid.append(np.concatenate(extra_v))
+        unit_of_entry.append(np.concatenate(extra_u))
+        unit_face.append(np.asarray(extra_f, np.int64))
+    unit_vid = np.concatenate(unit_vid)
+    unit_idx = np.concatenate(unit_of_entry)
+    unit_face = np.concatenate(unit_face)
+    uarea = signed_area(xy[unit_vid], unit_idx, nunit)
+    bounded_face = area > area_eps
+    is_shell = bounded_face[unit_face] & (uarea > area_eps)
+    is_fhole = bounded_face[unit_face] & (uarea < -area_eps)
+    is_outer = (area[unit_face] < -area_eps) & (uarea < -area_eps)
+    # one polygon per shell unit; pinched holes go to their face's largest shell
+    shells = np.flatnonzero(is_shell)
+    poly_of_unit = np.full(nunit, -1, np.int64)
+    poly_of_unit[shells] = np.arange(len(shells))
+    face_poly = np.full(nf, -1, np.int64)
+    sh_face = unit_face[shells]
+    srt = np.argsort(uarea[shells], kind="stable")
+    face_poly[sh_face[srt]] = np.arange(len(shells))[srt]
+    rings_all = shapely.linearrings(xy[unit_vid], indices=unit_idx)
+    shell_polys = shapely.polygons(rings_all[shells])
+    hole_units = np.flatnonzero(is_fhole)
+    hole_poly = face_poly[unit_face[hole_units]]
+    # outer walks: hole of the smallest shell strictly containing a vertex
+    outer_units = np.flatnonzero(is_outer)
+    first_entry = np.r_[0, np.flatnonzero(unit_idx[1:] != unit_idx[:-1]) + 1]
+    pts = shapely.points(xy[unit_vid[first_entry[outer_units]]])
+    host = np.full(len(outer_units), -1, np.int64)
+    if len(shells) and len(outer_units):
+        pi, si = shapely.STRtree(shell_polys).query(pts, predicate="within")
+        if len(pi):
+            o = np.lexsort((np.abs(uarea[shells[si]]), pi))
+            pi, si = pi[o], si[o]
+            firsts = np.r_[True, pi[1:] != pi[:-1]]
+            host[pi[firsts]] = si[firsts]
+    face_host = np.full(nf, -1, np.int64)
+    face_host[unit_face[outer_units]] = host
+    counts["holes"] = int((host >= 0).sum() + len(hole_units))
+    ring_units = np.r_[shells, hole_units, outer_units[host >= 0]]
+    ring_poly = np.r_[np.arange(len(shells)), hole_poly, host[host >= 0]]
+    ring_hole = np.r_[np.zeros(len(shells), bool), np.ones(len(hole_units) + int((host >= 0).sum()), bool)]
+    ok = ring_poly >= 0
+    ring_units, ring_poly, ring_hole = ring_units[ok], ring_poly[ok], ring_hole[ok]
+    o = np.lexsort((ring_hole, ring_poly))
+    polygons = shapely.polygons(rings_all[ring_units[o]], indices=ring_poly[o]) if len(shells) else np.empty(0, object)
+    outline = shapely.polygons(shapely.reverse(rings_all[outer_units[host < 0]]))
+    # per-edge faces
+    hface = np.where(bounded_face[face], face_poly[face], face_host[face])
+    hface = np.where(degenerate[face], -1, hface)
+    ef_live = np.full((len(uniq), 2), -1, np.int64)
+    ef_live[live, 0] = hface[0::2]
+    ef_live[live, 1] = hface[1::2]
+    edge_faces = np.full((m0, 2), -1, np.int64)
+    ok = emap >= 0
+    ef = ef_live[emap[ok]]
+    ef[flip[ok]] = ef[flip[ok]][:, ::-1]
+    edge_faces[ok] = ef
+    bridge = np.zeros(m0, bool)
+    bridge[ok] = bridge_u[emap[ok]]
+    counts["faces"] = int(len(polygons))
+    return PlanarFaces(np.asarray(polygons, dtype=object), edge_faces, np.asarray(outline, dtype=object),
+                       bridge, counts)

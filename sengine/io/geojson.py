@@ -1,0 +1,120 @@
+"""GeoJSON layers (RFC 7946): WGS84 longitude / latitude, every attribute kept.
+
+Each layer is written to ``<name>.geojson`` as one FeatureCollection.  Planar
+coordinates go to WGS84 through :mod:`sengine.geo` from the layer's
+``meta["crs"]`` (or the city's geographic origin), are rounded to 7 decimals
+(about 1 cm), and polygon exteriors are counter-clockwise with clockwise holes
+(RFC 7946 §3.1.6).  Properties are the feature's ``id``, ``parent_id`` and
+every attribute column; NaN becomes ``null``.  Keys are sorted, so the same
+layer always gives the same bytes.
+
+Geometries are serialised by GEOS in one vectorized call and attribute values
+column by column, so a layer of thousands of features takes milliseconds.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import shapely
+
+from ..layer import Layer
+
+__all__ = ["to_wgs84", "feature_collection_text", "write_geojson"]
+
+log = logging.getLogger(__name__)
+
+def to_wgs84(geoms: np.ndarray, to_lonlat: Callable[[np.ndarray], np.ndarray], *, precision: int = 7) -> np.ndarray:
+    """Geometries in longitude / latitude, rounded, polygons oriented per RFC 7946.
+
+    Parameters
+    ----------
+    geoms : array of shapely geometries
+        Planar geometries (m).
+    to_lonlat : callable
+        Maps an ``(n, 2)`` planar array to ``(n, 2)`` lon / lat (deg).
+    precision : int
+        Decimals kept (7 decimals of a degree is about 1 cm).
+    """
+    geoms = np.asarray(geoms, dtype=object)
+    if len(geoms) == 0:
+        return geoms
+
+    def f(xy: np.ndarray) -> np.ndarray:
+        return np.round(to_lonlat(xy), precision)
+
+    out = shapely.transform(geoms, f)
+    return shapely.orient_polygons(out, exterior_cw=False)
+
+
+def _column_texts(col: np.ndarray) -> list[str]:
+    """JSON text of every value of a column (NaN and infinities as ``null``)."""
+    col = np.asarray(col)
+    kind = col.dtype.kind
+    if kind in "iu":
+        return list(map(str, col.tolist()))
+    if kind == "b":
+        return np.where(col, "true", "false").tolist()
+    if kind == "f":
+        texts = list(map(repr, col.astype(np.float64).tolist()))
+        for i in np.flatnonzero(~np.isfinite(col)).tolist():
+            texts[i] = "null"
+        return texts
+    values = col.tolist()
+    try:
+        uniq = {v: _dumps(v) for v in set(values)}
+        return [uniq[v] for v in values]
+    except TypeError:  # unhashable values (lists ...)
+        return [_dumps(v) for v in values]
+
+
+def _dumps(v: Any) -> str:
+    if isinstance(v, float) and not np.isfinite(v):
+        return "null"
+    return json.dumps(v, sort_keys=True, separators=(",", ":"), default=_default, ensure_ascii=False)
+
+
+def _default(v: Any) -> Any:
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    return str(v)
+
+
+def feature_collection_text(layer: Layer, to_lonlat: Callable[[np.ndarray], np.ndarray], *,
+                            name: str | None = None, precision: int = 7) -> str:
+    """The RFC 7946 FeatureCollection of ``layer`` as JSON text (sorted keys).
+
+    Values are rendered column by column (ints with ``str``, floats with
+    ``repr`` as :mod:`json` does, strings through :func:`json.dumps` once per
+    distinct value) and features are assembled with one ``%`` template, which
+    keeps a layer of thousands of features in the milliseconds.
+    """
+    geoms = to_wgs84(layer.geometry, to_lonlat, precision=precision)
+    n = len(geoms)
+    geo_texts = [("null" if t is None else t) for t in shapely.to_geojson(geoms).tolist()] if n else []
+    cols = {"id": layer.ids, "parent_id": layer.parent, **dict(layer.attrs)}
+    keys = sorted(cols)
+    texts = [_column_texts(cols[k]) for k in keys]
+    props = "{" + ",".join(_dumps(k).replace("%", "%%") + ":%s" for k in keys) + "}"
+    prop_texts = [props % row for row in zip(*texts)] if n else []
+    feature = '{"geometry":%s,"id":%s,"properties":%s,"type":"Feature"}'
+    feats = ",".join([feature % row for row in zip(geo_texts, _column_texts(layer.ids), prop_texts)])
+    head = '{"features":[' + feats + "]"
+    if name:
+        head += ',"name":' + _dumps(name)
+    return head + ',"type":"FeatureCollection"}'
+
+
+def write_geojson(path: str | Path, layer: Layer, to_lonlat: Callable[[np.ndarray], np.ndarray], *,
+                  name: str | None = None, precision: int = 7) -> int:
+    """Write ``layer`` as RFC 7946 GeoJSON; return the number of features."""
+    text = feature_collection_text(layer, to_lonlat, name=name, precision=precision)
+    Path(path).write_text(text + "\n", encoding="utf-8")
+    log.info("wrote %s: %d features", path, len(layer))
+    return len(layer)

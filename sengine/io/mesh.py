@@ -1,0 +1,293 @@
+"""Batched meshes from planar features: extruded solids, flat surfaces, ribbons.
+
+Buildings travel through the network as footprints plus a height (architecture
+note "buildings stay light until export"); a mesh exporter turns a whole layer
+into one vertex array and one face array here, in a handful of numpy passes:
+
+* every polygon (multi-parts exploded, exterior counter-clockwise, holes
+  clockwise) is flattened into one coordinate array with ring and polygon
+  offsets (:func:`ring_arrays`);
+* caps are triangulated per polygon: convex polygons without holes (most lots
+  and footprints) by a vectorized fan, the others by mapbox-earcut in a tight
+  loop (:func:`triangulate`);
+* walls are two triangles per ring edge, built from the ring arrays at once
+  (:func:`extrude`).
+
+All functions work in the planar frame, z up (metres).  :func:`to_y_up` turns
+the result into glTF's frame (x east, y up, z south).  Faces wind
+counter-clockwise seen from outside, so normals point out of solids and up
+from surfaces.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mapbox_earcut
+import numpy as np
+import shapely
+
+__all__ = ["Rings", "ring_arrays", "triangulate", "extrude", "flat", "ribbons", "to_y_up", "merge"]
+
+
+@dataclass(frozen=True)
+class Rings:
+    """Polygons flattened into arrays.
+
+    Attributes
+    ----------
+    xy : numpy.ndarray, shape (m, 2)
+        Ring vertices without the closing repeat, ring after ring.
+    ring_start : numpy.ndarray, shape (r + 1,)
+        Offsets of each ring in ``xy``.
+    poly_ring : numpy.ndarray, shape (p + 1,)
+        Offsets of each polygon's rings (exterior first) in the ring list.
+    feature : numpy.ndarray, shape (p,)
+        Index of the input feature each polygon part came from.
+    """
+
+    xy: np.ndarray
+    ring_start: np.ndarray
+    poly_ring: np.ndarray
+    feature: np.ndarray
+
+    @property
+    def n_polys(self) -> int:
+        return len(self.feature)
+
+    def vertex_ring(self) -> np.ndarray:
+        """Ring index of every vertex."""
+        return np.repeat(np.arange(len(self.ring_start) - 1), np.diff(self.ring_start))
+
+    def vertex_poly(self) -> np.ndarray:
+        """Polygon index of every vertex."""
+        ring_poly = np.repeat(np.arange(self.n_polys), np.diff(self.poly_ring))
+        return ring_poly[self.vertex_ring()]
+
+    def next_vertex(self) -> np.ndarray:
+        """Index of the following vertex along its ring (wrapping)."""
+        n = len(self.xy)
+        nxt = np.arange(1, n + 1)
+        ends = self.ring_start[1:] - 1
+        nxt[ends] = self.ring_start[:-1]
+        return nxt
+
+
+def ring_arrays(geoms: np.ndarray) -> Rings:
+    """Explode polygonal features into :class:`Rings`.
+
+    Parameters
+    ----------
+    geoms : array of shapely geometries
+        Polygons or MultiPolygons (other types and empty geometries are
+        skipped), in metres.
+
+    Returns
+    -------
+    Rings
+        Exterior rings counter-clockwise, interior rings clockwise.
+    """
+    geoms = np.asarray(geoms, dtype=object)
+    types = shapely.get_type_id(geoms)
+    if (types == 3).all():  # the common case: plain polygons, no copy
+        parts, feature = geoms, np.arange(len(geoms))
+    else:
+        parts, feature = shapely.get_parts(geoms, return_index=True)
+        types = shapely.get_type_id(parts)
+    keep = (types == 3) & ~shapely.is_empty(parts)
+    keep &= shapely.area(parts) > 0.0
+    parts, feature = parts[keep], feature[keep]
+    coords, vpoly = shapely.get_coordinates(parts, return_index=True)
+    dup = (vpoly[1:] == vpoly[:-1]) & (coords[1:] == coords[:-1]).all(axis=1)
+    if dup.any():  # only the polygons with repeated vertices are rebuilt
+        hit = np.unique(vpoly[1:][dup])
+        parts = parts.copy()
+        parts[hit] = shapely.remove_repeated_points(parts[hit])
+    parts = shapely.orient_polygons(parts, exterior_cw=False)
+    rings, ring_poly = shapely.get_rings(parts, return_index=True)
+    coords, ring_idx = shapely.get_coordinates(rings, return_index=True)
+    counts = np.bincount(ring_idx, minlength=len(rings))
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    drop = starts[1:] - 1  # the closing vertex of every ring
+    mask = np.ones(len(coords), bool)
+    mask[drop] = False
+    xy = coords[mask]
+    ring_start = np.concatenate([[0], np.cumsum(counts - 1)]).astype(np.int64)
+    poly_ring = np.concatenate([[0], np.cumsum(np.bincount(ring_poly, minlength=len(parts)))]).astype(np.int64)
+    return Rings(xy, ring_start, poly_ring, feature.astype(np.int64))
+
+
+def triangulate(rings: Rings) -> np.ndarray:
+    """Triangles covering every polygon of ``rings``, counter-clockwise.
+
+    Convex polygons without holes are fanned in one vectorized step; the
+    others go through mapbox-earcut one polygon at a time.
+
+    Returns
+    -------
+    numpy.ndarray of int64, shape (t, 3)
+        Indices into ``rings.xy``; degenerate triangles are dropped.
+    """
+    xy = rings.xy
+    if len(xy) == 0:
+        return np.empty((0, 3), np.int64)
+    n_rings = np.diff(rings.poly_ring)
+    ring_len = np.diff(rings.ring_start)
+    # convexity per ring: no turn to the right (exteriors are counter-clockwise)
+    nxt = rings.next_vertex()
+    prev = np.empty_like(nxt)
+    prev[nxt] = np.arange(len(nxt))
+    e0 = xy - xy[prev]
+    e1 = xy[nxt] - xy
+    cross = e0[:, 0] * e1[:, 1] - e0[:, 1] * e1[:, 0]
+    scale = np.hypot(*e0.T) * np.hypot(*e1.T)
+    right_turn = cross < -1e-9 * scale
+    ring_bad = np.bincount(rings.vertex_ring(), weights=right_turn, minlength=len(ring_len)) > 0
+    first_ring = rings.poly_ring[:-1]
+    fan = (n_rings == 1) & ~ring_bad[first_ring]
+
+    parts = []
+    # vectorized fans: (s, s+k, s+k+1), k = 1 .. n-2
+    if fan.any():
+        s = rings.ring_start[first_ring[fan]]
+        n = ring_len[first_ring[fan]]
+        nt = np.maximum(n - 2, 0)
+        start = np.repeat(s, nt)
+        k = np.arange(nt.sum()) - np.repeat(np.cumsum(nt) - nt, nt) + 1
+        parts.append(np.column_stack([start, start + k, start + k + 1]))
+    # earcut for the rest
+    for p in np.flatnonzero(~fan):
+        r0, r1 = rings.poly_ring[p], rings.poly_ring[p + 1]
+        v0, v1 = rings.ring_start[r0], rings.ring_start[r1]
+        ends = (rings.ring_start[r0 + 1 : r1 + 1] - v0).astype(np.uint32)
+        tri = mapbox_earcut.triangulate_float64(xy[v0:v1], ends)
+        if len(tri):
+            parts.append(tri.astype(np.int64).reshape(-1, 3) + v0)
+    if not parts:
+        return np.empty((0, 3), np.int64)
+    tri = np.concatenate(parts)
+    a, b, c = xy[tri[:, 0]], xy[tri[:, 1]], xy[tri[:, 2]]
+    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    flip = area2 < 0
+    tri[flip] = tri[flip][:, [0, 2, 1]]
+    return tri[np.abs(area2) > 1e-12]
+
+
+def extrude(
+    geoms: np.ndarray, heights: np.ndarray, *, base: float | np.ndarray = 0.0, bottom: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Prisms over many footprints, as one mesh.
+
+    Parameters
+    ----------
+    geoms : array of Polygon / MultiPolygon
+        Footprints (m).
+    heights : array of float
+        Height of each feature above its base (m).
+    base : float or array of float
+        Ground elevation of each feature (m).
+    bottom : bool
+        Close the solid with a downward-facing floor.
+
+    Returns
+    -------
+    vertices : numpy.ndarray, shape (v, 3)
+        Planar x, y and z up (m); bottom ring vertices then top ones.
+    faces : numpy.ndarray of int64, shape (f, 3)
+        Counter-clockwise seen from outside.
+    vertex_feature : numpy.ndarray of int64, shape (v,)
+        Input feature index of each vertex.
+    """
+    rings = ring_arrays(geoms)
+    heights = np.broadcast_to(np.asarray(heights, np.float64), (len(geoms),))
+    bases = np.broadcast_to(np.asarray(base, np.float64), (len(geoms),))
+    m = len(rings.xy)
+    vfeat = rings.feature[rings.vertex_poly()] if m else np.empty(0, np.int64)
+    z0 = bases[vfeat]
+    z1 = z0 + heights[vfeat]
+    vertices = np.concatenate(
+        [np.column_stack([rings.xy, z0]), np.column_stack([rings.xy, z1])]
+    ) if m else np.empty((0, 3))
+    caps = triangulate(rings)
+    i = np.arange(m)
+    j = rings.next_vertex() if m else i
+    walls = np.concatenate([np.column_stack([i, j, j + m]), np.column_stack([i, j + m, i + m])])
+    faces = [caps + m, walls]
+    if bottom:
+        faces.insert(1, caps[:, [0, 2, 1]])
+    return vertices, np.concatenate(faces).astype(np.int64), np.concatenate([vfeat, vfeat])
+
+
+def flat(geoms: np.ndarray, z: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Polygons as upward-facing triangulated surfaces at height ``z`` (m).
+
+    Returns ``vertices (v, 3)``, ``faces (f, 3)`` and ``vertex_feature (v,)``.
+    """
+    rings = ring_arrays(geoms)
+    vertices = np.column_stack([rings.xy, np.full(len(rings.xy), float(z))])
+    vfeat = rings.feature[rings.vertex_poly()] if len(rings.xy) else np.empty(0, np.int64)
+    return vertices, triangulate(rings), vfeat
+
+
+def ribbons(
+    geoms: np.ndarray, width: float | np.ndarray = 1.0, z: float = 0.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lines as flat, upward-facing quads of ``width`` (m), one per segment.
+
+    Parameters
+    ----------
+    geoms : array of LineString / MultiLineString (or polygons: their rings)
+    width : float or array of float
+        Ribbon width of each feature (m).
+    z : float
+        Height of the ribbons (m).
+
+    Returns ``vertices (v, 3)``, ``faces (f, 3)`` and ``vertex_feature (v,)``.
+    """
+    geoms = np.asarray(geoms, dtype=object)
+    width = np.broadcast_to(np.asarray(width, np.float64), (len(geoms),))
+    lines, feat = _lines(geoms, with_feature=True)
+    coords, idx = shapely.get_coordinates(lines, return_index=True)
+    same = idx[1:] == idx[:-1]
+    a, b = coords[:-1][same], coords[1:][same]
+    f = feat[idx[:-1][same]]
+    d = b - a
+    length = np.hypot(d[:, 0], d[:, 1])
+    ok = length > 1e-9
+    a, b, d, length, f = a[ok], b[ok], d[ok], length[ok], f[ok]
+    nrm = np.column_stack([-d[:, 1], d[:, 0]]) / length[:, None] * (width[f] / 2.0)[:, None]
+    quad = np.stack([a - nrm, b - nrm, b + nrm, a + nrm], axis=1).reshape(-1, 2)
+    vertices = np.column_stack([quad, np.full(len(quad), float(z))])
+    base = np.arange(len(a))[:, None] * 4
+    faces = np.concatenate([base + [0, 1, 2], base + [0, 2, 3]]).astype(np.int64)
+    return vertices, faces, np.repeat(f, 4)
+
+
+def _lines(geoms: np.ndarray, with_feature: bool = False):
+    parts, feat = shapely.get_parts(geoms, return_index=True)
+    polys = shapely.get_type_id(parts) == 3
+    if polys.any():
+        rings, ri = shapely.get_rings(parts[polys], return_index=True)
+        parts = np.concatenate([parts[~polys], rings])
+        feat = np.concatenate([feat[~polys], feat[polys][ri]])
+    keep = np.isin(shapely.get_type_id(parts), (1, 2)) & ~shapely.is_empty(parts)
+    parts, feat = parts[keep], feat[keep]
+    return (parts, feat) if with_feature else parts
+
+
+def to_y_up(vertices: np.ndarray) -> np.ndarray:
+    """Planar (x east, y north, z up) to glTF (x east, y up, z south): a rotation."""
+    v = np.asarray(vertices, np.float64)
+    return np.column_stack([v[:, 0], v[:, 2], -v[:, 1]])
+
+
+def merge(*meshes: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Concatenate ``(vertices, faces)`` pairs into one."""
+    vs, fs, off = [], [], 0
+    for v, f, *_ in meshes:
+        vs.append(v)
+        fs.append(f + off)
+        off += len(v)
+    if not vs:
+        return np.empty((0, 3)), np.empty((0, 3), np.int64)
+    return np.concatenate(vs), np.concatenate(fs)

@@ -1,0 +1,471 @@
+"""Network: build, validate and run a DAG of registered nodes (skylineEngine §5.1).
+
+A :class:`Network` holds node specifications (id, registered type, parameter
+values) and connections between their ports.  :meth:`Network.validate`
+instantiates every node and checks the whole graph, collecting every problem
+before reporting; :meth:`Network.run` runs the nodes in topological order and
+keeps per-node counts and seconds.
+
+:class:`StdNetwork` is the paper's convenience class: a network built around
+the standard names ``majorRoads``, ``minorRoads``, ``blocks``, ``lots`` and
+``buildings`` with a list of associations that replace the node behind a
+name.  :class:`PatternNetwork` and :class:`LoadMapNetwork` derive from it.
+The engine gives the names no meaning; the wirings live in ``networks/``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, ClassVar, Iterable, Iterator, Mapping
+
+import networkx as nx
+
+from . import __version__, registry
+from .errors import NetworkError, SEngineError
+from .layer import Layer
+from .node import Context, SENode
+from .plan import CityPlan
+
+__all__ = ["NodeSpec", "Connection", "Network", "Result", "StdNetwork", "PatternNetwork", "LoadMapNetwork"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class NodeSpec:
+    """A node as the configuration names it: id, registered type, parameter values."""
+
+    id: str
+    type: str
+    params: dict[str, Any] = field(default_factory=dict)
+    where: str = ""
+    param_where: dict[str, str] = field(default_factory=dict)
+
+    def label(self) -> str:
+        return f"{self.where}: node '{self.id}' ({self.type})" if self.where else f"node '{self.id}' ({self.type})"
+
+
+@dataclass(frozen=True)
+class Connection:
+    """An edge from ``src`` (optionally ``.src_port``) to ``dst`` (``.dst_port``)."""
+
+    src: str
+    src_port: str | None
+    dst: str
+    dst_port: str | None
+    where: str = ""
+
+    @classmethod
+    def parse(cls, src: str, dst: str, where: str = "") -> "Connection":
+        s, _, sp = src.partition(".")
+        d, _, dp = dst.partition(".")
+        return cls(s, sp or None, d, dp or None, where)
+
+
+@dataclass
+class Result:
+    """What a run returns: the output layers of every node, and the stats.
+
+    Unpacks as ``layers, stats = network.run(...)``; ``result["blocks"]`` is
+    the first output layer of node ``blocks``.
+    """
+
+    layers: dict[str, dict[str, Layer]]
+    stats: dict[str, Any]
+
+    def __iter__(self) -> Iterator[Any]:
+        return iter((self.layers, self.stats))
+
+    def __getitem__(self, node_id: str) -> Layer:
+        outs = self.layers[node_id]
+        return next(iter(outs.values()))
+
+
+@dataclass
+class _Bound:
+    """A validated network: node instances, resolved edges, run order."""
+
+    nodes: dict[str, SENode]
+    edges: list[tuple[str, str, str, str]]  # src, src_port, dst, dst_port
+    order: list[str]
+
+
+ProgressFn = Callable[[int, int, str, str, int, float], None]
+
+
+class Network:
+    """A DAG of registered nodes.
+
+    Parameters
+    ----------
+    plan : CityPlan, optional
+        The city plan the nodes read.
+    seed : int
+        Default seed for :meth:`run`.
+    base_dir : path-like, optional
+        Folder that relative paths are resolved against.
+    source : str
+        What the network was loaded from (for stats and messages).
+    """
+
+    def __init__(self, *, plan: CityPlan | None = None, seed: int = 0, base_dir: Any = None, source: str = ""):
+        self.specs: dict[str, NodeSpec] = {}
+        self.connections: list[Connection] = []
+        self.plan = plan if plan is not None else CityPlan()
+        self.seed = int(seed)
+        self.base_dir = Path(base_dir) if base_dir is not None else None
+        self.source = source
+
+    # -- building -------------------------------------------------------------
+    def add(self, node_id: str, type: str, params: Mapping[str, Any] | None = None, *, where: str = "") -> NodeSpec:
+        """Add a node; a duplicate id is an error."""
+        if node_id in self.specs:
+            old = self.specs[node_id]
+            raise NetworkError(f"node id {node_id!r} is defined twice (first at {old.where or 'an earlier line'})",
+                               where=where or None)
+        spec = NodeSpec(node_id, type, dict(params or {}), where, {k: where for k in (params or {})})
+        self.specs[node_id] = spec
+        return spec
+
+    def replace(self, node_id: str, type: str, *, where: str = "") -> None:
+        """Put a node of another type behind an existing id (an association)."""
+        spec = self._spec(node_id, where)
+        spec.type = type
+        spec.where = where or spec.where
+
+    def set_param(self, node_id: str, name: str, value: Any, *, where: str = "") -> None:
+        """Set one parameter of one node (checked at validation)."""
+        spec = self._spec(node_id, where)
+        spec.params[name] = value
+        spec.param_where[name] = where
+
+    def connect(self, src: str, dst: str, *, where: str = "") -> None:
+        """Connect ``"node"`` or ``"node.port"`` to ``"node"`` or ``"node.port"``."""
+        self.connections.append(Connection.parse(src, dst, where))
+
+    def _spec(self, node_id: str, where: str = "") -> NodeSpec:
+        try:
+            return self.specs[node_id]
+        except KeyError:
+            known = ", ".join(self.specs) or "none"
+            raise NetworkError(f"no node with id {node_id!r} in the network (nodes: {known})", where=where or None) from None
+
+    def merge(self, other: "Network") -> None:
+        """Add every node and connection of ``other`` (ids must not clash)."""
+        for spec in other.specs.values():
+            self.add(spec.id, spec.type, spec.params, where=spec.where)
+            self.specs[spec.id].param_where.update(spec.param_where)
+        self.connections.extend(other.connections)
+
+    # -- validation -------------------------------------------------------------
+    def validate(self, context: Context | None = None) -> _Bound:
+        """Check the whole network; raise the first problem, counting the others.
+
+        Checks: unknown node type, unknown or missing port, port kind
+        mismatch, missing required input, input connected twice, unknown
+        parameter, value out of bounds, and cycles (naming their node ids).
+        """
+        context = context or self._context(self.seed)
+        problems: list[SEngineError] = []
+        nodes: dict[str, SENode] = {}
+        for spec in self.specs.values():
+            try:
+                cls = registry.get(spec.type, where=spec.label())
+                values = dict(spec.params)
+                nodes[spec.id] = cls(spec.id, values, context, where=spec.label())
+            except SEngineError as err:
+                where = self._param_where(spec, err)
+                problems.append(type(err)(err.message, where=where or err.where))
+        edges: list[tuple[str, str, str, str]] = []
+        taken: dict[tuple[str, str], Connection] = {}
+        for conn in self.connections:
+            try:
+                edge = self._resolve(conn, nodes, taken)
+            except SEngineError as err:
+                problems.append(err)
+                continue
+            if edge is not None:
+                taken[(edge[2], edge[3])] = conn
+                edges.append(edge)
+        for node_id, node in nodes.items():
+            for port_name, port in node.inputs.items():
+                if port.required and (node_id, port_name) not in taken:
+                    problems.append(NetworkError(
+                        f"required input {port_name!r} (kind {port.kind!r}) is not connected",
+                        where=self.specs[node_id].label()))
+        graph = nx.DiGraph()
+        graph.add_nodes_from(self.specs)
+        graph.add_edges_from((e[0], e[2]) for e in edges)
+        order: list[str] = []
+        try:
+            cycle = nx.find_cycle(graph)
+        except nx.NetworkXNoCycle:
+            index = {k: i for i, k in enumerate(self.specs)}
+            order = list(nx.lexicographical_topological_sort(graph, key=index.__getitem__))
+        else:
+            ids = [u for u, _ in cycle] + [cycle[0][0]]
+            problems.append(NetworkError(f"the network has a cycle: {' -> '.join(ids)}", where=self.source or None))
+        if problems:
+            first = problems[0]
+            more = f" (and {len(problems) - 1} more problem{'s' if len(problems) > 2 else ''})" if len(problems) > 1 else ""
+            raise type(first)(first.message + more, where=first.where)
+        return _Bound(nodes, edges, order)
+
+    @staticmethod
+    def _param_where(spec: NodeSpec, err: SEngineError) -> str | None:
+        for name, where in spec.param_where.items():
+            if where and (f"{name}=" in err.message or f"{name!r}" in err.message):
+                return f"{where}: node '{spec.id}' ({spec.type})"
+        return None
+
+    def _resolve(self, conn: Connection, nodes: Mapping[str, SENode],
+                 taken: Mapping[tuple[str, str], Connection]) -> tuple[str, str, str, str] | None:
+        where = conn.where or None
+        for end in (conn.src, conn.dst):
+            if end not in self.specs:
+                known = ", ".join(self.specs) or "none"
+                raise NetworkError(f"connection names unknown node {end!r} (nodes: {known})", where=where)
+        src, dst = nodes.get(conn.src), nodes.get(conn.dst)
+        if src is None or dst is None:
+            return None  # the node itself is already reported
+        if conn.src_port is not None and conn.src_port not in src.outputs:
+            raise NetworkError(f"node '{conn.src}' ({src.name}) has no output {conn.src_port!r}"
+                               f" (outputs: {', '.join(src.outputs) or 'none'})", where=where)
+        if conn.dst_port is not None and conn.dst_port not in dst.inputs:
+            raise NetworkError(f"node '{conn.dst}' ({dst.name}) has no input {conn.dst_port!r}"
+                               f" (inputs: {', '.join(dst.inputs) or 'none'})", where=where)
+        if not src.outputs:
+            raise NetworkError(f"node '{conn.src}' ({src.name}) has no outputs to connect", where=where)
+        if not dst.inputs:
+            raise NetworkError(f"node '{conn.dst}' ({dst.name}) has no inputs to connect", where=where)
+        src_ports = [conn.src_port] if conn.src_port else list(src.outputs)
+        dst_ports = [conn.dst_port] if conn.dst_port else [p for p in dst.inputs if (conn.dst, p) not in taken]
+        for sp in src_ports:
+            for dp in dst_ports:
+                if dst.inputs[dp].accepts(src.outputs[sp].kind):
+                    if (conn.dst, dp) in taken:
+                        first = taken[(conn.dst, dp)]
+                        raise NetworkError(f"input '{conn.dst}.{dp}' is connected twice "
+                                           f"(also from '{first.src}' at {first.where or 'another line'})", where=where)
+                    return (conn.src, sp, conn.dst, dp)
+                if not conn.src_port:
+                    continue
+        out_kinds = ", ".join(f"{p}:{src.outputs[p].kind}" for p in src_ports)
+        in_kinds = ", ".join(f"{p}:{dst.inputs[p].kind}" for p in dst_ports) or "none free"
+        raise NetworkError(f"port kind mismatch: '{conn.src}' gives {out_kinds} but '{conn.dst}' takes {in_kinds}",
+                           where=where)
+
+    # -- running --------------------------------------------------------------
+    def _context(self, seed: int, out: Path | None = None, formats: Iterable[str] = ()) -> Context:
+        return Context(seed=int(seed), plan=self.plan, base_dir=self.base_dir, out=out, formats=frozenset(formats))
+
+    def run(self, seed: int | None = None, out: Any = None, *, formats: Iterable[str] = (),
+            progress: ProgressFn | None = None) -> Result:
+        """Validate, then run every node in topological order.
+
+        Parameters
+        ----------
+        seed : int, optional
+            Network seed; defaults to the configuration's.
+        out : path-like, optional
+            Output folder.  Files are written into a temporary folder beside
+            it and moved in only when the whole run succeeded, with
+            ``stats.json`` last.
+        formats : iterable of str
+            Output formats for exporter nodes (empty: their defaults).
+        progress : callable, optional
+            Called after each node as ``progress(i, n, node_id, type, count, seconds)``.
+        """
+        seed = self.seed if seed is None else int(seed)
+        out_dir = Path(out) if out is not None else None
+        tmp = None
+        if out_dir is not None:
+            out_dir.parent.mkdir(parents=True, exist_ok=True)
+            tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
+        try:
+            result = self._run(seed, tmp, formats, progress)
+            if tmp is not None:
+                _write_json(tmp / "stats.json", result.stats)
+                _move_into(tmp, out_dir)
+            return result
+        finally:
+            if tmp is not None and tmp.exists():
+                shutil.rmtree(tmp, ignore_errors=True)
+
+    def _run(self, seed: int, tmp: Path | None, formats: Iterable[str], progress: ProgressFn | None) -> Result:
+        t_start = time.perf_counter()
+        context = self._context(seed, tmp, formats)
+        bound = self.validate(context)
+        incoming: dict[str, list[tuple[str, str, str]]] = {k: [] for k in bound.nodes}
+        for s, sp, d, dp in bound.edges:
+            incoming[d].append((s, sp, dp))
+        layers: dict[str, dict[str, Layer]] = {}
+        counts: dict[str, int] = {}
+        seconds: dict[str, float] = {}
+        areas: dict[str, float] = {}
+        report: dict[str, Any] = {}
+        n = len(bound.order)
+        for i, node_id in enumerate(bound.order, 1):
+            node = bound.nodes[node_id]
+            kwargs = {p: None for p in node.inputs}
+            for s, sp, dp in incoming[node_id]:
+                kwargs[dp] = layers[s][sp]
+            t0 = time.perf_counter()
+            outputs = node.run(**kwargs) or {}
+            dt = time.perf_counter() - t0
+            missing = [p for p in node.outputs if p not in outputs]
+            extra = [p for p in outputs if p not in node.outputs]
+            if missing or extra or not all(isinstance(v, Layer) for v in outputs.values()):
+                raise TypeError(f"node '{node_id}' ({node.name}) returned ports {sorted(outputs)}, "
+                                f"declared {sorted(node.outputs)}")
+            layers[node_id] = {p: outputs[p] for p in node.outputs}
+            first = next(iter(layers[node_id].values()), None)
+            count = len(first) if first is not None else 0
+            counts[node_id] = count
+            seconds[node_id] = round(dt, 4)
+            if first is not None and count:
+                area = first.area()
+                if area > 0:
+                    areas[node_id] = round(area, 1)
+            if getattr(node, "report", None):
+                report[node_id] = node.report
+            log.info("%s (%s): %d features in %.3f s", node_id, node.name, count, dt)
+            if progress is not None:
+                progress(i, n, node_id, node.name, count, dt)
+        seconds["total"] = round(time.perf_counter() - t_start, 4)
+        stats = {
+            "sengine": __version__,
+            "config": self.source,
+            "seed": seed,
+            "counts": counts,
+            "areas": areas,
+            "seconds": seconds,
+            "report": report,
+        }
+        return Result(layers, stats)
+
+    # -- inspection -------------------------------------------------------------
+    def graph(self) -> nx.MultiDiGraph:
+        """The network as a networkx graph (nodes carry ``type``; edges carry ports)."""
+        g = nx.MultiDiGraph()
+        for spec in self.specs.values():
+            g.add_node(spec.id, type=spec.type)
+        try:
+            bound = self.validate()
+            for s, sp, d, dp in bound.edges:
+                g.add_edge(s, d, src_port=sp, dst_port=dp)
+        except SEngineError:
+            for c in self.connections:
+                g.add_edge(c.src, c.dst, src_port=c.src_port or "", dst_port=c.dst_port or "")
+        return g
+
+
+def _write_json(path: Path, data: Any) -> None:
+    path.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n")
+
+
+def _move_into(tmp: Path, out_dir: Path) -> None:
+    """Move every file of ``tmp`` into ``out_dir``, ``stats.json`` last."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    names = sorted(p.name for p in tmp.iterdir())
+    names.sort(key=lambda n: n == "stats.json")
+    for name in names:
+        target = out_dir / name
+        if target.is_dir() and not target.is_symlink():
+            shutil.rmtree(target)
+        os.replace(tmp / name, target)
+
+
+class StdNetwork(Network):
+    """The standard city network of skylineEngine §5.1.
+
+    Built around the standard names; ``associations`` (a mapping or pairs
+    of standard name -> registered node type) replace the node behind a name.
+    Subclasses name a wiring file in ``networks/`` as ``template``; the base
+    class chains the associated names in standard order.
+
+    Raises
+    ------
+    NetworkError
+        When an association names a standard name the network lacks, or a
+        required name (``majorRoads``, ``minorRoads``) is missing.
+    """
+
+    STANDARD: ClassVar[tuple[str, ...]] = ("majorRoads", "minorRoads", "blocks", "lots", "buildings")
+    REQUIRED: ClassVar[tuple[str, ...]] = ("majorRoads", "minorRoads")
+    template: ClassVar[str | None] = None
+
+    def __init__(self, associations: Mapping[str, str] | Iterable[tuple[str, str]] = (), *,
+                 where: str = "", **kwargs: Any):
+        super().__init__(**kwargs)
+        pairs = list(associations.items()) if isinstance(associations, Mapping) else list(associations)
+        if self.template is not None:
+            from .xmlconfig import read_network_file
+            from .builtin import data_dir
+
+            self.merge(read_network_file(data_dir("networks") / f"{self.template}.xml"))
+            for name, type_ in pairs:
+                if name not in self.specs:
+                    raise NetworkError(f"{type(self).__name__} has no standard name {name!r} "
+                                       f"(names: {', '.join(self.names())})", where=where or None)
+                self.replace(name, type_, where=where)
+        else:
+            unknown = [name for name, _ in pairs if name not in self.STANDARD]
+            if unknown:
+                raise NetworkError(f"{unknown[0]!r} is not a standard name ({', '.join(self.STANDARD)})",
+                                   where=where or None)
+            given = dict(pairs)
+            chain = [name for name in self.STANDARD if name in given]
+            for name in chain:
+                self.add(name, given[name], where=where)
+            for a, b in zip(chain, chain[1:]):
+                self.connect(a, b, where=where)
+        missing = [name for name in self.REQUIRED if name not in self.specs]
+        if missing:
+            raise NetworkError(f"{type(self).__name__} needs the standard name {missing[0]!r}", where=where or None)
+
+    def names(self) -> list[str]:
+        """The standard names this network has."""
+        return [n for n in self.STANDARD if n in self.specs]
+
+    def standard(self, name: str) -> NodeSpec:
+        """The node behind a standard name; raises NetworkError when absent."""
+        if name not in self.STANDARD:
+            raise NetworkError(f"{name!r} is not a standard name ({', '.join(self.STANDARD)})")
+        if name not in self.specs:
+            raise NetworkError(f"{type(self).__name__} has no node behind the standard name {name!r}")
+        return self.specs[name]
+
+
+class PatternNetwork(StdNetwork):
+    """Synthetic cities from patterns: districts, major and minor roads (``networks/pattern.xml``)."""
+
+    template = "pattern"
+
+
+class LoadMapNetwork(StdNetwork):
+    """Cities from a map file; ``minorRoads`` is a pass-through null node (``networks/loadmap.xml``)."""
+
+    template = "loadmap"
+
+
+STANDARD_NETWORKS: dict[str, type[StdNetwork]] = {
+    "std": StdNetwork,
+    "pattern": PatternNetwork,
+    "loadmap": LoadMapNetwork,
+}
+
+
+def _stderr_progress(i: int, n: int, node_id: str, type_: str, count: int, seconds: float) -> None:
+    sys.stderr.write(f"\r[{i}/{n}] {node_id} ({type_}): {count:,} features, {seconds:.2f} s\033[K")
+    if i == n:
+        sys.stderr.write("\n")
+    sys.stderr.flush()
