@@ -13,8 +13,8 @@ one on an ``(n, 2)`` array costs microseconds per thousand points.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from functools import lru_cache
-from typing import Callable
 
 import numpy as np
 from pyproj import CRS, Transformer

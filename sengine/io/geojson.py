@@ -16,8 +16,9 @@ from __future__ import annotations
 
 import json
 import logging
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import shapely
@@ -102,9 +103,9 @@ def feature_collection_text(layer: Layer, to_lonlat: Callable[[np.ndarray], np.n
     keys = sorted(cols)
     texts = [_column_texts(cols[k]) for k in keys]
     props = "{" + ",".join(_dumps(k).replace("%", "%%") + ":%s" for k in keys) + "}"
-    prop_texts = [props % row for row in zip(*texts)] if n else []
+    prop_texts = [props % row for row in zip(*texts, strict=False)] if n else []
     feature = '{"geometry":%s,"id":%s,"properties":%s,"type":"Feature"}'
-    feats = ",".join([feature % row for row in zip(geo_texts, _column_texts(layer.ids), prop_texts)])
+    feats = ",".join([feature % row for row in zip(geo_texts, _column_texts(layer.ids), prop_texts, strict=False)])
     head = '{"features":[' + feats + "]"
     if name:
         head += ',"name":' + _dumps(name)

@@ -18,8 +18,8 @@ The file holds no time stamp: the same layers give the same bytes.
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 import shapely

@@ -14,8 +14,8 @@ pass through.  Written with pyosmium's :class:`osmium.SimpleWriter`.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import osmium
@@ -23,7 +23,7 @@ import shapely
 
 from ..layer import Layer
 
-__all__ = ["HIGHWAY", "street_graph", "write_osm"]
+__all__ = ["HIGHWAY", "street_graph", "way_tags", "write_osm"]
 
 log = logging.getLogger(__name__)
 
@@ -74,7 +74,7 @@ def street_graph(geoms: np.ndarray, to_lonlat: Callable[[np.ndarray], np.ndarray
     ways = np.split(node_of, bounds)
     way_line = line[np.concatenate([[0], bounds])] if len(line) else np.empty(0, np.int64)
     ok = np.array([len(w) >= 2 for w in ways], bool)
-    ways = [w for w, k in zip(ways, ok) if k]
+    ways = [w for w, k in zip(ways, ok, strict=False) if k]
     way_line = way_line[ok]
     # drop nodes no kept way uses, renumbering the rest in order
     used = np.zeros(len(first), bool)
@@ -86,17 +86,28 @@ def street_graph(geoms: np.ndarray, to_lonlat: Callable[[np.ndarray], np.ndarray
     return nodes, ways, feat[way_line]
 
 
-def _tags(layer: Layer, i: int) -> dict[str, str]:
-    cls = str(layer["class"][i]) if "class" in layer.attrs else ""
-    tags = {"highway": HIGHWAY.get(cls, cls), "sengine:id": str(int(layer.ids[i]))}
-    if cls in HIGHWAY and cls:
-        tags["sengine:class"] = cls
+def way_tags(layer: Layer) -> list[dict[str, str]]:
+    """OSM tags of every feature of a roads layer (``highway``, ``width`` ...)."""
+    n = len(layer)
+    classes = [str(c) for c in layer["class"].tolist()] if "class" in layer.attrs else [""] * n
+    ids = layer.ids.tolist()
+    widths = names = None
     if "width" in layer.attrs:
-        w = float(layer["width"][i])
-        if np.isfinite(w) and w > 0:
-            tags["width"] = f"{w:.6g}"
-    if "name" in layer.attrs and layer["name"][i]:
-        tags["name"] = str(layer["name"][i])
+        w = np.asarray(layer["width"], np.float64)
+        widths = [f"{v:.6g}" if np.isfinite(v) and v > 0 else None for v in w.tolist()]
+    if "name" in layer.attrs:
+        names = [str(v) if v else None for v in layer["name"].tolist()]
+    tags = []
+    for i in range(n):
+        cls = classes[i]
+        t = {"highway": HIGHWAY.get(cls, cls), "sengine:id": str(ids[i])}
+        if cls in HIGHWAY and cls:
+            t["sengine:class"] = cls
+        if widths is not None and widths[i] is not None:
+            t["width"] = widths[i]
+        if names is not None and names[i] is not None:
+            t["name"] = names[i]
+        tags.append(t)
     return tags
 
 
@@ -120,8 +131,13 @@ def write_osm(path: str | Path, layer: Layer, to_lonlat: Callable[[np.ndarray], 
         for i, (lon, lat) in enumerate(lonlat):
             writer.add_node(Node(id=-(i + 1), location=(lon, lat)))
         Way = osmium.osm.mutable.Way
-        for k, (w, f) in enumerate(zip(ways, feat.tolist())):
-            writer.add_way(Way(id=-(k + 1), nodes=(-(w + 1)).tolist(), tags=_tags(layer, f)))
+        tags = way_tags(layer)
+        refs = (-(np.concatenate(ways) + 1)).tolist() if ways else []
+        ends = np.cumsum([len(w) for w in ways]).tolist()
+        start = 0
+        for k, (end, f) in enumerate(zip(ends, feat.tolist(), strict=False)):
+            writer.add_way(Way(id=-(k + 1), nodes=refs[start:end], tags=tags[f]))
+            start = end
     finally:
         writer.close()
     uses = np.bincount(np.concatenate(ways), minlength=len(nodes)) if ways else np.zeros(0, int)

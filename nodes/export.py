@@ -1,0 +1,176 @@
+"""The exporter node: writes the city's layers to the run's output folder.
+
+skylineEngine's output is a model for rendering and GIS (paper 002 §1, §5.2:
+OSM is the vector format of the street modules).  ``export.city`` takes any
+of the city's layers and writes, into ``context.out``, the formats asked for
+with ``--format`` (``context.formats``; empty means the defaults):
+
+========== ======================================= ========================
+format     file(s)                                 writer
+========== ======================================= ========================
+glb        ``city.glb`` (node per layer, Y up, m)  :mod:`sengine.io.gltf`
+geojson    ``<layer>.geojson`` (RFC 7946, WGS84)   :mod:`sengine.io.geojson`
+osm        ``streets.osm`` (roads, OSM XML)        :mod:`sengine.io.osmxml`
+png        ``preview.png`` (plan view)             :mod:`sengine.io.preview`
+obj        ``city.obj`` + ``city.mtl``             :mod:`sengine.io.obj`
+cityjson   ``buildings.city.json`` (LoD1)          :mod:`sengine.io.cityjson`
+========== ======================================= ========================
+
+WGS84 coordinates come from each layer's ``meta["crs"]``, or the local frame
+of the plan's geographic origin.  ``stats.json`` is the executor's.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+
+from sengine import Layer, Param, Port, SENode, register
+from sengine.errors import ConfigError
+from sengine.geo import layer_crs, to_lonlat
+
+__all__ = ["FORMATS", "DEFAULT_FORMATS", "export_layers", "ExportCity"]
+
+log = logging.getLogger(__name__)
+
+FORMATS = ("glb", "geojson", "osm", "png", "obj", "cityjson")
+DEFAULT_FORMATS = frozenset({"glb", "geojson", "osm", "png"})
+
+
+def export_layers(out: Path, layers: dict[str, Layer | None], formats, *, plan=None, line_width: float = 1.0,
+                  preview_size: int = 1600) -> dict:
+    """Write ``layers`` into folder ``out`` in each of ``formats``.
+
+    Parameters
+    ----------
+    out : pathlib.Path
+        Existing folder to write into.
+    layers : dict of str to Layer or None
+        Layers by name (``roads``, ``streets``, ``sidewalks``, ``blocks``,
+        ``lots``, ``buildings``, ``parks``); ``None`` ones are skipped.
+    formats : iterable of str
+        Names among :data:`FORMATS`; others are ignored, empty means
+        :data:`DEFAULT_FORMATS`.
+    plan : CityPlan, optional
+        Its ``origin`` places layers that carry no ``meta["crs"]``.
+
+    Returns
+    -------
+    dict
+        Counts per format (features, triangles, nodes ...) and ``seconds``.
+    """
+    from sengine.io import cityjson, geojson, gltf, obj, osmxml, preview
+
+    out = Path(out)
+    formats = set(formats or ()) & set(FORMATS) or set(DEFAULT_FORMATS)
+    layers = {k: v for k, v in layers.items() if v is not None}
+    crs = {k: layer_crs(v.meta, plan) for k, v in layers.items()}
+    any_crs = next(iter(crs.values()), layer_crs({}, plan))
+    report: dict = {}
+    seconds: dict[str, float] = {}
+
+    def timed(fmt, fn, *args, **kw):
+        t = time.perf_counter()
+        report[fmt] = fn(*args, **kw)
+        seconds[fmt] = time.perf_counter() - t
+
+    if "glb" in formats:
+        timed("glb", gltf.write_glb, out / "city.glb", layers, line_width=line_width, crs=any_crs)
+    if "obj" in formats:
+        timed("obj", obj.write_obj, out / "city.obj", layers, line_width=line_width)
+    if "geojson" in formats:
+        def write_all():
+            return {name: geojson.write_geojson(out / f"{name}.geojson", lay, to_lonlat(crs[name]), name=name)
+                    for name, lay in layers.items()}
+        timed("geojson", write_all)
+    if "osm" in formats and "roads" in layers:
+        timed("osm", osmxml.write_osm, out / "streets.osm", layers["roads"], to_lonlat(crs["roads"]))
+    if "png" in formats:
+        # the plan's extent frames a synthetic city; OSM data in UTM lies elsewhere: use its bounds
+        extent = plan.extent if plan is not None else None
+        extent = extent if extent is not None and not _outside(layers, extent) else None
+        timed("png", preview.write_preview, out / "preview.png", layers, size=preview_size, extent=extent)
+    if "cityjson" in formats and "buildings" in layers:
+        timed("cityjson", cityjson.write_cityjson, out / "buildings.city.json", layers["buildings"],
+              crs=crs["buildings"])
+    log.info("exported %s in %.3f s (%s)", ", ".join(sorted(seconds)), sum(seconds.values()),
+             ", ".join(f"{k} {v:.3f}" for k, v in seconds.items()))
+    report["seconds"] = seconds
+    return report
+
+
+def _outside(layers: dict[str, Layer], extent) -> bool:
+    """Whether the layers' bounds reach well outside ``extent`` (a frame mismatch)."""
+    import numpy as np
+    import shapely
+
+    for lay in layers.values():
+        if len(lay):
+            b = shapely.total_bounds(lay.geometry)
+            w = max(extent[2] - extent[0], extent[3] - extent[1])
+            if np.isfinite(b).all() and (b[0] < extent[0] - w or b[2] > extent[2] + w
+                                         or b[1] < extent[1] - w or b[3] > extent[3] + w):
+                return True
+    return False
+
+
+@register
+class ExportCity(SENode):
+    """Write the city's layers: city.glb, <layer>.geojson, streets.osm, preview.png (and OBJ, CityJSON).
+
+    Formats come from ``--format`` (the run context); with none given the
+    defaults are glb, geojson, osm and png.
+    """
+
+    name = "export.city"
+    inputs = {
+        "roads": Port("roads", "street centre lines", required=False),
+        "streets": Port("polygons", "street surfaces", required=False),
+        "sidewalks": Port("polygons", "sidewalk surfaces", required=False),
+        "blocks": Port("blocks", "blocks", required=False),
+        "lots": Port("lots", "lots", required=False),
+        "buildings": Port("buildings", "building footprints with height", required=False),
+        "parks": Port("parks", "parks", required=False),
+    }
+    outputs = {}
+    params = {
+        "line_width": Param("float", 1.0, min=0.05, max=50.0, unit="m",
+                            doc="width of road centre-line ribbons in the 3D exports"),
+        "preview_size": Param("int", 1600, min=200, max=8000, unit="px",
+                              doc="long side of preview.png"),
+    }
+
+    def run(self, *, roads: Layer | None = None, streets: Layer | None = None, sidewalks: Layer | None = None,
+            blocks: Layer | None = None, lots: Layer | None = None, buildings: Layer | None = None,
+            parks: Layer | None = None) -> dict[str, Layer]:
+        out = self.context.out
+        if out is None:
+            raise ConfigError("no output folder to export into (run with -o OUT)", where=self.where)
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        layers = {"roads": roads, "streets": streets, "sidewalks": sidewalks, "blocks": blocks, "lots": lots,
+                  "buildings": buildings, "parks": parks}
+        report = export_layers(out, layers, self.context.formats, plan=self.context.plan,
+                               line_width=self.p.line_width, preview_size=self.p.preview_size)
+        report.pop("seconds", None)  # timings would make stats.json differ between runs
+        self.report = _flat_counts(report)
+        return {}
+
+
+def _flat_counts(report: dict) -> dict:
+    """``{"glb.buildings.triangles": 123, ...}``: the JSON-able counts of a report."""
+    flat: dict = {}
+
+    def walk(prefix, v):
+        if isinstance(v, dict):
+            for k, x in v.items():
+                walk(f"{prefix}.{k}" if prefix else str(k), x)
+        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+            flat[prefix] = v
+        elif isinstance(v, tuple):
+            for k, x in enumerate(v):
+                walk(f"{prefix}.{k}", x)
+
+    walk("", report)
+    return flat
