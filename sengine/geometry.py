@@ -119,55 +119,111 @@ def segments_from_lines(lines, *, node: bool = False, decimals: int | None = 9):
     return xy, u[keep].astype(np.int64), v[keep].astype(np.int64), np.asarray(src)[keep].astype(np.int64)
 
 
+def _segments_intersect(p1, p2, p3, p4) -> np.ndarray:
+    """Whether segments p1p2 and p3p4 share a point (rows of (k, 2) arrays)."""
+
+    def orient(a, b, c):
+        return np.sign((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+    d1, d2 = orient(p3, p4, p1), orient(p3, p4, p2)
+    d3, d4 = orient(p1, p2, p3), orient(p1, p2, p4)
+    hit = (d1 * d2 <= 0) & (d3 * d4 <= 0)
+    col = (d1 == 0) & (d2 == 0) & (d3 == 0) & (d4 == 0)
+    if col.any():  # collinear: the projections must overlap on both axes
+        lo1, hi1 = np.minimum(p1, p2)[col], np.maximum(p1, p2)[col]
+        lo2, hi2 = np.minimum(p3, p4)[col], np.maximum(p3, p4)[col]
+        hit[col] = np.all((lo1 <= hi2) & (lo2 <= hi1), axis=1)
+    return hit
+
+
 def planarize(xy, u, v, *, decimals: int | None = 9):
     """Split segments that cross or touch without a shared node.
 
     The graph ``(xy, u, v)`` may come from a source that knows its topology
-    (OSM node ids) but is not plane (bridges, tunnels, missing nodes).  Only
-    segments involved in a crossing are re-noded with ``shapely.node``;
-    every other segment keeps its node ids.
+    (OSM node ids) but is not plane (bridges, tunnels, missing nodes).
+    Candidate pairs come from one STRtree bounding-box query; the exact
+    test and the split points are computed in numpy, so every segment keeps
+    its source index and untouched segments keep their node ids.
+
+    Parameters
+    ----------
+    xy : array_like (n, 2)
+        Node coordinates (m).
+    u, v : array_like of int (m,)
+        Segment end node ids.
+    decimals : int or None
+        New split points are merged with nodes equal after rounding to this
+        many decimals (m).
 
     Returns
     -------
-    xy, u, v, src : as :func:`segments_from_lines`; ``src`` indexes the input
-        segments.  ``crossings`` (int) is the number of crossing pairs found.
+    xy, u, v, src : as :func:`segments_from_lines`; ``src`` indexes the
+        input segments.
+    crossings : int
+        Number of segment pairs that met away from a shared node.
     """
-    xy = np.asarray(xy, np.float64)
-    u = np.asarray(u, np.int64)
-    v = np.asarray(v, np.int64)
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    u = np.asarray(u, np.int64).ravel()
+    v = np.asarray(v, np.int64).ravel()
     m = len(u)
     src = np.arange(m, dtype=np.int64)
     if m == 0:
         return xy, u, v, src, 0
     segs = shapely.linestrings(np.stack([xy[u], xy[v]], axis=1))
-    tree = shapely.STRtree(segs)
-    i, j = tree.query(segs, predicate="intersects")
+    i, j = shapely.STRtree(segs).query(segs)  # bounding boxes only
     sel = i < j
     i, j = i[sel], j[sel]
     shared = (u[i] == u[j]) | (u[i] == v[j]) | (v[i] == u[j]) | (v[i] == v[j])
     i, j = i[~shared], j[~shared]
+    hit = _segments_intersect(xy[u[i]], xy[v[i]], xy[u[j]], xy[v[j]])
+    i, j = i[hit], j[hit]
     if len(i) == 0:
         return xy, u, v, src, 0
-    bad = np.zeros(m, bool)
-    bad[i] = True
-    bad[j] = True
-    bad_idx = np.flatnonzero(bad)
-    pieces = shapely.get_parts(shapely.node(shapely.multilinestrings(segs[bad_idx])))
-    pc, pi = shapely.get_coordinates(pieces, return_index=True)
-    a = np.flatnonzero(pi[1:] == pi[:-1])
-    p0, p1 = pc[a], pc[a + 1]
-    mid = shapely.points((p0 + p1) / 2.0)
-    near = shapely.STRtree(segs[bad_idx]).query_nearest(mid, all_matches=False)[1]
-    good = ~bad
-    allc = np.concatenate([xy, p0, p1])
-    nxy, inv = _node_ids(allc, decimals)
+    p, r = xy[u[i]], xy[v[i]] - xy[u[i]]
+    q, s = xy[u[j]], xy[v[j]] - xy[u[j]]
+    den = r[:, 0] * s[:, 1] - r[:, 1] * s[:, 0]
+    qp = q - p
+    col = den == 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (qp[:, 0] * s[:, 1] - qp[:, 1] * s[:, 0]) / den
+        w = (qp[:, 0] * r[:, 1] - qp[:, 1] * r[:, 0]) / den
+    t, w = np.clip(t, 0.0, 1.0), np.clip(w, 0.0, 1.0)
+    pt = p + t[:, None] * r
+    # snap to an exact end point when the crossing is one (T-junctions)
+    for par, a_, b_ in ((w, xy[u[j]], xy[v[j]]), (t, xy[u[i]], xy[v[i]])):
+        pt = np.where((par <= 1e-12)[:, None], a_, pt)
+        pt = np.where((par >= 1 - 1e-12)[:, None], b_, pt)
+    ev_seg = [i[~col], j[~col]]
+    ev_t = [t[~col], w[~col]]
+    ev_xy = [pt[~col], pt[~col]]
+    if col.any():  # collinear overlaps: each end point inside the other segment
+        for a_, b_ in ((i[col], j[col]), (j[col], i[col])):
+            pa, ra = xy[u[a_]], xy[v[a_]] - xy[u[a_]]
+            rr = np.einsum("ij,ij->i", ra, ra)
+            for end in (xy[u[b_]], xy[v[b_]]):
+                tt = np.einsum("ij,ij->i", end - pa, ra) / np.where(rr > 0, rr, 1.0)
+                inside = (tt > 0) & (tt < 1)
+                ev_seg.append(a_[inside])
+                ev_t.append(tt[inside])
+                ev_xy.append(end[inside])
+    bad = np.unique(np.concatenate([i, j]))
+    ev_seg += [bad, bad]
+    ev_t += [np.zeros(len(bad)), np.ones(len(bad))]
+    ev_xy += [xy[u[bad]], xy[v[bad]]]
+    es, et, exy = np.concatenate(ev_seg), np.concatenate(ev_t), np.concatenate(ev_xy)
+    o = np.lexsort((et, es))
+    es, exy = es[o], exy[o]
     n0 = len(xy)
-    k = len(a)
-    nu = np.concatenate([inv[u[good]], inv[n0:n0 + k]])
-    nv = np.concatenate([inv[v[good]], inv[n0 + k:]])
-    nsrc = np.concatenate([src[good], bad_idx[near]])
+    nxy, inv = _node_ids(np.concatenate([xy, exy]), decimals)
+    # original nodes keep one id each (they are unique already unless duplicated)
+    k = np.flatnonzero(es[1:] == es[:-1])
+    good = np.ones(m, bool)
+    good[bad] = False
+    nu = np.concatenate([inv[u[good]], inv[n0 + k]])
+    nv = np.concatenate([inv[v[good]], inv[n0 + k + 1]])
+    nsrc = np.concatenate([src[good], es[k]])
     keep = nu != nv
-    log.info("planarize: %d crossing pairs; %d segments re-noded into %d", len(i), len(bad_idx), k)
+    log.info("planarize: %d crossing pairs; %d segments split into %d", len(i), len(bad), len(k))
     return nxy, nu[keep], nv[keep], nsrc[keep], int(len(i))
 
 
@@ -504,3 +560,151 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     counts["faces"] = int(len(polygons))
     return PlanarFaces(np.asarray(polygons, dtype=object), edge_faces, np.asarray(outline, dtype=object),
                        bridge, counts)
+
+
+# -- rings, boxes, frames ------------------------------------------------------------
+
+def obb_frame(geoms):
+    """Frame of the minimum-area oriented bounding box of each geometry.
+
+    Parameters
+    ----------
+    geoms : array_like of shapely.Geometry
+
+    Returns
+    -------
+    center : ndarray (n, 2)
+        Box centre (m).
+    axis : ndarray (n, 2)
+        Unit vector along the box's long side (the main axis); the short
+        side runs along ``(-axis[:, 1], axis[:, 0])``.
+    length, width : ndarray (n,)
+        Long and short side (m); ``0`` for empty geometries.
+    """
+    geoms = np.asarray(geoms, dtype=object).ravel()
+    n = len(geoms)
+    center = np.zeros((n, 2))
+    axis = np.tile([1.0, 0.0], (n, 1))
+    length = np.zeros(n)
+    width = np.zeros(n)
+    if n == 0:
+        return center, axis, length, width
+    env = shapely.oriented_envelope(geoms)
+    isp = shapely.get_type_id(env) == 3
+    isp &= shapely.get_num_coordinates(env) == 5
+    if isp.any():
+        c = shapely.get_coordinates(shapely.get_exterior_ring(env[isp])).reshape(-1, 5, 2)
+        e0 = c[:, 1] - c[:, 0]
+        e1 = c[:, 2] - c[:, 1]
+        l0 = np.hypot(e0[:, 0], e0[:, 1])
+        l1 = np.hypot(e1[:, 0], e1[:, 1])
+        long0 = l0 >= l1
+        ax = np.where(long0[:, None], e0, e1)
+        ln = np.maximum(l0, l1)
+        center[isp] = c[:, :4].mean(axis=1)
+        axis[isp] = ax / np.where(ln > 0, ln, 1.0)[:, None]
+        length[isp] = ln
+        width[isp] = np.minimum(l0, l1)
+    rest = ~isp & ~shapely.is_empty(geoms)
+    if rest.any():  # lines and points: the bounding box
+        b = shapely.bounds(geoms[rest])
+        center[rest] = (b[:, :2] + b[:, 2:]) / 2.0
+        dx, dy = b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]
+        axis[rest] = np.where((dx >= dy)[:, None], [1.0, 0.0], [0.0, 1.0])
+        length[rest] = np.maximum(dx, dy)
+        width[rest] = np.minimum(dx, dy)
+    return center, axis, length, width
+
+
+def frame_boxes(center, axis, a0, a1, b0, b1):
+    """Rectangles ``[a0, a1] x [b0, b1]`` given in local frames, as polygons.
+
+    ``a`` runs along ``axis``, ``b`` along its left normal, both from
+    ``center`` (m).  All arguments broadcast to ``(k,)`` / ``(k, 2)``.
+    """
+    center = np.asarray(center, np.float64).reshape(-1, 2)
+    axis = np.asarray(axis, np.float64).reshape(-1, 2)
+    a0, a1, b0, b1 = np.broadcast_arrays(*(np.asarray(x, np.float64) for x in (a0, a1, b0, b1)))
+    nrm = np.stack([-axis[:, 1], axis[:, 0]], axis=1)
+    corners = np.stack([
+        center + a0[:, None] * axis + b0[:, None] * nrm,
+        center + a1[:, None] * axis + b0[:, None] * nrm,
+        center + a1[:, None] * axis + b1[:, None] * nrm,
+        center + a0[:, None] * axis + b1[:, None] * nrm,
+    ], axis=1)
+    return shapely.polygons(corners)
+
+
+def inset(polys, distance, *, mitre_limit: float = 3.0):
+    """Offset polygons inwards by ``distance`` (m, scalar or per polygon).
+
+    A mitred negative buffer: straight sides move parallel to themselves
+    and corners stay sharp (up to ``mitre_limit``).  Parts thinner than
+    ``2 * distance`` vanish; the result may be empty or a MultiPolygon.
+    """
+    return shapely.buffer(polys, -np.asarray(distance, np.float64), join_style="mitre", mitre_limit=mitre_limit)
+
+
+def split_by_line(polys, point, direction):
+    """Both sides of each polygon cut by the line through ``point`` along ``direction``.
+
+    Parameters
+    ----------
+    polys : array_like of shapely.Polygon (k,)
+    point, direction : array_like (k, 2)
+        A point of each cut line and its direction (need not be unit).
+
+    Returns
+    -------
+    left, right : ndarray of shapely.Geometry (k,)
+        The parts left and right of the directed line (either may be empty
+        or a MultiPolygon for concave polygons).
+    """
+    polys = np.asarray(polys, dtype=object).ravel()
+    point = np.asarray(point, np.float64).reshape(-1, 2)
+    d = np.asarray(direction, np.float64).reshape(-1, 2)
+    d = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)[:, None]
+    b = shapely.bounds(polys)
+    big = 2.0 * (np.hypot(b[:, 2] - b[:, 0], b[:, 3] - b[:, 1])
+                 + np.hypot(point[:, 0] - b[:, 0], point[:, 1] - b[:, 1])) + 1.0
+    left = shapely.intersection(polys, frame_boxes(point, d, -big, big, 0.0, big))
+    right = shapely.intersection(polys, frame_boxes(point, d, -big, big, -big, 0.0))
+    return left, right
+
+
+def boundary_segments(geoms):
+    """Every straight boundary segment of each polygon (all rings).
+
+    Returns
+    -------
+    p0, p1 : ndarray (s, 2)
+        Segment ends, in ring order (exteriors as stored, then holes).
+    index : ndarray of int64 (s,)
+        Index of the geometry each segment belongs to.
+    ring : ndarray of int64 (s,)
+        Global ring number, to tell consecutive segments of one ring apart.
+    """
+    geoms = np.asarray(geoms, dtype=object).ravel()
+    parts, pidx = shapely.get_parts(geoms, return_index=True)
+    rings, ridx = shapely.get_rings(parts, return_index=True)
+    c, ci = shapely.get_coordinates(rings, return_index=True)
+    a = np.flatnonzero(ci[1:] == ci[:-1])
+    return c[a], c[a + 1], pidx[ridx[ci[a]]].astype(np.int64), ci[a].astype(np.int64)
+
+
+def segments_on(p0, p1, reference, *, tol: float = 1e-6):
+    """Whether each segment lies on its reference geometry's boundary.
+
+    A segment counts as lying on the reference when its midpoint is within
+    ``tol`` (m) of it; exact for segments whose ends are on the reference
+    and that do not cut a corner of it (true for pieces cut out of a
+    polygon whose boundary is the reference).
+
+    Parameters
+    ----------
+    p0, p1 : ndarray (s, 2)
+    reference : array_like of shapely.Geometry (s,)
+        For example ``shapely.boundary(parent)[index]``.
+    """
+    mid = shapely.points((np.asarray(p0) + np.asarray(p1)) / 2.0)
+    return shapely.distance(mid, reference) <= tol
