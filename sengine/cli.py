@@ -34,6 +34,8 @@ def _run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, help="network seed (overrides the config's)")
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="NODE.PARAM=VALUE",
                    help="set a node parameter (repeatable)")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="worker processes for nodes that map features one by one (same result for any N)")
     p.add_argument("--format", dest="formats", default="",
                    help="comma list of outputs: glb,geojson,osm,png,obj,cityjson (default: the exporter's)")
 
@@ -107,7 +109,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .xmlconfig import load_config
 
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin, seed=args.seed)
-    result = net.run(out=args.out, formats=_formats(args.formats), progress=_progress(args))
+    result = net.run(out=args.out, formats=_formats(args.formats), progress=_progress(args), workers=args.workers)
     if not args.quiet:
         counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
         print(f"{args.out}: {counts} in {result.stats['seconds']['total']:.2f} s")
@@ -122,7 +124,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
     rows = []
     for seed in _seeds(args.seeds):
         result = net.run(seed=seed, out=args.out / f"seed-{seed}", formats=_formats(args.formats),
-                         progress=_progress(args))
+                         progress=_progress(args), workers=args.workers)
         rows.append({"seed": seed, "counts": result.stats["counts"], "areas": result.stats["areas"]})
         if not args.quiet:
             print(f"seed {seed}: " + ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items()))
@@ -146,7 +148,7 @@ def cmd_osm(args: argparse.Namespace) -> int:
         )
         net = load_config(config, sets=args.sets, plugins=args.plugin, seed=args.seed)
         net.source = str(args.file)
-        result = net.run(out=args.out, formats=_formats(args.formats), progress=_progress(args))
+        result = net.run(out=args.out, formats=_formats(args.formats), progress=_progress(args), workers=args.workers)
     if not args.quiet:
         counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
         print(f"{args.out}: {counts} in {result.stats['seconds']['total']:.2f} s")

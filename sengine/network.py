@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any, Callable, ClassVar, Iterable, Iterator, Mapping
 
 import networkx as nx
+import numpy as np
 
 from . import __version__, registry
 from .errors import NetworkError, SEngineError
@@ -268,7 +269,7 @@ class Network:
         return Context(seed=int(seed), plan=self.plan, base_dir=self.base_dir, out=out, formats=frozenset(formats))
 
     def run(self, seed: int | None = None, out: Any = None, *, formats: Iterable[str] = (),
-            progress: ProgressFn | None = None) -> Result:
+            progress: ProgressFn | None = None, workers: int = 1) -> Result:
         """Validate, then run every node in topological order.
 
         Parameters
@@ -283,6 +284,10 @@ class Network:
             Output formats for exporter nodes (empty: their defaults).
         progress : callable, optional
             Called after each node as ``progress(i, n, node_id, type, count, seconds)``.
+        workers : int
+            Worker processes for nodes that map features one by one; their
+            first input is cut into chunks.  The result is the same for any
+            number of workers.
         """
         seed = self.seed if seed is None else int(seed)
         out_dir = Path(out) if out is not None else None
@@ -291,7 +296,7 @@ class Network:
             out_dir.parent.mkdir(parents=True, exist_ok=True)
             tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
         try:
-            result = self._run(seed, tmp, formats, progress)
+            result = self._run(seed, tmp, formats, progress, max(1, int(workers)))
             if tmp is not None:
                 _write_json(tmp / "stats.json", result.stats)
                 _move_into(tmp, out_dir)
@@ -300,7 +305,8 @@ class Network:
             if tmp is not None and tmp.exists():
                 shutil.rmtree(tmp, ignore_errors=True)
 
-    def _run(self, seed: int, tmp: Path | None, formats: Iterable[str], progress: ProgressFn | None) -> Result:
+    def _run(self, seed: int, tmp: Path | None, formats: Iterable[str], progress: ProgressFn | None,
+             workers: int) -> Result:
         t_start = time.perf_counter()
         context = self._context(seed, tmp, formats)
         bound = self.validate(context)
@@ -319,7 +325,7 @@ class Network:
             for s, sp, dp in incoming[node_id]:
                 kwargs[dp] = layers[s][sp]
             t0 = time.perf_counter()
-            outputs = node.run(**kwargs) or {}
+            outputs = _run_node(node, kwargs, workers)
             dt = time.perf_counter() - t0
             missing = [p for p in node.outputs if p not in outputs]
             extra = [p for p in outputs if p not in node.outputs]
@@ -329,7 +335,8 @@ class Network:
             layers[node_id] = {p: outputs[p] for p in node.outputs}
             first = next(iter(layers[node_id].values()), None)
             count = len(first) if first is not None else 0
-            counts[node_id] = count
+            if node.outputs:  # sinks (exporters) have nothing to count
+                counts[node_id] = count
             seconds[node_id] = round(dt, 4)
             if first is not None and count:
                 area = first.area()
@@ -366,6 +373,42 @@ class Network:
             for c in self.connections:
                 g.add_edge(c.src, c.dst, src_port=c.src_port or "", dst_port=c.dst_port or "")
         return g
+
+
+MIN_CHUNK = 256  # features; below this a worker process costs more than it saves
+
+
+def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> dict[str, Layer]:
+    """Run one node, in chunks over worker processes when it maps features.
+
+    The first input is cut into contiguous chunks; other inputs go whole to
+    every chunk.  Outputs are concatenated in chunk order (renumbered when the
+    node numbers its features per call), which gives the single-process result
+    because a mapping node draws its random numbers per feature
+    (``self.rng(feature_id)``) and writes no files.
+    """
+    first = next(iter(node.inputs), None)
+    layer = kwargs.get(first) if first else None
+    if workers <= 1 or not node.maps_features or layer is None or len(layer) < 2 * MIN_CHUNK:
+        return node.run(**kwargs) or {}
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    n_chunks = min(workers * 4, len(layer) // MIN_CHUNK)
+    bounds = np.linspace(0, len(layer), n_chunks + 1).astype(int)
+    jobs = [{**kwargs, first: layer.take(np.arange(a, b))} for a, b in zip(bounds[:-1], bounds[1:])]
+    ctx = multiprocessing.get_context("fork")  # workers inherit the registry and plugins
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        parts = list(pool.map(_call_run, [node] * len(jobs), jobs))
+    merged = {}
+    for port in node.outputs:
+        ids = np.concatenate([p[port].ids for p in parts])
+        merged[port] = Layer.concat([p[port] for p in parts], renumber=len(np.unique(ids)) != len(ids))
+    return merged
+
+
+def _call_run(node: SENode, kwargs: dict[str, Layer | None]) -> dict[str, Layer]:
+    return node.run(**kwargs) or {}
 
 
 def _write_json(path: Path, data: Any) -> None:

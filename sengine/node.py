@@ -140,7 +140,12 @@ class Params(Mapping[str, Any]):
     def __init__(self, values: Mapping[str, Any]):
         self._values = MappingProxyType(dict(values))
 
+    def __reduce__(self):  # picklable for worker processes
+        return (Params, (dict(self._values),))
+
     def __getattr__(self, name: str) -> Any:
+        if name.startswith("_"):
+            raise AttributeError(name)
         try:
             return self._values[name]
         except KeyError:

@@ -76,7 +76,7 @@ def test_plugin_by_entry_point(tmp_path):
 def test_plugin_by_xml_path(tmp_path, fixtures):
     result = sengine.load(fixtures / "squares.xml").run(seed=1, out=tmp_path / "o")
     assert result.stats["counts"] == {"source": 7, "inset": 7}
-    assert (tmp_path / "o" / "inset.geojson").exists()
+    assert (tmp_path / "o" / "write.geojson").exists()
 
 
 def test_plugin_by_command_line(tmp_path):
@@ -168,8 +168,8 @@ def test_same_seed_same_bytes(tmp_path, fixtures):
         net.run(seed=3, out=tmp_path / name)
         outs.append(tmp_path / name)
     files = sorted(p.name for p in outs[0].iterdir())
-    assert files == sorted(p.name for p in outs[1].iterdir()) == ["inset.geojson", "stats.json"]
-    assert (outs[0] / "inset.geojson").read_bytes() == (outs[1] / "inset.geojson").read_bytes()
+    assert files == sorted(p.name for p in outs[1].iterdir()) == ["stats.json", "write.geojson"]
+    assert (outs[0] / "write.geojson").read_bytes() == (outs[1] / "write.geojson").read_bytes()
     sa, sb = (json.loads((o / "stats.json").read_text()) for o in outs)
     assert sa["counts"] == sb["counts"] and sa["seed"] == sb["seed"] == 3
     other = sengine.load(fixtures / "squares.xml").run(seed=4)
@@ -183,7 +183,7 @@ def test_stats_json_shape(tmp_path, fixtures, cli):
     assert stats["sengine"] == sengine.__version__
     assert stats["seed"] == 9 and stats["config"].endswith("squares.xml")
     assert stats["counts"] == {"source": 4, "inset": 4}
-    assert set(stats["seconds"]) == {"source", "inset", "total"}
+    assert set(stats["seconds"]) == {"source", "inset", "write", "total"}
     assert stats["areas"]["source"] == pytest.approx(400.0)
 
 
@@ -265,7 +265,7 @@ def test_nodes_json_lists_declarations(cli):
 
 def test_validate_command(fixtures, cli):
     res = cli("validate", fixtures / "squares.xml")
-    assert res.returncode == 0 and "valid, 2 nodes, 1 connections" in res.stdout
+    assert res.returncode == 0 and "valid, 3 nodes, 2 connections" in res.stdout
 
 
 @pytest.mark.parametrize("suffix", [".dot", ".svg", ".png"])
@@ -335,3 +335,15 @@ def test_layer_take_concat_and_columns():
     assert list(picked.ids) == [1, 2]
     with pytest.raises(ValueError, match="column 'h' has shape"):
         a.with_columns(h=np.zeros(3))
+
+
+def test_workers_give_the_same_result(tmp_path, fixtures):
+    """A feature-mapping node cut into chunks over 2 processes: same bytes as 1 process."""
+    files = []
+    for workers in (1, 2):
+        net = sengine.load(fixtures / "squares.xml")
+        net.set_param("source", "count", 1500)
+        net.run(seed=5, out=tmp_path / f"w{workers}", workers=workers)
+        files.append((tmp_path / f"w{workers}" / "write.geojson").read_bytes())
+    assert files[0] == files[1]
+    assert json.loads(files[0])["features"][1499]["properties"]["parent_id"] == 1499
