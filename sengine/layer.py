@@ -10,8 +10,9 @@ return new layers and never change their inputs.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any
 
 import numpy as np
 import shapely
@@ -71,7 +72,7 @@ class Layer:
         parent: Iterable[int] | int | None = None,
         meta: Mapping[str, Any] | None = None,
         **attrs: Any,
-    ) -> "Layer":
+    ) -> Layer:
         """Build a layer from geometries; ids default to ``0..n-1``."""
         geometry = np.empty(0, dtype=object)
         geoms = list(geoms) if not isinstance(geoms, np.ndarray) else geoms
@@ -84,13 +85,13 @@ class Layer:
         return cls(geometry, ids_arr, par, cols, dict(meta or {}))
 
     @classmethod
-    def empty(cls, meta: Mapping[str, Any] | None = None, **columns: np.dtype) -> "Layer":
+    def empty(cls, meta: Mapping[str, Any] | None = None, **columns: np.dtype) -> Layer:
         """An empty layer, optionally with typed empty columns."""
         attrs = {k: np.empty(0, dtype=v) for k, v in columns.items()}
         return cls(np.empty(0, object), np.empty(0, np.int64), np.empty(0, np.int64), attrs, dict(meta or {}))
 
     @classmethod
-    def concat(cls, layers: Iterable["Layer"], *, renumber: bool = True) -> "Layer":
+    def concat(cls, layers: Iterable[Layer], *, renumber: bool = True) -> Layer:
         """Stack layers; columns missing from a layer are filled with defaults."""
         layers = [lay for lay in layers]
         if not layers:
@@ -137,7 +138,7 @@ class Layer:
     def columns(self) -> list[str]:
         return list(self.attrs)
 
-    def take(self, index: np.ndarray) -> "Layer":
+    def take(self, index: np.ndarray) -> Layer:
         """The features selected by a boolean mask or an integer index."""
         index = np.asarray(index)
         return Layer(
@@ -148,20 +149,20 @@ class Layer:
             dict(self.meta),
         )
 
-    def with_columns(self, **columns: Any) -> "Layer":
+    def with_columns(self, **columns: Any) -> Layer:
         """A copy with columns added or replaced."""
         n = len(self)
         attrs = dict(self.attrs)
         attrs.update({k: _column(v, n, k) for k, v in columns.items()})
         return Layer(self.geometry, self.ids, self.parent, attrs, dict(self.meta))
 
-    def with_geometry(self, geometry: np.ndarray) -> "Layer":
+    def with_geometry(self, geometry: np.ndarray) -> Layer:
         """A copy with the geometry column replaced (same length)."""
         g = np.empty(len(self), dtype=object)
         g[:] = list(geometry)
         return Layer(g, self.ids, self.parent, dict(self.attrs), dict(self.meta))
 
-    def with_meta(self, **meta: Any) -> "Layer":
+    def with_meta(self, **meta: Any) -> Layer:
         return Layer(self.geometry, self.ids, self.parent, dict(self.attrs), {**self.meta, **meta})
 
     def area(self) -> float:
@@ -194,7 +195,7 @@ class Layer:
         return {"type": "FeatureCollection", "features": features}
 
     @classmethod
-    def from_geojson(cls, data: Mapping[str, Any]) -> "Layer":
+    def from_geojson(cls, data: Mapping[str, Any]) -> Layer:
         """Read a FeatureCollection written by :meth:`to_geojson` (planar)."""
         feats = data.get("features", [])
         geoms = shapely.from_geojson([json.dumps(f["geometry"]) for f in feats]) if feats else []

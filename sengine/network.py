@@ -22,9 +22,10 @@ import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, ClassVar, Iterable, Iterator, Mapping
+from typing import Any, ClassVar
 
 import networkx as nx
 import numpy as np
@@ -65,7 +66,7 @@ class Connection:
     where: str = ""
 
     @classmethod
-    def parse(cls, src: str, dst: str, where: str = "") -> "Connection":
+    def parse(cls, src: str, dst: str, where: str = "") -> Connection:
         s, _, sp = src.partition(".")
         d, _, dp = dst.partition(".")
         return cls(s, sp or None, d, dp or None, where)
@@ -159,7 +160,7 @@ class Network:
             known = ", ".join(self.specs) or "none"
             raise NetworkError(f"no node with id {node_id!r} in the network (nodes: {known})", where=where or None) from None
 
-    def merge(self, other: "Network") -> None:
+    def merge(self, other: Network) -> None:
         """Add every node and connection of ``other`` (ids must not clash)."""
         for spec in other.specs.values():
             self.add(spec.id, spec.type, spec.params, where=spec.where)
@@ -451,8 +452,8 @@ class StdNetwork(Network):
         super().__init__(**kwargs)
         pairs = list(associations.items()) if isinstance(associations, Mapping) else list(associations)
         if self.template is not None:
-            from .xmlconfig import read_network_file
             from .builtin import data_dir
+            from .xmlconfig import read_network_file
 
             self.merge(read_network_file(data_dir("networks") / f"{self.template}.xml"))
             for name, type_ in pairs:

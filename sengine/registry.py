@@ -20,8 +20,9 @@ import logging
 import re
 import sys
 import warnings
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, TypeVar
+from typing import TypeVar
 
 from .errors import RegistryError
 from .node import SENode, stable_hash

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 
 from sengine.cli import main
@@ -137,7 +135,6 @@ def test_debug_shows_traceback(fixtures, tmp_path):
 def test_failing_node_leaves_no_partial_output(fixtures, tmp_path, monkeypatch):
     """A node that writes a file and then a later node fails: OUT stays empty."""
     from sengine import registry
-
     from sengine.errors import InputDataError
 
     main(["nodes", "--plugin", str(fixtures / "squares_plugin.py")])

@@ -11,14 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import shapely
+from conftest import ROOT, run_cli
 
 import sengine
 from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import NetworkError, ParameterError, RegistryError
 from sengine.network import LoadMapNetwork, Network, StdNetwork
 from sengine.registry import get, load_plugin
-
-from conftest import ROOT, run_cli
 
 PLUGIN = Path(__file__).parent / "fixtures" / "squares_plugin.py"
 
