@@ -6,6 +6,7 @@ oriented boxes and half-planes, vectorized over numpy / shapely 2 arrays.
 Public API
 ----------
 Segment graphs
+    :func:`merge_points` -- unique points (to a rounding) and the index map.
     :func:`segments_from_lines` -- LineStrings to ``(xy, u, v, src)`` arrays
     (optionally noded with ``shapely.node``).
     :func:`planarize` -- split crossing segments of a ``(xy, u, v)`` graph.
@@ -41,6 +42,7 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
 __all__ = [
+    "merge_points",
     "segments_from_lines",
     "planarize",
     "trace_faces",
@@ -60,8 +62,12 @@ log = logging.getLogger(__name__)
 
 # -- segment graphs ----------------------------------------------------------------
 
-def _node_ids(coords: np.ndarray, decimals: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Unique points of ``coords`` (n, 2) and the index of each row in them."""
+def merge_points(coords: np.ndarray, decimals: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Unique points of ``coords`` (n, 2) and the index of each row in them.
+
+    Points equal after rounding to ``decimals`` (m) are one point (the first
+    one's exact coordinates are kept); ``None`` compares exactly.
+    """
     key = np.round(coords, decimals) if decimals is not None else coords
     key = np.ascontiguousarray(key, dtype=np.float64) + 0.0  # -0.0 == 0.0
     view = key.view(np.dtype((np.void, 16))).ravel()
@@ -107,7 +113,7 @@ def segments_from_lines(lines, *, node: bool = False, decimals: int | None = 9):
         return empty
     same = cidx[1:] == cidx[:-1]
     a = np.flatnonzero(same)
-    xy, inv = _node_ids(coords, decimals)
+    xy, inv = merge_points(coords, decimals)
     u, v = inv[a], inv[a + 1]
     if node:
         mid = (coords[a] + coords[a + 1]) / 2.0
@@ -214,7 +220,7 @@ def planarize(xy, u, v, *, decimals: int | None = 9):
     o = np.lexsort((et, es))
     es, exy = es[o], exy[o]
     n0 = len(xy)
-    nxy, inv = _node_ids(np.concatenate([xy, exy]), decimals)
+    nxy, inv = merge_points(np.concatenate([xy, exy]), decimals)
     # original nodes keep one id each (they are unique already unless duplicated)
     k = np.flatnonzero(es[1:] == es[:-1])
     good = np.ones(m, bool)

@@ -1,0 +1,359 @@
+"""Blocks: minimal closed circuits of the street graph (skylineEngine §5.4, Fig. 8).
+
+The street network is a plane graph; blocks are its bounded faces.  Each
+undirected street segment is doubled into two half-edges (Fig. 8a); from
+every half-edge the walk continues along the outgoing segment with the
+lowest positive turning angle, which closes a circuit around one block
+(Fig. 8b, c).  The one circuit that turns the other way round is the city
+outline and is removed (Fig. 8d).  The remaining circuits partition the
+city area: their union is the area inside the outline and no two overlap.
+
+Instead of walking node by node, the whole walk is vectorized
+(:func:`sengine.geometry.planar_faces`): half-edges are sorted by angle
+around their node with one ``numpy.lexsort``, the "next half-edge"
+permutation is one gather, and the circuits are the cycles of that
+permutation.  Dead ends (edges with the same face on both sides) are
+dropped before the final trace; a component floating inside a block
+becomes a hole of it.
+
+Blocks are then shrunk for the streets and sidewalks (§5.4, last
+paragraph): each face is inset by the length-weighted mean half-width of
+the streets around it, giving the street surface, and by the sidewalk
+width again, giving the block; the two rings are kept as ``streets`` and
+``sidewalks`` polygon layers.
+
+References
+----------
+skylineEngine, §5.4 "Blocks Module" and Figure 8.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import networkx as nx
+import numpy as np
+import shapely
+
+from sengine import Layer, Param, Port, SENode, register
+from sengine.geometry import (
+    PlanarFaces,
+    frame_boxes,
+    inset,
+    merge_points,
+    planar_faces,
+    planarize,
+    segments_from_lines,
+)
+
+__all__ = ["find_blocks", "BlockFaces", "face_half_widths", "shrink_faces", "street_graph", "BlocksCircuits"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class BlockFaces:
+    """Result of :func:`find_blocks`.
+
+    Attributes
+    ----------
+    faces : ndarray of shapely.Polygon
+        Bounded faces of the street graph (blocks before the sidewalk
+        inset), possibly with holes; degenerate faces removed.
+    xy : ndarray (n, 2)
+        Node coordinates of the plane graph actually traced (m).
+    u, v : ndarray of int64 (m,)
+        Its segments (after merging coincident nodes and splitting crossings).
+    src : ndarray of int64 (m,)
+        For each segment, the input line (lines entry) or input edge (arrays
+        entry) it comes from.
+    edge_faces : ndarray of int64 (m, 2)
+        Face on the left / right of each segment, ``-1`` for none.
+    bridge : ndarray of bool (m,)
+        Dead-end and connector segments removed before tracing.
+    outline : ndarray of shapely.Polygon
+        The outer circuit of each outermost component (Fig. 8d), removed.
+    counts : dict
+        Numbers for the node's report (segments, crossings, duplicates,
+        bridges, faces, holes, degenerate ...).
+    """
+
+    faces: np.ndarray
+    xy: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    src: np.ndarray
+    edge_faces: np.ndarray
+    bridge: np.ndarray
+    outline: np.ndarray
+    counts: dict = field(default_factory=dict)
+
+
+def find_blocks(streets, *, node: bool = True, decimals: int | None = 6) -> BlockFaces:
+    """Find the blocks of a street network as minimal closed circuits.
+
+    Parameters
+    ----------
+    streets : array_like of shapely.LineString, or tuple ``(xy, u, v)``
+        Either street centre lines (m; any number of vertices each), or a
+        street graph that already knows its topology: ``xy`` an ``(n, 2)``
+        float array of node coordinates (m, planar), ``u`` and ``v`` int
+        arrays of length ``m`` with the end node ids (row indices into
+        ``xy``) of each straight segment.  The OSM importer calls it the
+        second way, with node ids from OSM node ids.
+    node : bool
+        Make the graph plane first: segments that cross, or end on another
+        segment's interior, or overlap collinearly, are split there
+        (:func:`sengine.geometry.planarize`, vectorized).  Turn off only for
+        input known to be plane: crossings without a node give overlapping,
+        invalid faces.
+    decimals : int or None
+        Nodes whose coordinates are equal after rounding to this many
+        decimals (m) are merged; ``None`` keeps the given ids / exact
+        coordinates.
+
+    Returns
+    -------
+    BlockFaces
+        ``src`` maps each traced segment back to the input line (lines
+        entry) or the input edge index (arrays entry).
+
+    Notes
+    -----
+    The circuit finder is skylineEngine's (§5.4, Fig. 8) written as one
+    permutation: see :func:`sengine.geometry.trace_faces`.  It runs in
+    O(m log m) numpy time (about 0.5 s for Liège's 80,000 segments).
+    """
+    counts: dict = {}
+    if isinstance(streets, tuple) and len(streets) == 3:
+        xy = np.asarray(streets[0], np.float64).reshape(-1, 2)
+        u = np.asarray(streets[1], np.int64).ravel()
+        v = np.asarray(streets[2], np.int64).ravel()
+        if len(u) != len(v):
+            raise ValueError(f"u and v differ in length: {len(u)} != {len(v)}")
+        if len(u) and (min(u.min(), v.min()) < 0 or max(u.max(), v.max()) >= len(xy)):
+            raise ValueError(f"node ids must index xy (0 .. {len(xy) - 1})")
+        src = np.arange(len(u), dtype=np.int64)
+        if decimals is not None and len(xy):
+            xy, inv = merge_points(xy, decimals)
+            u, v = inv[u], inv[v]
+    else:
+        xy, u, v, src = segments_from_lines(streets, node=False, decimals=decimals)
+    counts["segments"] = int(len(u))
+    # one segment per node pair (two-way streets often come twice)
+    a, b = np.minimum(u, v), np.maximum(u, v)
+    keep = a != b
+    _, first = np.unique(a[keep] * max(len(xy), 1) + b[keep], return_index=True)
+    first = np.sort(np.flatnonzero(keep)[first])
+    counts["repeated"] = int(len(u) - len(first))
+    u, v, src = u[first], v[first], src[first]
+    if node and len(u):
+        xy, u, v, s2, crossings = planarize(xy, u, v, decimals=decimals)
+        src = src[s2]
+        counts["crossings"] = crossings
+    pf: PlanarFaces = planar_faces(xy, u, v)
+    for k in ("duplicates", "self_loops", "bridges", "holes", "degenerate", "pinched", "faces"):
+        counts[k] = pf.counts.get(k, 0)
+    log.info("blocks: %d segments -> %d faces (%d dead-end/bridge segments dropped, %d holes)",
+             counts["segments"], counts["faces"], counts["bridges"], counts["holes"])
+    return BlockFaces(pf.polygons, xy, u, v, src, pf.edge_faces, pf.bridge, pf.outline, counts)
+
+
+def face_half_widths(bf: BlockFaces, widths) -> np.ndarray:
+    """Length-weighted mean half-width of the streets around each face (m).
+
+    Parameters
+    ----------
+    bf : BlockFaces
+    widths : array_like of float
+        Street width (m) per input line / input edge (indexed by ``bf.src``).
+    """
+    widths = np.asarray(widths, np.float64)
+    nf = len(bf.faces)
+    if nf == 0:
+        return np.zeros(0)
+    seg_len = np.hypot(*(bf.xy[bf.v] - bf.xy[bf.u]).T)
+    hw = widths[bf.src] / 2.0
+    f = bf.edge_faces.ravel()
+    w = np.repeat(seg_len, 2)
+    h = np.repeat(hw, 2)
+    ok = f >= 0
+    tot = np.bincount(f[ok], weights=w[ok], minlength=nf)
+    acc = np.bincount(f[ok], weights=(w * h)[ok], minlength=nf)
+    return np.where(tot > 0, acc / np.where(tot > 0, tot, 1.0), 0.0)
+
+
+def shrink_faces(faces, half_width, sidewalk: float):
+    """Street, sidewalk and block polygons of each face (§5.4, last paragraph).
+
+    Parameters
+    ----------
+    faces : array_like of shapely.Polygon
+        Faces between street centre lines.
+    half_width : array_like of float
+        Half the street width around each face (m).
+    sidewalk : float
+        Sidewalk width (m).
+
+    Returns
+    -------
+    street, walk, block : ndarray of shapely.Geometry
+        ``face - inset(face, hw)``, ``inset(face, hw) - block`` and
+        ``block = inset(face, hw + sidewalk)``; the three partition the face.
+        ``block`` may be empty (face too thin) or a MultiPolygon.
+    """
+    faces = np.asarray(faces, dtype=object)
+    hw = np.asarray(half_width, np.float64)
+    edge = inset(faces, hw)
+    block = inset(faces, hw + sidewalk) if sidewalk > 0 else edge
+    return _ring_between(faces, edge), _ring_between(edge, block), block
+
+
+def _ring_between(outer, inner):
+    """``outer - inner`` where ``inner`` lies inside ``outer``.
+
+    When both are simple polygons (no holes, one part) the result is built
+    directly as ``Polygon(outer shell, [inner shell])``; the rest goes
+    through ``shapely.difference``.
+    """
+    out = np.empty(len(outer), dtype=object)
+    if len(outer) == 0:
+        return out
+    simple = (
+        (shapely.get_type_id(outer) == 3) & (shapely.get_num_interior_rings(outer) == 0)
+        & (shapely.get_type_id(inner) == 3) & (shapely.get_num_interior_rings(inner) == 0)
+        & ~shapely.is_empty(inner)
+    )
+    if simple.any():
+        shells = shapely.get_exterior_ring(outer[simple])
+        holes = shapely.get_exterior_ring(inner[simple])
+        rings = np.stack([shells, holes], axis=1).ravel()
+        out[simple] = shapely.polygons(rings, indices=np.repeat(np.arange(int(simple.sum())), 2))
+    if (~simple).any():
+        out[~simple] = shapely.difference(outer[~simple], inner[~simple])
+    return out
+
+
+def street_graph(bf: BlockFaces) -> nx.Graph:
+    """The traced street graph as a networkx Graph.
+
+    Nodes are node ids with attribute ``xy``; edges carry ``src`` (input
+    index), ``length`` (m), ``faces`` (left, right face ids) and ``bridge``.
+    """
+    g = nx.Graph()
+    g.add_nodes_from((i, {"xy": tuple(p)}) for i, p in enumerate(bf.xy.tolist()))
+    length = np.hypot(*(bf.xy[bf.v] - bf.xy[bf.u]).T)
+    g.add_edges_from(
+        (int(a), int(b), {"src": int(s), "length": float(ln), "faces": (int(fl), int(fr)), "bridge": bool(br)})
+        for a, b, s, ln, (fl, fr), br in zip(bf.u, bf.v, bf.src, length, bf.edge_faces, bf.bridge)
+    )
+    return g
+
+
+def _containing(points, polys) -> np.ndarray:
+    """Index of the polygon containing each point (``-1`` for none; first one wins)."""
+    out = np.full(len(points), -1, np.int64)
+    if len(points) == 0 or len(polys) == 0:
+        return out
+    pi, qi = shapely.STRtree(polys).query(points, predicate="within")
+    o = np.lexsort((qi, pi))
+    pi, qi = pi[o], qi[o]
+    first = np.r_[True, pi[1:] != pi[:-1]] if len(pi) else np.zeros(0, bool)
+    out[pi[first]] = qi[first]
+    return out
+
+
+@register
+class BlocksCircuits(SENode):
+    """Blocks as minimal closed circuits of the street graph, shrunk for streets and sidewalks (§5.4)."""
+
+    name = "blocks.circuits"
+    inputs = {
+        "roads": Port("roads", "street centre lines with a width column"),
+        "outline": Port("outline", "buildable city: faces outside it are dropped", required=False),
+        "areas": Port("areas", "areas enclosed by major roads: give blocks their district", required=False),
+    }
+    outputs = {
+        "blocks": Port("blocks", "blocks, shrunk for streets and sidewalks"),
+        "streets": Port("polygons", "street surface around each block, kind 'street'"),
+        "sidewalks": Port("polygons", "sidewalk ring of each block, kind 'sidewalk'"),
+        "faces": Port("blocks", "faces between street centre lines, before shrinking"),
+    }
+    params = {
+        "sidewalk": Param("float", 3.0, min=0.0, max=50.0, unit="m", doc="sidewalk width"),
+        "street_width": Param("float", 10.0, min=0.0, max=200.0, unit="m",
+                              doc="street width where the roads carry none (or 'width_from' is param)"),
+        "width_from": Param("str", "roads", choices=("roads", "param"),
+                            doc="street widths from the roads' width column, or street_width for all"),
+        "min_area": Param("float", 50.0, min=0.0, unit="m2", doc="faces and blocks smaller than this are dropped"),
+        "node": Param("bool", True, doc="split crossing segments first (turn off only for plane input)"),
+        "decimals": Param("int", 6, min=0, max=12, doc="merge nodes equal to this many decimals (m)"),
+    }
+
+    def run(self, *, roads: Layer, outline: Layer | None = None, areas: Layer | None = None):
+        meta = dict(roads.meta)
+        report: dict = {}
+        lines = roads.geometry
+        keep = ~shapely.is_empty(lines) if len(lines) else np.zeros(0, bool)
+        lines = lines[keep]
+        width = np.full(len(lines), self.p.street_width)
+        if self.p.width_from == "roads" and "width" in roads:
+            w = np.asarray(roads["width"], np.float64)[keep]
+            width = np.where(np.isfinite(w) & (w >= 0), w, self.p.street_width)
+        bf = find_blocks(lines, node=self.p.node, decimals=self.p.decimals)
+        report.update({k: int(v) for k, v in bf.counts.items()})
+        faces = bf.faces
+        fid = np.arange(len(faces))
+        hw = face_half_widths(bf, width)
+        valid = shapely.is_valid(faces) if len(faces) else np.zeros(0, bool)
+        report["dropped_invalid"] = int((~valid).sum())
+        area = shapely.area(faces)
+        small = valid & (area < self.p.min_area)
+        report["dropped_small"] = int(small.sum())
+        ok = valid & ~small
+        if outline is not None and len(outline) and ok.any():
+            city = shapely.union_all(outline.geometry)
+            shapely.prepare(city)
+            inside = np.zeros(len(faces), bool)
+            inside[ok] = shapely.contains(city, shapely.point_on_surface(faces[ok]))
+            report["dropped_outside_outline"] = int((ok & ~inside).sum())
+            ok &= inside
+        faces, fid, hw = faces[ok], fid[ok], hw[ok]
+        street, walk, block = shrink_faces(faces, hw, self.p.sidewalk)
+        parts, pidx = shapely.get_parts(block, return_index=True)
+        report["vanished_by_inset"] = int(len(faces) - len(np.unique(pidx)))
+        big = shapely.area(parts) >= self.p.min_area
+        report["dropped_small_after_inset"] = int((~big).sum())
+        parts, pidx = parts[big], pidx[big]
+        report["split_by_inset"] = int(len(pidx) - len(np.unique(pidx)))
+        # districts and parent areas
+        district = np.full(len(parts), -1, np.int64)
+        parent = np.full(len(parts), -1, np.int64)
+        fdistrict = np.full(len(faces), -1, np.int64)
+        fparent = np.full(len(faces), -1, np.int64)
+        if areas is not None and len(areas):
+            host = _containing(shapely.point_on_surface(faces), areas.geometry)
+            has = host >= 0
+            fparent[has] = areas.ids[host[has]]
+            if "district" in areas:
+                fdistrict[has] = np.asarray(areas["district"], np.int64)[host[has]]
+            district, parent = fdistrict[pidx], fparent[pidx]
+        report["blocks"] = int(len(parts))
+        self.report = report
+        log.info("%s: %d faces -> %d blocks (%s)", self.where, len(bf.faces), len(parts), report)
+        blocks = Layer.from_geoms(parts, parent=parent, meta=meta, district=district, face=fid[pidx])
+        faces_l = Layer.from_geoms(faces, ids=fid, parent=fparent, meta=meta, district=fdistrict,
+                                   half_width=hw)
+        # dead ends and connectors: their street surface as flat-capped rectangles
+        a, b = bf.xy[bf.u[bf.bridge]], bf.xy[bf.v[bf.bridge]]
+        ln = np.hypot(*(b - a).T)
+        hwd = width[bf.src[bf.bridge]] / 2.0
+        dead_poly = frame_boxes((a + b) / 2.0, (b - a) / np.maximum(ln, 1e-12)[:, None],
+                                -ln / 2.0, ln / 2.0, -hwd, hwd) if len(a) else np.empty(0, object)
+        sgeom = np.concatenate([street, dead_poly])
+        sgeom = sgeom[~shapely.is_empty(sgeom)]
+        streets = Layer.from_geoms(sgeom, meta=meta, kind=np.full(len(sgeom), "street"))
+        wgeom = walk[~shapely.is_empty(walk)]
+        walks = Layer.from_geoms(wgeom, meta=meta, kind=np.full(len(wgeom), "sidewalk"))
+        return {"blocks": blocks, "streets": streets, "sidewalks": walks, "faces": faces_l}
