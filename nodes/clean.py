@@ -1,0 +1,431 @@
+"""Street-graph clean-up for real maps, between the roads and the blocks.
+
+Blocks are the minimal closed circuits of the street graph (skylineEngine
+002 §5.4, Fig. 8).  That holds for a *plane* graph whose edges meet only at
+shared nodes; a real map (OpenStreetMap, a traced image, an OBJ) is not
+quite one.  This module prepares it, on whole numpy arrays:
+
+1. **Crossings** -- two segments that cross without a shared node get one,
+   but only when they lie on the same level: ways tagged ``bridge`` /
+   ``tunnel`` or on different ``layer`` values pass over each other (in OSM
+   most junctions are shared nodes already).
+2. **Split** -- every line is cut at its junctions into street segments.
+3. **Duplicates** -- segments joining the same two junctions along the same
+   path (within ``dup_tol``) are merged; the higher-ranked class is kept.
+4. **Dead ends** -- segments ending at a degree-1 node are dropped,
+   repeatedly, until none is left: they bound no block.
+5. **Slivers** -- the thin faces between dual carriageways and the tiny
+   traffic islands inside junctions are street surface, not blocks: faces
+   narrower than ``sliver_width`` or smaller than ``island_area`` are found
+   with the same face tracer the blocks use, counted, and handed on as
+   ``slivers`` (polygons of kind ``median`` / ``island``).
+
+Point identity is exact coordinate equality: the importers project every
+shared node once, so shared nodes are bit-identical.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import shapely
+
+from sengine import Layer, Param, Port, SENode, register
+from sengine.geometry import planar_faces
+
+__all__ = [
+    "Pieces",
+    "split_at_junctions",
+    "point_keys",
+    "crossing_points",
+    "clean_streets",
+    "find_slivers",
+    "RoadsClean",
+]
+
+log = logging.getLogger(__name__)
+
+#: Rank of highway classes when duplicates are merged: the first one wins.
+CLASS_RANK = ("motorway", "trunk", "primary", "secondary", "tertiary", "unclassified", "residential",
+              "living_street", "pedestrian", "service")
+
+
+@dataclass
+class Pieces:
+    """Lines cut at their junctions (result of :func:`split_at_junctions`).
+
+    Attributes
+    ----------
+    vertex : ndarray of int64
+        Indices into the input point arrays, piece after piece in order; a
+        junction inside a line appears twice (end of one piece, start of the next).
+    piece : ndarray of int64
+        Piece index of each entry of ``vertex`` (non-decreasing).
+    line : ndarray of int64
+        Source line of each piece.
+    first, last : ndarray of int64
+        Input index of the first and last point of each piece.
+    """
+
+    vertex: np.ndarray
+    piece: np.ndarray
+    line: np.ndarray
+    first: np.ndarray
+    last: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.line)
+
+
+def split_at_junctions(key: np.ndarray, line: np.ndarray) -> Pieces:
+    """Cut polylines at every point shared with another line (or revisited) and at their ends.
+
+    Parameters
+    ----------
+    key : ndarray of int64 (n,)
+        Identity of each point: equal keys are the same node.
+    line : ndarray of int (n,)
+        Line of each point, non-decreasing; points of a line are in order.
+
+    Returns
+    -------
+    Pieces
+        Consecutive repeated points are dropped first; lines left with fewer
+        than two points vanish.
+    """
+    key = np.asarray(key)
+    line = np.asarray(line, np.int64)
+    n = len(key)
+    if n == 0:
+        z = np.empty(0, np.int64)
+        return Pieces(z, z, z, z, z)
+    keep = np.ones(n, bool)
+    keep[1:] = ~((key[1:] == key[:-1]) & (line[1:] == line[:-1]))
+    idx = np.flatnonzero(keep)
+    k, ln = key[idx], line[idx]
+    idx = idx[np.bincount(ln)[ln] >= 2]
+    k, ln = key[idx], line[idx]
+    m = len(idx)
+    if m == 0:
+        z = np.empty(0, np.int64)
+        return Pieces(z, z, z, z, z)
+    first = np.r_[True, ln[1:] != ln[:-1]]
+    last = np.r_[ln[1:] != ln[:-1], True]
+    _, inv = np.unique(k, return_inverse=True)
+    used = np.bincount(inv.ravel())[inv.ravel()]
+    junction = (used >= 2) | first | last
+    start = junction & ~last
+    p = np.cumsum(start) - 1
+    inner = np.flatnonzero(junction & ~first & ~last)
+    pos = np.r_[np.arange(m), inner]
+    lab = np.r_[p, p[inner] - 1]
+    order = np.lexsort((pos, lab))
+    pos, lab = pos[order], lab[order]
+    brk = np.r_[True, lab[1:] != lab[:-1]]
+    ends = np.r_[lab[1:] != lab[:-1], True]
+    vertex = idx[pos]
+    return Pieces(vertex, lab, ln[pos[brk]], vertex[brk], vertex[ends])
+
+
+def point_keys(xy: np.ndarray) -> np.ndarray:
+    """An int64 identity per point: equal coordinates, equal key (``-0.0 == 0.0``)."""
+    xy = np.ascontiguousarray(xy, np.float64) + 0.0
+    _, inv = np.unique(xy.view(np.complex128).ravel(), return_inverse=True)
+    return inv.ravel().astype(np.int64)
+
+
+def crossing_points(xy: np.ndarray, line: np.ndarray, level: np.ndarray,
+                    key: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Proper crossings between segments of lines on the same level that share no node.
+
+    Parameters
+    ----------
+    xy : ndarray (n, 2)
+        Points of all lines, line after line.
+    line : ndarray of int (n,)
+        Line of each point (non-decreasing).
+    level : ndarray of int (nlines,)
+        Lines cross at a new junction only when their levels are equal.
+    key : ndarray of int64 (n,), optional
+        Node identity of each point (default: :func:`point_keys`).
+
+    Returns
+    -------
+    at : ndarray of int64 (2 k,)
+        For each inserted point, the index of the first point of the segment it splits.
+    t : ndarray of float (2 k,)
+        Its position along that segment, in (0, 1).
+    point : ndarray (2 k, 2)
+        The crossing points; both copies of a crossing are bit-identical.
+    """
+    empty = (np.empty(0, np.int64), np.empty(0), np.empty((0, 2)))
+    a = np.flatnonzero(line[1:] == line[:-1])
+    if len(a) < 2:
+        return empty
+    key = point_keys(xy) if key is None else key
+    p, q = xy[a], xy[a + 1]
+    segs = shapely.linestrings(np.stack([p, q], axis=1))
+    i, j = shapely.STRtree(segs).query(segs)  # bounding boxes only
+    sel = i < j
+    i, j = i[sel], j[sel]
+    ka, kb, kc, kd = key[a[i]], key[a[i] + 1], key[a[j]], key[a[j] + 1]
+    sel = ~((ka == kc) | (ka == kd) | (kb == kc) | (kb == kd))
+    sel &= level[line[a[i]]] == level[line[a[j]]]
+    i, j = i[sel], j[sel]
+    r, s = q[i] - p[i], q[j] - p[j]
+    w = p[j] - p[i]
+    den = r[:, 0] * s[:, 1] - r[:, 1] * s[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (w[:, 0] * s[:, 1] - w[:, 1] * s[:, 0]) / den
+        u = (w[:, 0] * r[:, 1] - w[:, 1] * r[:, 0]) / den
+    hit = (den != 0) & (t > 0) & (t < 1) & (u > 0) & (u < 1)
+    i, j, t, u = i[hit], j[hit], t[hit], u[hit]
+    pt = p[i] + t[:, None] * (q[i] - p[i])
+    return np.r_[a[i], a[j]], np.r_[t, u], np.r_[pt, pt]
+
+
+def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | None = None,
+                  level: np.ndarray | None = None, rank: np.ndarray | None = None,
+                  dup_tol: float = 0.5, dead_ends: bool = True) -> tuple[Pieces, np.ndarray, np.ndarray, dict]:
+    """Node same-level crossings, split at junctions, merge duplicates, drop dead ends.
+
+    Parameters
+    ----------
+    geoms : ndarray of shapely.LineString
+        Street centre lines (m); MultiLineStrings are exploded.
+    ends : (ndarray, ndarray) of int, optional
+        Known topology of LineStrings that are already cut at their
+        junctions: the node ids of each line's first and last point (as
+        ``osm.read`` gives).  Inner points are then new nodes and no
+        coordinate is compared; without it, equal coordinates are one node.
+    level : ndarray of int, optional
+        Per line; crossings are noded only between lines of equal level
+        (give bridges and tunnels a level of their own).  All 0 when None.
+    rank : ndarray of int, optional
+        Per line; of duplicate segments the one with the lowest rank is kept.
+    dup_tol : float
+        Hausdorff distance (m) under which two segments between the same two
+        junctions are one street.
+    dead_ends : bool
+        Drop dead ends (iteratively).
+
+    Returns
+    -------
+    pieces : Pieces
+        Street segments; ``pieces.line`` indexes ``geoms``.
+    xy : ndarray (k, 2)
+        The points ``pieces.vertex`` refers to.
+    key : ndarray of int64 (k,)
+        Node identity of each point.
+    counts : dict
+        ``crossings_noded``, ``duplicates_merged``, ``dead_ends_removed`` (segments).
+    """
+    geoms = np.asarray(geoms, dtype=object)
+    parts, src = shapely.get_parts(geoms, return_index=True)
+    xy, pidx = shapely.get_coordinates(parts, return_index=True)
+    # parts of one multi-line must stay apart: split them by part index instead of source line
+    part_line = pidx.astype(np.int64)
+    nparts = len(parts)
+    level_p = np.zeros(nparts, np.int64) if level is None else np.asarray(level, np.int64)[src]
+    counts = {"crossings_noded": 0, "duplicates_merged": 0, "dead_ends_removed": 0}
+    if ends is not None and nparts == len(geoms) and len(xy):
+        eu, ev = (np.asarray(e, np.int64) for e in ends)
+        top = int(max(eu.max(initial=-1), ev.max(initial=-1))) + 1
+        key = top + np.arange(len(xy), dtype=np.int64)
+        first = np.r_[True, part_line[1:] != part_line[:-1]]
+        last = np.r_[part_line[1:] != part_line[:-1], True]
+        key[first] = eu[part_line[first]]
+        key[last] = ev[part_line[last]]
+    else:
+        key = point_keys(xy)
+    r = np.zeros(len(geoms), np.int64) if rank is None else np.asarray(rank, np.int64)
+    # merge duplicates first: twin ways would otherwise be cut at slightly different crossing points
+    pieces = split_at_junctions(key, part_line)
+    keep, ndup = _duplicates(pieces, xy, key, r[src[pieces.line]], dup_tol)
+    pieces = _take_pieces(pieces, keep)
+    xy, key, part_line, part_of = xy[pieces.vertex], key[pieces.vertex], pieces.piece, pieces.line
+    at, t, pt = crossing_points(xy, part_line, level_p[part_of], key)
+    k = len(at) // 2
+    counts["crossings_noded"] = k
+    if k:
+        order = np.lexsort((np.r_[np.zeros(len(xy)), t], np.r_[np.arange(len(xy)), at]))
+        xy = np.r_[xy, pt][order]
+        fresh = int(key.max()) + 1 + np.arange(k, dtype=np.int64)
+        key = np.r_[key, fresh, fresh][order]
+        part_line = np.r_[part_line, part_line[at]][order]
+    pieces = split_at_junctions(key, part_line)
+    pieces.line = src[part_of[pieces.line]]
+    keep, ndup2 = _duplicates(pieces, xy, key, r[pieces.line], dup_tol)
+    counts["duplicates_merged"] = ndup + ndup2
+    if dead_ends:
+        _, inv = np.unique(np.r_[key[pieces.first], key[pieces.last]], return_inverse=True)
+        inv = inv.ravel()
+        m = len(pieces)
+        u, v = inv[:m], inv[m:]
+        nn = int(inv.max(initial=-1)) + 1
+        removed = 0
+        while True:
+            live = np.flatnonzero(keep)
+            deg = np.bincount(u[live], minlength=nn) + np.bincount(v[live], minlength=nn)
+            dead = (deg[u[live]] == 1) | (deg[v[live]] == 1)
+            if not dead.any():
+                break
+            keep[live[dead]] = False
+            removed += int(dead.sum())
+        counts["dead_ends_removed"] = removed
+    return _take_pieces(pieces, keep), xy, key, counts
+
+
+def _duplicates(pieces: Pieces, xy: np.ndarray, key: np.ndarray, rank: np.ndarray,
+                dup_tol: float) -> tuple[np.ndarray, int]:
+    """Keep-mask of pieces: of pieces joining the same two nodes within ``dup_tol`` (Hausdorff, m), the lowest rank."""
+    keep = np.ones(len(pieces), bool)
+    if not len(pieces):
+        return keep, 0
+    u, v = key[pieces.first], key[pieces.last]
+    a, b = np.minimum(u, v), np.maximum(u, v)
+    order = np.lexsort((rank, b, a))
+    same = (a[order][1:] == a[order][:-1]) & (b[order][1:] == b[order][:-1])
+    if not same.any():
+        return keep, 0
+    cand = np.flatnonzero(np.r_[False, same])
+    grp_first = order[np.maximum.accumulate(np.where(np.r_[True, ~same], np.arange(len(order)), 0))]
+    need = np.unique(np.r_[order[cand], grp_first[cand]])
+    sel = np.isin(pieces.piece, need)
+    lines = np.empty(len(pieces), dtype=object)
+    lines[need] = shapely.linestrings(xy[pieces.vertex[sel]], indices=np.searchsorted(need, pieces.piece[sel]))
+    dup = shapely.hausdorff_distance(lines[order[cand]], lines[grp_first[cand]]) <= dup_tol
+    keep[order[cand[dup]]] = False
+    return keep, int(dup.sum())
+
+
+def _take_pieces(pieces: Pieces, keep: np.ndarray) -> Pieces:
+    kept = np.flatnonzero(keep)
+    renum = np.full(len(pieces), -1, np.int64)
+    renum[kept] = np.arange(len(kept))
+    sel = keep[pieces.piece]
+    return Pieces(pieces.vertex[sel], renum[pieces.piece[sel]], pieces.line[kept], pieces.first[kept],
+                  pieces.last[kept])
+
+
+def segment_graph(pieces: Pieces, xy: np.ndarray, key: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The straight-segment graph of street segments: node xy and edge end indices."""
+    ukey, first, inv = np.unique(key[pieces.vertex], return_index=True, return_inverse=True)
+    inv = inv.ravel()
+    nodes = xy[pieces.vertex[first]]
+    s = np.flatnonzero(pieces.piece[1:] == pieces.piece[:-1])
+    return nodes, inv[s], inv[s + 1]
+
+
+def find_slivers(nodes: np.ndarray, u: np.ndarray, v: np.ndarray, *, sliver_width: float,
+                 island_area: float) -> tuple[np.ndarray, np.ndarray, int]:
+    """Faces of the street graph that are street surface, not blocks.
+
+    Parameters
+    ----------
+    nodes, u, v : ndarray
+        A plane segment graph (see :func:`segment_graph`).
+    sliver_width : float
+        Faces whose mean width ``2 area / perimeter`` (m) is below this are
+        medians between dual carriageways.
+    island_area : float
+        Faces smaller than this (m2) are traffic islands.
+
+    Returns
+    -------
+    polygons : ndarray of shapely.Polygon
+    kind : ndarray of str
+        ``"island"`` or ``"median"``.
+    nfaces : int
+        Number of faces of the graph.
+    """
+    faces = planar_faces(nodes, u, v).polygons
+    if not len(faces):
+        return np.empty(0, object), np.empty(0, object), 0
+    area = shapely.area(faces)
+    width = 2.0 * area / np.maximum(shapely.length(faces), 1e-12)
+    island = area < island_area
+    median = ~island & (width < sliver_width)
+    sel = island | median
+    return faces[sel], np.where(island[sel], "island", "median").astype(object), len(faces)
+
+
+@register
+class RoadsClean(SENode):
+    """Make a real street network plane and tidy before block detection.
+
+    Nodes same-level crossings (not bridges or tunnels), merges duplicate
+    ways, drops dead ends and finds the slivers between dual carriageways and
+    the traffic islands (skylineEngine 002 §5.4 needs a plane graph).
+    """
+
+    name = "roads.clean"
+    inputs = {"roads": Port("roads", "street centre lines, e.g. from osm.read")}
+    outputs = {
+        "roads": Port("roads", "plane street segments between junctions"),
+        "slivers": Port("polygons", "medians and traffic islands: street surface, not blocks"),
+    }
+    params = {
+        "tunnels": Param("str", "drop", choices=("drop", "keep"),
+                         doc="tunnels pass under blocks: drop them, or keep them as block edges"),
+        "dup_tol": Param("float", 0.5, min=0.0, max=50.0, unit="m",
+                         doc="segments between the same junctions closer than this are duplicates"),
+        "dead_ends": Param("bool", True, doc="drop dead ends iteratively"),
+        "sliver_width": Param("float", 8.0, min=0.0, max=100.0, unit="m",
+                              doc="faces thinner than this (2 area / perimeter) are medians"),
+        "island_area": Param("float", 150.0, min=0.0, unit="m2", doc="faces smaller than this are traffic islands"),
+        "find_slivers": Param("bool", True, doc="trace faces to find medians and islands"),
+    }
+
+    def run(self, *, roads: Layer) -> dict[str, Layer]:
+        n0 = len(roads)
+        meta = {k: v for k, v in roads.meta.items() if k not in ("nodes", "node_keys")}
+        keep = np.ones(n0, bool)
+        tunnel = roads.get("tunnel")
+        if tunnel is not None and self.p.tunnels == "drop":
+            keep &= ~tunnel.astype(bool)
+        lay = roads.take(np.flatnonzero(keep))
+        n = len(lay)
+        level = np.asarray(lay.get("layer", np.zeros(n, np.int64)), np.int64)
+        struct = np.zeros(n, bool)
+        for col in ("bridge", "tunnel"):
+            if col in lay:
+                struct |= lay[col].astype(bool)
+        # a bridge or tunnel meets other ways only at shared nodes: give each its own level
+        level = np.where(struct, -(10 ** 9) - np.arange(n), level)
+        cls = lay.get("class")
+        rank = np.zeros(n, np.int64)
+        if cls is not None and n:
+            lut = {c: i for i, c in enumerate(CLASS_RANK)}
+            names, inv = np.unique(cls.astype(str), return_inverse=True)
+            rank = np.array([lut.get(c.removesuffix("_link"), len(CLASS_RANK)) for c in names], np.int64)[inv.ravel()]
+        if "major" in lay:
+            rank = rank - 100 * lay["major"].astype(np.int64)
+        ends = (lay["u"], lay["v"]) if "u" in lay and "v" in lay else None
+        pieces, xy, key, counts = clean_streets(lay.geometry, ends=ends, level=level, rank=rank,
+                                                dup_tol=self.p.dup_tol, dead_ends=self.p.dead_ends)
+        geoms = shapely.linestrings(xy[pieces.vertex], indices=pieces.piece) if len(pieces) else np.empty(0, object)
+        nodes, su, sv = segment_graph(pieces, xy, key)
+        ukey = np.unique(key[pieces.vertex])
+        out = lay.take(pieces.line)
+        out = Layer(np.asarray(geoms, dtype=object), np.arange(len(pieces), dtype=np.int64),
+                    out.ids.copy(), {**out.attrs, "u": np.searchsorted(ukey, key[pieces.first]),
+                                     "v": np.searchsorted(ukey, key[pieces.last])},
+                    {**meta, "planar": True, "nodes": xy[pieces.vertex][np.unique(key[pieces.vertex], return_index=True)[1]]})
+        counts["tunnels_dropped"] = int(n0 - n)
+        slivers = Layer.empty(meta=meta, kind=object)
+        counts["slivers_merged"] = counts["islands"] = counts["medians"] = 0
+        if self.p.find_slivers and len(pieces):
+            polys, kind, nfaces = find_slivers(nodes, su, sv, sliver_width=self.p.sliver_width,
+                                               island_area=self.p.island_area)
+            slivers = Layer.from_geoms(polys, meta=meta, kind=kind)
+            counts["faces"] = nfaces
+            counts["islands"] = int((kind == "island").sum())
+            counts["medians"] = int((kind == "median").sum())
+            counts["slivers_merged"] = len(polys)
+        self.report = counts
+        log.info("%s: %d roads -> %d street segments; %s", self.where, n0, len(out),
+                 ", ".join(f"{k} {v}" for k, v in counts.items()))
+        return {"roads": out, "slivers": slivers}
