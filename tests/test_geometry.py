@@ -1,0 +1,133 @@
+"""sengine.geometry: faces of plane graphs, planarize, OBB frames, splits."""
+
+from __future__ import annotations
+
+import networkx as nx
+import numpy as np
+import shapely
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from sengine.geometry import (
+    boundary_segments,
+    frame_boxes,
+    merge_points,
+    obb_frame,
+    planar_faces,
+    planarize,
+    segments_from_lines,
+    signed_area,
+    split_by_line,
+)
+
+SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+def euler_faces(xy, u, v) -> int:
+    """Bounded faces of a plane graph by Euler's formula: E - V + C."""
+    g = nx.Graph()
+    g.add_edges_from((int(a), int(b)) for a, b in zip(u, v) if a != b)
+    return g.number_of_edges() - g.number_of_nodes() + nx.number_connected_components(g)
+
+
+coord = st.integers(0, 20).map(lambda k: k * 5.0)
+segment = st.tuples(coord, coord, coord, coord).filter(lambda s: (s[0], s[1]) != (s[2], s[3]))
+
+
+@SETTINGS
+@given(st.lists(segment, min_size=1, max_size=25))
+def test_faces_of_random_segments_match_polygonize_and_euler(segs):
+    lines = shapely.linestrings(np.asarray(segs, float).reshape(-1, 2, 2))
+    xy, u, v, _ = segments_from_lines(lines)
+    xy, u, v, _, _ = planarize(xy, u, v)
+    pf = planar_faces(xy, u, v)
+    polys = pf.polygons
+    assert shapely.is_valid(polys).all()
+    ref = shapely.get_parts(shapely.polygonize(shapely.get_parts(shapely.node(shapely.multilinestrings(lines)))))
+    ref = ref[shapely.area(ref) > 1e-9]
+    assert len(polys) == len(ref)
+    total = shapely.area(polys).sum()
+    ref_total = shapely.area(ref).sum()
+    assert abs(total - ref_total) <= 1e-6 * max(ref_total, 1.0)
+    if len(polys):
+        union = shapely.area(shapely.union_all(polys))
+        assert abs(union - total) <= 1e-6 * max(total, 1.0)  # no overlaps
+    a, b = np.minimum(u, v), np.maximum(u, v)
+    k = np.unique(a * len(xy) + b)
+    assert len(polys) + pf.counts["degenerate"] == euler_faces(xy, k // len(xy), k % len(xy))
+
+
+def test_square_with_dead_end_hole_and_spike():
+    lines = [shapely.box(0, 0, 10, 10).exterior, shapely.LineString([(0, 0), (-5, -5)]),
+             shapely.LineString([(2, 2), (4, 4)]), shapely.box(6, 6, 8, 8).exterior]
+    xy, u, v, _ = segments_from_lines(lines, node=True)
+    pf = planar_faces(xy, u, v)
+    assert pf.counts["bridges"] == 2
+    assert len(pf.polygons) == 2
+    big = pf.polygons[np.argmax(shapely.area(pf.polygons))]
+    assert len(big.interiors) == 1
+    assert abs(big.area - 96.0) < 1e-9
+    assert len(pf.outline) == 1 and abs(pf.outline[0].area - 100.0) < 1e-9
+
+
+def test_pinched_face_gets_touching_hole():
+    # a triangle hanging from a corner of the square, inside it
+    lines = [shapely.box(0, 0, 10, 10).exterior, shapely.LinearRing([(0, 0), (4, 1), (1, 4)])]
+    xy, u, v, _ = segments_from_lines(lines, node=True)
+    pf = planar_faces(xy, u, v)
+    assert pf.counts["pinched"] == 1
+    assert shapely.is_valid(pf.polygons).all()
+    assert abs(shapely.area(pf.polygons).sum() - 100.0) < 1e-9
+    assert sorted(len(p.interiors) for p in pf.polygons) == [0, 1]
+
+
+def test_duplicates_self_loops_and_edge_faces():
+    xy = np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]])
+    u = np.array([0, 1, 2, 3, 1, 2])
+    v = np.array([1, 2, 3, 0, 0, 2])
+    pf = planar_faces(xy, u, v)
+    assert pf.counts["duplicates"] == 1 and pf.counts["self_loops"] == 1
+    assert len(pf.polygons) == 1
+    assert pf.edge_faces[0].tolist() == [0, -1]  # face on the left of 0 -> 1
+    assert pf.edge_faces[4].tolist() == [-1, 0]  # reversed duplicate
+    assert pf.edge_faces[5].tolist() == [-1, -1]
+
+
+def test_planarize_splits_crossings_t_junctions_and_overlaps():
+    xy = np.array([[0, 0], [10, 0], [5, -5], [5, 5], [10, 10], [0, 10], [3, 0], [8, 0.0]])
+    u = np.array([0, 2, 3, 6])
+    v = np.array([1, 3, 4, 7])  # cross at (5, 0); collinear overlap 3..8 on 0..10
+    nxy, nu, nv, src, crossings = planarize(xy, u, v)
+    assert crossings >= 2
+    pts = {tuple(p) for p in nxy[np.r_[nu, nv]]}
+    assert (5.0, 0.0) in pts and (3.0, 0.0) in pts and (8.0, 0.0) in pts
+    assert set(src.tolist()) == {0, 1, 2, 3}
+    # planarized again: nothing left to split
+    assert planarize(nxy, nu, nv)[4] == 0
+
+
+def test_signed_area_and_merge_points():
+    xy = np.array([[0, 0], [2, 0], [2, 1], [0, 0], [0, 1], [1, 0.0]])
+    a = signed_area(xy, np.array([0, 0, 0, 1, 1, 1]))
+    assert np.allclose(a, [1.0, -0.5])
+    pts, inv = merge_points(np.array([[0.0, 0.0], [1e-9, 0], [1, 1]]), 6)
+    assert len(pts) == 2 and inv[0] == inv[1]
+
+
+@SETTINGS
+@given(st.floats(1, 300), st.floats(1, 300), st.floats(-180, 180))
+def test_obb_frame_and_frame_boxes_round_trip(w, h, angle):
+    box = shapely.affinity.rotate(shapely.box(0, 0, w, h), angle, origin=(0, 0))
+    c, ax, ln, wd = obb_frame([box])
+    assert np.isclose(ln[0], max(w, h), rtol=1e-6) and np.isclose(wd[0], min(w, h), rtol=1e-6)
+    back = frame_boxes(c, ax, -ln / 2, ln / 2, -wd / 2, wd / 2)[0]
+    assert shapely.symmetric_difference(back, box).area < 1e-6 * box.area
+
+
+def test_split_by_line_halves_partition():
+    poly = shapely.Polygon([(0, 0), (10, 0), (10, 10), (5, 2), (0, 10)])
+    left, right = split_by_line([poly], [[5, 5]], [[0, 1]])
+    assert np.isclose(left[0].area + right[0].area, poly.area)
+    assert left[0].intersection(right[0]).area < 1e-9
+    p0, p1, idx, ring = boundary_segments([poly])
+    assert len(p0) == 5 and (idx == 0).all()
