@@ -321,8 +321,10 @@ class BlocksCircuits(SENode):
             ok &= inside
         faces, fid, hw = faces[ok], fid[ok], hw[ok]
         street, walk, block = shrink_faces(faces, hw, self.p.sidewalk)
+        gone = shapely.is_empty(block)
+        report["vanished_by_inset"] = int(gone.sum())
         parts, pidx = shapely.get_parts(block, return_index=True)
-        report["vanished_by_inset"] = int(len(faces) - len(np.unique(pidx)))
+        parts, pidx = parts[~gone[pidx]], pidx[~gone[pidx]]
         big = shapely.area(parts) >= self.p.min_area
         report["dropped_small_after_inset"] = int((~big).sum())
         parts, pidx = parts[big], pidx[big]

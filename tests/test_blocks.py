@@ -1,0 +1,203 @@
+"""blocks.circuits: minimal circuits partition the city (skylineEngine §5.4)."""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+import shapely
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from sengine import Layer
+from sengine.builtin import load
+from sengine.registry import get
+
+load()
+B = importlib.import_module("sengine_nodes.blocks")
+
+SETTINGS = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+DATA = Path("/work/shared/data")
+MONACO = next((p for p in (Path(__file__).resolve().parent.parent / "configs/data/monaco.osm.pbf",
+                           DATA / "monaco.osm.pbf") if p.exists()), None)
+
+
+def polygonize_ref(lines):
+    noded = shapely.node(shapely.multilinestrings(shapely.get_parts(np.asarray(lines, dtype=object))))
+    ref = shapely.get_parts(shapely.polygonize(shapely.get_parts(noded)))
+    return ref[shapely.area(ref) > 1e-9]
+
+
+def assert_partition_like(faces, ref):
+    total, ref_total = shapely.area(faces).sum(), shapely.area(ref).sum()
+    assert abs(total - ref_total) <= 1e-6 * max(ref_total, 1.0)
+    if len(faces):
+        union = shapely.area(shapely.union_all(faces))
+        assert abs(union - total) <= 1e-6 * max(total, 1.0), "faces overlap"
+        ref_union = shapely.union_all(ref)
+        assert shapely.symmetric_difference(shapely.union_all(faces), ref_union).area <= 1e-6 * max(total, 1.0)
+
+
+@st.composite
+def jittered_grid(draw):
+    """A street grid with jitter, removed edges (dead ends), duplicates and collinear overlaps."""
+    nx_, ny = draw(st.integers(2, 6)), draw(st.integers(2, 6))
+    seed = draw(st.integers(0, 2**31))
+    rng = np.random.default_rng(seed)
+    step = draw(st.floats(20, 120))
+    jitter = draw(st.floats(0, 0.3)) * step
+    gx, gy = np.meshgrid(np.arange(nx_ + 1) * step, np.arange(ny + 1) * step, indexing="ij")
+    pts = np.stack([gx, gy], -1) + rng.uniform(-jitter, jitter, (nx_ + 1, ny + 1, 2))
+    lines = []
+    for i in range(nx_ + 1):
+        for j in range(ny + 1):
+            if i < nx_:
+                lines.append([pts[i, j], pts[i + 1, j]])
+            if j < ny:
+                lines.append([pts[i, j], pts[i, j + 1]])
+    lines = np.asarray(lines)
+    drop = rng.random(len(lines)) < draw(st.floats(0, 0.3))
+    lines = list(lines[~drop])
+    for _ in range(draw(st.integers(0, 4))):  # dead ends poking into blocks
+        p = pts[rng.integers(nx_ + 1), rng.integers(ny + 1)]
+        lines.append([p, p + rng.uniform(-0.4, 0.4, 2) * step])
+    for _ in range(draw(st.integers(0, 3))):  # duplicates, reversed
+        if lines:
+            a, b = lines[rng.integers(len(lines))]
+            lines.append([b, a])
+    for _ in range(draw(st.integers(0, 2))):  # collinear overlap along a grid row
+        j = rng.integers(ny + 1)
+        lines.append([pts[0, j], pts[min(2, nx_), j]])
+    return shapely.linestrings(np.asarray(lines, float))
+
+
+@SETTINGS
+@given(jittered_grid())
+def test_blocks_of_jittered_grids_match_polygonize(lines):
+    bf = B.find_blocks(lines)
+    ref = polygonize_ref(lines)
+    assert shapely.is_valid(bf.faces).all()
+    assert len(bf.faces) == len(ref)
+    assert_partition_like(bf.faces, ref)
+
+
+@SETTINGS
+@given(st.integers(1, 8), st.integers(1, 8), st.floats(5, 200))
+def test_clean_grid_counts(nx_, ny, step):
+    lines = [shapely.LineString([(i * step, 0), (i * step, ny * step)]) for i in range(nx_ + 1)]
+    lines += [shapely.LineString([(0, j * step), (nx_ * step, j * step)]) for j in range(ny + 1)]
+    bf = B.find_blocks(lines)
+    assert len(bf.faces) == nx_ * ny
+    assert np.allclose(shapely.area(bf.faces), step * step)
+    assert len(bf.outline) == 1 and np.isclose(bf.outline[0].area, nx_ * ny * step * step)
+
+
+def test_arrays_entry_point_matches_lines_entry():
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(0, 500, (40, 2))
+    tri = shapely.delaunay_triangles(shapely.multipoints(xy), only_edges=True)
+    lines = shapely.get_parts(tri)
+    c = shapely.get_coordinates(lines).reshape(-1, 2, 2)
+    # node ids by coordinate, as an OSM importer would give
+    ids = {tuple(p): k for k, p in enumerate(xy.tolist())}
+    u = np.array([ids[tuple(p)] for p in c[:, 0].tolist()])
+    v = np.array([ids[tuple(p)] for p in c[:, 1].tolist()])
+    a = B.find_blocks((xy, u, v), node=False)
+    b = B.find_blocks(lines)
+    assert len(a.faces) == len(b.faces) == len(polygonize_ref(lines))
+    assert np.isclose(shapely.area(a.faces).sum(), shapely.area(shapely.union_all(lines).convex_hull))
+    assert np.array_equal(np.sort(a.src), np.arange(len(u)))
+
+
+def test_disconnected_component_becomes_hole():
+    lines = [shapely.box(0, 0, 100, 100).exterior, shapely.box(40, 40, 60, 60).exterior]
+    bf = B.find_blocks(lines)
+    areas = sorted(shapely.area(bf.faces))
+    assert np.allclose(areas, [400.0, 9600.0])
+    assert assert_partition_like(bf.faces, polygonize_ref(lines)) is None
+
+
+def _roads(lines, width=10.0):
+    lines = np.asarray(lines, dtype=object)
+    return Layer.from_geoms(lines, width=np.full(len(lines), width), meta={"crs": "EPSG:32631"})
+
+
+def test_node_shrinks_blocks_and_partitions_faces():
+    lines = [shapely.LineString([(i * 100.0, 0), (i * 100.0, 300)]) for i in range(4)]
+    lines += [shapely.LineString([(0, j * 100.0), (300, j * 100.0)]) for j in range(4)]
+    lines.append(shapely.LineString([(50, 0), (50, 30)]))  # dead end
+    node = get("blocks.circuits")("blocks", {"sidewalk": 3.0, "min_area": 1.0})
+    out = node.run(roads=_roads(lines, 10.0))
+    blocks, streets, walks, faces = out["blocks"], out["streets"], out["sidewalks"], out["faces"]
+    assert len(faces) == 9 and len(blocks) == 9
+    assert np.allclose(shapely.area(blocks.geometry), (100 - 2 * 8) ** 2)
+    assert set(walks["kind"]) == {"sidewalk"} and set(streets["kind"]) == {"street"}
+    # street ring + sidewalk ring + block = face, for every face
+    face_streets = streets.geometry[:9]
+    assert np.allclose(shapely.area(face_streets) + shapely.area(walks.geometry) + shapely.area(blocks.geometry),
+                       shapely.area(faces.geometry))
+    assert node.report["bridges"] == 1 and len(streets) == 10
+    assert shapely.within(blocks.geometry, faces.geometry[blocks["face"]]).all()
+
+
+def test_node_outline_areas_and_reports():
+    lines = [shapely.LineString([(i * 100.0, 0), (i * 100.0, 200)]) for i in range(3)]
+    lines += [shapely.LineString([(0, j * 100.0), (200, j * 100.0)]) for j in range(3)]
+    lines.append(shapely.LineString([(0, 0), (1, 1)]))  # a sliver-free dead end
+    outline = Layer.from_geoms([shapely.box(-1, -1, 201, 101)])
+    areas = Layer.from_geoms([shapely.box(0, 0, 100, 100), shapely.box(100, 0, 200, 100)], ids=[7, 8],
+                             district=[2, 5])
+    node = get("blocks.circuits")("blocks", {"sidewalk": 2.0, "width_from": "param", "street_width": 6})
+    out = node.run(roads=_roads(lines, 50.0), outline=outline, areas=areas)
+    blocks = out["blocks"]
+    assert node.report["dropped_outside_outline"] == 2
+    assert sorted(blocks["district"].tolist()) == [2, 5]
+    assert sorted(blocks.parent.tolist()) == [7, 8]
+    assert np.allclose(shapely.area(blocks.geometry), (100 - 10) ** 2)
+
+
+def test_thin_faces_are_dropped_and_counted():
+    lines = [shapely.box(0, 0, 200, 100).exterior, shapely.LineString([(0, 50), (200, 50)]),
+             shapely.LineString([(0, 52), (200, 52)])]  # a 2 m median strip
+    node = get("blocks.circuits")("blocks", {"min_area": 10.0})
+    out = node.run(roads=_roads(lines, 8.0))
+    assert len(out["faces"]) == 3
+    assert len(out["blocks"]) == 2
+    assert node.report["vanished_by_inset"] == 1
+    assert node.run(roads=_roads([], 8.0))["blocks"].geometry.shape == (0,)
+
+
+def read_highways(path):
+    osmium = pytest.importorskip("osmium")
+    pyproj = pytest.importorskip("pyproj")
+    lon, lat, idx = [], [], []
+    k = 0
+    for obj in osmium.FileProcessor(str(path)).with_locations():
+        if obj.is_way() and "highway" in obj.tags:
+            for nd in obj.nodes:
+                if nd.location.valid():
+                    lon.append(nd.lon)
+                    lat.append(nd.lat)
+                    idx.append(k)
+            k += 1
+    lon, lat, idx = np.asarray(lon), np.asarray(lat), np.asarray(idx)
+    tr = pyproj.Transformer.from_crs("EPSG:4326", "EPSG:32632", always_xy=True)
+    x, y = tr.transform(lon, lat)
+    x, y = x - x.mean(), y - y.mean()
+    ok = np.bincount(idx) >= 2
+    keep = ok[idx]
+    return shapely.linestrings(np.c_[x[keep], y[keep]], indices=np.unique(idx[keep], return_inverse=True)[1])
+
+
+@pytest.mark.skipif(MONACO is None, reason="monaco.osm.pbf not available")
+def test_monaco_blocks_match_polygonize():
+    lines = read_highways(MONACO)
+    assert len(lines) > 2000
+    bf = B.find_blocks(lines, decimals=None)
+    ref = polygonize_ref(lines)
+    assert shapely.is_valid(bf.faces).all()
+    assert bf.counts["bridges"] > 0
+    assert len(bf.faces) == len(ref)
+    assert_partition_like(bf.faces, ref)
