@@ -33,7 +33,7 @@ import numpy as np
 import shapely
 
 from sengine import Layer, Param, Port, SENode, register
-from sengine.geometry import planar_faces
+from sengine.geometry import trace_faces
 
 __all__ = [
     "Pieces",
@@ -310,13 +310,26 @@ def _take_pieces(pieces: Pieces, keep: np.ndarray) -> Pieces:
                   pieces.last[kept])
 
 
-def segment_graph(pieces: Pieces, xy: np.ndarray, key: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The straight-segment graph of street segments: node xy and edge end indices."""
-    ukey, first, inv = np.unique(key[pieces.vertex], return_index=True, return_inverse=True)
+def segment_graph(pieces: Pieces, xy: np.ndarray, key: np.ndarray):
+    """The straight-segment graph of street segments.
+
+    Returns
+    -------
+    nodes : ndarray (k, 2)
+        Node coordinates (m).
+    u, v : ndarray of int64
+        End node ids of every straight segment.
+    pu, pv : ndarray of int64
+        End node ids of every piece (street segment).
+    """
+    _, first, inv = np.unique(key[pieces.vertex], return_index=True, return_inverse=True)
     inv = inv.ravel()
     nodes = xy[pieces.vertex[first]]
-    s = np.flatnonzero(pieces.piece[1:] == pieces.piece[:-1])
-    return nodes, inv[s], inv[s + 1]
+    lab = pieces.piece
+    s = np.flatnonzero(lab[1:] == lab[:-1])
+    starts = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]]) if len(lab) else np.empty(0, np.int64)
+    ends = np.r_[starts[1:] - 1, len(lab) - 1] if len(lab) else starts
+    return nodes, inv[s], inv[s + 1], inv[starts], inv[ends]
 
 
 def find_slivers(nodes: np.ndarray, u: np.ndarray, v: np.ndarray, *, sliver_width: float,
@@ -341,15 +354,45 @@ def find_slivers(nodes: np.ndarray, u: np.ndarray, v: np.ndarray, *, sliver_widt
     nfaces : int
         Number of faces of the graph.
     """
-    faces = planar_faces(nodes, u, v).polygons
-    if not len(faces):
-        return np.empty(0, object), np.empty(0, object), 0
-    area = shapely.area(faces)
-    width = 2.0 * area / np.maximum(shapely.length(faces), 1e-12)
-    island = area < island_area
-    median = ~island & (width < sliver_width)
+    empty = (np.empty(0, object), np.empty(0, object), 0)
+    a, b = np.minimum(u, v), np.maximum(u, v)
+    ok = a != b
+    n = max(len(nodes), 1)
+    pairs = np.unique(a[ok] * n + b[ok])
+    if not len(pairs):
+        return empty
+    eu, ev = pairs // n, pairs % n
+    _, face, _ = trace_faces(nodes, eu, ev)
+    bridge = face[0::2] == face[1::2]
+    if bridge.any():  # dead ends and connectors: same face on both sides
+        eu, ev = eu[~bridge], ev[~bridge]
+        if not len(eu):
+            return empty
+        _, face, _ = trace_faces(nodes, eu, ev)
+    org = np.stack([eu, ev], axis=1).ravel()
+    dst = np.stack([ev, eu], axis=1).ravel()
+    p, q = nodes[org], nodes[dst]
+    nf = int(face.max()) + 1
+    area = np.bincount(face, weights=p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1], minlength=nf) / 2.0
+    perimeter = np.bincount(face, weights=np.hypot(*(q - p).T), minlength=nf)
+    # bounded faces turn the other way round from the outer face (the largest walk)
+    area = area * -np.sign(area[np.argmax(np.abs(area))])
+    bounded = area > 0
+    width = 2.0 * area / np.maximum(perimeter, 1e-12)
+    island = bounded & (area < island_area)
+    median = bounded & ~island & (width < sliver_width)
     sel = island | median
-    return faces[sel], np.where(island[sel], "island", "median").astype(object), len(faces)
+    nfaces = int(bounded.sum())
+    if not sel.any():
+        return (*empty[:2], nfaces)
+    # polygons of the selected faces only: polygonize their boundary segments
+    h = np.flatnonzero(sel[face])
+    polys = shapely.get_parts(shapely.polygonize(shapely.linestrings(np.stack([p[h], q[h]], axis=1))))
+    pa = shapely.area(polys)
+    pw = 2.0 * pa / np.maximum(shapely.length(polys), 1e-12)
+    is_island = pa < island_area
+    keep = is_island | (pw < sliver_width)
+    return polys[keep], np.where(is_island[keep], "island", "median").astype(object), nfaces
 
 
 @register
@@ -407,13 +450,10 @@ class RoadsClean(SENode):
         pieces, xy, key, counts = clean_streets(lay.geometry, ends=ends, level=level, rank=rank,
                                                 dup_tol=self.p.dup_tol, dead_ends=self.p.dead_ends)
         geoms = shapely.linestrings(xy[pieces.vertex], indices=pieces.piece) if len(pieces) else np.empty(0, object)
-        nodes, su, sv = segment_graph(pieces, xy, key)
-        ukey = np.unique(key[pieces.vertex])
+        nodes, su, sv, pu, pv = segment_graph(pieces, xy, key)
         out = lay.take(pieces.line)
-        out = Layer(np.asarray(geoms, dtype=object), np.arange(len(pieces), dtype=np.int64),
-                    out.ids.copy(), {**out.attrs, "u": np.searchsorted(ukey, key[pieces.first]),
-                                     "v": np.searchsorted(ukey, key[pieces.last])},
-                    {**meta, "planar": True, "nodes": xy[pieces.vertex][np.unique(key[pieces.vertex], return_index=True)[1]]})
+        out = Layer(np.asarray(geoms, dtype=object), np.arange(len(pieces), dtype=np.int64), out.ids.copy(),
+                    {**out.attrs, "u": pu, "v": pv}, {**meta, "planar": True, "nodes": nodes})
         counts["tunnels_dropped"] = int(n0 - n)
         slivers = Layer.empty(meta=meta, kind=object)
         counts["slivers_merged"] = counts["islands"] = counts["medians"] = 0
