@@ -186,6 +186,8 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
         except osmium.InvalidLocationError:
             if not _clipped_way(w, path, out, wkb, where):
                 return
+        except RuntimeError:  # libosmium geometry_error: a way of fewer than two nodes
+            return
         append_id(w.id)
         append_code(code)
         if len(tags) > 1:  # most Liège-like street tables carry highway only

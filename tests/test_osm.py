@@ -1,0 +1,238 @@
+"""osm.read on the committed OpenStreetMap extracts, bad files, and blocks against an independent route."""
+
+from __future__ import annotations
+
+import bz2
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+import shapely
+
+from sengine import CityPlan, Context, MapSpec
+from sengine.errors import InputDataError, ParameterError
+from sengine.geo import to_lonlat
+from sengine.registry import get
+
+DATA = Path(__file__).resolve().parent.parent / "configs" / "data"
+HELSINKI = DATA / "helsinki_centre.osm.pbf"
+MONACO = DATA / "monaco.osm.pbf"
+OAKLAND = DATA / "west_oakland.osm.bz2"
+KIRCHBERG = DATA / "kirchberg_iller.osm"
+MIN_AREA = 50.0
+
+
+def read(path, **params):
+    node = get("osm.read")("majorRoads", {"path": str(path), **params}, Context())
+    return node.run(), node
+
+
+@pytest.fixture(scope="module")
+def helsinki():
+    return read(HELSINKI)
+
+
+@pytest.fixture(scope="module")
+def monaco():
+    return read(MONACO)
+
+
+@pytest.mark.parametrize("path, crs, lat, lon", [
+    (HELSINKI, "EPSG:32635", 60.17, 24.94),
+    (MONACO, "EPSG:32632", 43.74, 7.42),
+    (OAKLAND, "EPSG:32610", 37.81, -122.29),
+    (KIRCHBERG, "EPSG:32632", 48.13, 10.08),
+])
+def test_every_format_reads_into_utm(path, crs, lat, lon):
+    out, node = read(path)
+    roads = out["roads"]
+    assert len(roads) > 0
+    assert roads.meta["crs"] == crs
+    assert roads.meta["origin"] == pytest.approx((lat, lon), abs=0.05)
+    # back to lon/lat: every vertex lies near the origin (a few km)
+    xy = shapely.get_coordinates(roads.geometry)
+    ll = to_lonlat(crs)(xy)
+    assert np.abs(ll[:, 0] - lon).max() < 0.1 and np.abs(ll[:, 1] - lat).max() < 0.1
+    assert shapely.is_valid(roads.geometry).all()
+    assert set(np.unique(roads["class"])) <= set(node.p.major.split(",")) | set(node.p.minor.split(","))
+    assert node.report["segments"] == len(roads)
+
+
+def test_topology_is_kept(helsinki):
+    roads = helsinki[0]["roads"]
+    nodes = roads.meta["nodes"]
+    start = shapely.get_coordinates(shapely.get_point(roads.geometry, 0))
+    end = shapely.get_coordinates(shapely.get_point(roads.geometry, -1))
+    assert np.array_equal(nodes[roads["u"]], start)
+    assert np.array_equal(nodes[roads["v"]], end)
+    # segments meet only at their ends: no inner vertex is another segment's vertex
+    coords, idx = shapely.get_coordinates(roads.geometry, return_index=True)
+    inner = np.ones(len(coords), bool)
+    inner[np.r_[0, np.flatnonzero(np.diff(idx)) + 1]] = False
+    inner[np.r_[np.flatnonzero(np.diff(idx)), len(idx) - 1]] = False
+    keys = coords.view(np.complex128).ravel()
+    _, cnt = np.unique(keys, return_counts=True)
+    assert cnt.max() >= 3  # real junctions
+    ends_keys = set(keys[~inner].tolist())
+    assert not (set(keys[inner].tolist()) & ends_keys)
+    assert len(np.unique(roads["osm_id"])) <= len(roads)
+
+
+def test_class_filter_is_configurable():
+    out, _ = read(MONACO, major="primary", minor="residential")
+    assert set(np.unique(out["roads"]["class"])) == {"primary", "residential"}
+    assert out["roads"]["major"].sum() == (out["roads"]["class"] == "primary").sum()
+    everything, _ = read(MONACO, minor="*")
+    assert "footway" in set(everything["roads"]["class"])
+    assert len(everything["roads"]) > 2 * len(out["roads"])
+
+
+def test_bridges_and_tunnels_are_flagged(monaco):
+    roads = monaco[0]["roads"]
+    assert roads["tunnel"].sum() > 20 and roads["bridge"].sum() > 0
+    assert (roads["layer"][roads["tunnel"]] <= 0).mean() > 0.9
+    assert (roads["width"] > 0).all()
+
+
+def test_extra_layers(helsinki, monaco):
+    b = monaco[0]["buildings"]
+    assert len(b) > 1000
+    tagged = b["height_source"] != "default"  # 'height' or 'building:levels'
+    assert tagged.sum() > 400 and 100 < b["height"][tagged].max() < 120
+    assert (b["height_source"] == "height").sum() > 30
+    assert (b["floors"] >= 1).all() and (b["height"] > 0).all()
+    hb = helsinki[0]["buildings"]
+    assert 100 < (hb["height_source"] != "default").sum() < len(hb)
+    for kind in ("water", "parks"):
+        layer = helsinki[0][kind]
+        assert len(layer) > 0 and shapely.is_valid(layer.geometry).all()
+        assert layer.meta["crs"] == "EPSG:32635"
+    none, _ = read(HELSINKI, extras="")
+    assert len(none["buildings"]) == 0 and len(none["roads"]) == len(helsinki[0]["roads"])
+
+
+def test_path_from_the_plan():
+    plan = CityPlan(maps={"osm": MapSpec("osm", OAKLAND, {}, "city.xml:3")})
+    out = get("osm.read")("majorRoads", {}, Context(plan=plan)).run()
+    assert len(out["roads"]) > 0
+    with pytest.raises(InputDataError, match="no OSM file"):
+        get("osm.read")("majorRoads", {}, Context(plan=CityPlan())).run()
+    with pytest.raises(ParameterError, match="extras"):
+        get("osm.read")("majorRoads", {"path": str(OAKLAND), "extras": "trees"}, Context()).run()
+
+
+# -- bad input: one line naming the file ---------------------------------------------
+
+def _one_line_naming(exc, path):
+    msg = str(exc.value)
+    assert "\n" not in msg and str(path) in msg
+    return msg
+
+
+def test_truncated_pbf(tmp_path):
+    bad = tmp_path / "cut.osm.pbf"
+    bad.write_bytes(MONACO.read_bytes()[:200_000])
+    with pytest.raises(InputDataError) as exc:
+        read(bad)
+    _one_line_naming(exc, bad)
+
+
+def test_corrupt_pbf(tmp_path):
+    bad = tmp_path / "noise.osm.pbf"
+    bad.write_bytes(np.random.default_rng(1).bytes(5000))
+    with pytest.raises(InputDataError) as exc:
+        read(bad)
+    _one_line_naming(exc, bad)
+
+
+def test_not_an_osm_file(tmp_path):
+    bad = tmp_path / "notes.osm"
+    bad.write_text("this is not xml\n")
+    with pytest.raises(InputDataError) as exc:
+        read(bad)
+    _one_line_naming(exc, bad)
+    wrong = tmp_path / "image.osm.bz2"
+    wrong.write_bytes(bz2.compress(b"<html><body>not osm</body></html>"))
+    with pytest.raises(InputDataError):
+        read(wrong)
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(InputDataError, match="does not exist"):
+        read(tmp_path / "nowhere.osm.pbf")
+
+
+def test_no_highways_is_an_empty_city(tmp_path, caplog):
+    f = tmp_path / "fields.osm"
+    f.write_text(
+        '<?xml version="1.0"?>\n<osm version="0.6">\n'
+        '<node id="1" lat="48.0" lon="10.0"/><node id="2" lat="48.001" lon="10.0"/>'
+        '<node id="3" lat="48.001" lon="10.001"/>\n'
+        '<way id="5"><nd ref="1"/><nd ref="2"/><nd ref="3"/><nd ref="1"/><tag k="building" v="yes"/></way>\n'
+        '<way id="6"><nd ref="1"/><nd ref="3"/><tag k="waterway" v="ditch"/></way>\n</osm>\n')
+    with caplog.at_level(logging.WARNING):
+        out, _ = read(f)
+    assert len(out["roads"]) == 0
+    assert "empty" in caplog.text and "fields.osm" in caplog.text
+    assert len(out["buildings"]) == 1 and out["roads"].meta["crs"] == "EPSG:32632"
+    cleaned = get("roads.clean")("clean", {}, Context()).run(roads=out["roads"])
+    assert len(cleaned["roads"]) == 0
+
+
+def test_coordinates_out_of_range(tmp_path):
+    f = tmp_path / "wild.osm"
+    f.write_text(
+        '<?xml version="1.0"?>\n<osm version="0.6">\n'
+        '<node id="1" lat="95.0" lon="7.4"/><node id="2" lat="43.7" lon="7.41"/>\n'
+        '<way id="10"><nd ref="1"/><nd ref="2"/><tag k="highway" v="residential"/></way>\n</osm>\n')
+    with pytest.raises(InputDataError, match="outside") as exc:
+        read(f)
+    _one_line_naming(exc, f)
+
+
+# -- blocks against an independent route -------------------------------------------------
+
+def _sengine_faces(roads):
+    cleaned = get("roads.clean")("clean", {}, Context()).run(roads=roads)["roads"]
+    out = get("blocks.circuits")("blocks", {"node": "false", "min_area": str(MIN_AREA)}, Context()).run(roads=cleaned)
+    return out["faces"].geometry, out["blocks"]
+
+
+def _library_faces(roads):
+    """shapely.node + shapely.polygonize of the same segments, each level noded on its own.
+
+    Tunnels are left out (they pass under blocks) and every bridge is a level
+    of its own, which is what 'ways on different levels do not meet' means.
+    """
+    keep = ~roads["tunnel"]
+    g = roads.geometry[keep]
+    level = np.where(roads["bridge"][keep], 10_000 + np.arange(keep.sum()), roads["layer"][keep])
+    parts = [shapely.get_parts(shapely.node(shapely.multilinestrings(g[level == lv]))) for lv in np.unique(level)]
+    polys = shapely.get_parts(shapely.polygonize(np.concatenate(parts)))
+    return polys[shapely.area(polys) >= MIN_AREA]
+
+
+@pytest.mark.parametrize("city", ["helsinki", "monaco"])
+def test_blocks_match_node_and_polygonize(city, request):
+    roads = request.getfixturevalue(city)[0]["roads"]
+    faces, blocks = _sengine_faces(roads)
+    ref = _library_faces(roads)
+    assert len(ref) > 80
+    assert abs(len(faces) - len(ref)) <= 0.01 * len(ref)
+    a, r = shapely.area(faces).sum(), shapely.area(ref).sum()
+    assert abs(a - r) <= 0.01 * r
+    # the faces partition their union: no two overlap
+    assert shapely.area(shapely.union_all(faces)) == pytest.approx(a, rel=1e-6)
+    assert 0 < len(blocks) <= len(faces) * 1.2
+    assert blocks.meta["crs"] == roads.meta["crs"]
+
+
+def test_noding_bridges_would_change_monaco(monaco):
+    """The plain library route nodes bridges with the roads below them: more, smaller faces."""
+    roads = monaco[0]["roads"]
+    g = roads.geometry[~roads["tunnel"]]
+    polys = shapely.get_parts(shapely.polygonize(shapely.get_parts(shapely.node(shapely.multilinestrings(g)))))
+    plain = int((shapely.area(polys) >= MIN_AREA).sum())
+    faces, _ = _sengine_faces(roads)
+    assert plain > len(faces)
