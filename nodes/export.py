@@ -87,7 +87,7 @@ def export_layers(out: Path, layers: dict[str, Layer | None], formats, *, plan=N
     if "osm" in formats and "roads" in layers:
         timed("osm", osmxml.write_osm, out / "streets.osm", layers["roads"], to_lonlat(crs["roads"]))
     if "png" in formats:
-        # the plan's extent frames a synthetic city; OSM data in UTM lies elsewhere: use its bounds
+        # the plan's extent frames a synthetic city; data in another frame (OSM in UTM) frames itself
         extent = plan.extent if plan is not None else None
         extent = extent if extent is not None and not _outside(layers, extent) else None
         timed("png", preview.write_preview, out / "preview.png", layers, size=preview_size, extent=extent)
@@ -101,16 +101,16 @@ def export_layers(out: Path, layers: dict[str, Layer | None], formats, *, plan=N
 
 
 def _outside(layers: dict[str, Layer], extent) -> bool:
-    """Whether the layers' bounds reach well outside ``extent`` (a frame mismatch)."""
+    """Whether some layer reaches more than 10 % beyond ``extent`` (another frame, or no city extent)."""
     import numpy as np
     import shapely
 
+    x0, y0, x1, y1 = extent
+    m = 0.1 * max(x1 - x0, y1 - y0)
     for lay in layers.values():
         if len(lay):
             b = shapely.total_bounds(lay.geometry)
-            w = max(extent[2] - extent[0], extent[3] - extent[1])
-            if np.isfinite(b).all() and (b[0] < extent[0] - w or b[2] > extent[2] + w
-                                         or b[1] < extent[1] - w or b[3] > extent[3] + w):
+            if np.isfinite(b).all() and (b[0] < x0 - m or b[1] < y0 - m or b[2] > x1 + m or b[3] > y1 + m):
                 return True
     return False
 

@@ -48,8 +48,43 @@ def to_wgs84(geoms: np.ndarray, to_lonlat: Callable[[np.ndarray], np.ndarray], *
     def f(xy: np.ndarray) -> np.ndarray:
         return np.round(to_lonlat(xy), precision)
 
-    out = shapely.transform(geoms, f)
-    return shapely.orient_polygons(out, exterior_cw=False)
+    out = geoms.copy()
+    poly = shapely.get_type_id(geoms) == 3
+    if poly.any():  # plain polygons: project, round and orient in one pass of numpy
+        p = geoms[poly]
+        coords, vpoly = shapely.get_coordinates(p, return_index=True)
+        if shapely.get_num_interior_rings(p).any():
+            rings, ring_poly = shapely.get_rings(p, return_index=True)
+            counts = shapely.get_num_coordinates(rings)
+        else:
+            counts = np.bincount(vpoly, minlength=len(p))
+            ring_poly = np.arange(len(p))
+        ll = f(coords)
+        out[poly] = shapely.set_coordinates(p, _orient_closed(ll, counts, ring_poly))
+    if (~poly).any():
+        out[~poly] = shapely.orient_polygons(shapely.transform(geoms[~poly], f), exterior_cw=False)
+    return out
+
+
+def _orient_closed(xy: np.ndarray, counts: np.ndarray, ring_poly: np.ndarray) -> np.ndarray:
+    """Reverse closed rings so exteriors run counter-clockwise and holes clockwise."""
+    n = len(counts)
+    if n == 0:
+        return xy
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    vr = np.repeat(np.arange(n), counts)
+    s, e = starts[vr], starts[vr + 1]
+    i = np.arange(len(xy))
+    d = xy - xy[s]
+    last = i + 1 >= e
+    nxt = np.where(last, i, i + 1)  # the closing vertex adds nothing
+    area2 = np.bincount(vr, weights=d[:, 0] * d[nxt, 1] - d[nxt, 0] * d[:, 1], minlength=n)
+    exterior = np.ones(n, bool)
+    exterior[1:] = ring_poly[1:] != ring_poly[:-1]
+    flip = np.where(exterior, area2 < 0, area2 > 0)
+    if not flip.any():
+        return xy
+    return xy[np.where(flip[vr], s + e - 1 - i, i)]
 
 
 def _column_texts(col: np.ndarray) -> list[str]:

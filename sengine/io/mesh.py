@@ -103,18 +103,40 @@ def ring_arrays(geoms: np.ndarray) -> Rings:
         hit = np.unique(vpoly[1:][dup])
         parts = parts.copy()
         parts[hit] = shapely.remove_repeated_points(parts[hit])
-    parts = shapely.orient_polygons(parts, exterior_cw=False)
-    rings, ring_poly = shapely.get_rings(parts, return_index=True)
-    coords, ring_idx = shapely.get_coordinates(rings, return_index=True)
-    counts = np.bincount(ring_idx, minlength=len(rings))
+    if dup.any() or shapely.get_num_interior_rings(parts).any():
+        rings, ring_poly = shapely.get_rings(parts, return_index=True)
+        counts = shapely.get_num_coordinates(rings)
+        coords = shapely.get_coordinates(rings)
+    else:  # no holes: one ring per polygon, the coordinates read above
+        counts = np.bincount(vpoly, minlength=len(parts))
+        ring_poly = np.arange(len(parts))
     starts = np.concatenate([[0], np.cumsum(counts)])
-    drop = starts[1:] - 1  # the closing vertex of every ring
     mask = np.ones(len(coords), bool)
-    mask[drop] = False
+    mask[starts[1:] - 1] = False  # the closing vertex of every ring
     xy = coords[mask]
     ring_start = np.concatenate([[0], np.cumsum(counts - 1)]).astype(np.int64)
     poly_ring = np.concatenate([[0], np.cumsum(np.bincount(ring_poly, minlength=len(parts)))]).astype(np.int64)
+    xy = _orient(xy, ring_start, poly_ring)
     return Rings(xy, ring_start, poly_ring, feature.astype(np.int64))
+
+
+def _orient(xy: np.ndarray, ring_start: np.ndarray, poly_ring: np.ndarray) -> np.ndarray:
+    """Reverse the rings that wind the wrong way: exteriors CCW, holes CW (numpy, no GEOS)."""
+    n_rings = len(ring_start) - 1
+    if len(xy) == 0:
+        return xy
+    vr = np.repeat(np.arange(n_rings), np.diff(ring_start))
+    s, e = ring_start[vr], ring_start[vr + 1]
+    i = np.arange(len(xy))
+    nxt = np.where(i + 1 < e, i + 1, s)
+    d = xy - xy[s]  # relative to the ring's first vertex: exact enough in a UTM frame
+    area2 = np.bincount(vr, weights=d[:, 0] * d[nxt, 1] - d[nxt, 0] * d[:, 1], minlength=n_rings)
+    exterior = np.zeros(n_rings, bool)
+    exterior[poly_ring[:-1]] = True
+    flip = np.where(exterior, area2 < 0, area2 > 0)
+    if not flip.any():
+        return xy
+    return xy[np.where(flip[vr], s + e - 1 - i, i)]
 
 
 def triangulate(rings: Rings) -> np.ndarray:
@@ -218,15 +240,41 @@ def extrude(
     return vertices, np.concatenate(faces).astype(np.int64), np.concatenate([vfeat, vfeat])
 
 
-def flat(geoms: np.ndarray, z: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def flat(geoms: np.ndarray, z: float = 0.0, *, max_holes: int = 48) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Polygons as upward-facing triangulated surfaces at height ``z`` (m).
+
+    A polygon with more than ``max_holes`` holes (a city-wide street surface
+    around hundreds of blocks) is first cut into a grid of rectangles, each
+    holding a few dozen holes, because earcut's hole bridging grows with the
+    product of holes and vertices; the pieces cover the same area.
 
     Returns ``vertices (v, 3)``, ``faces (f, 3)`` and ``vertex_feature (v,)``.
     """
+    geoms, feature = _chop(np.asarray(geoms, dtype=object), max_holes)
     rings = ring_arrays(geoms)
     vertices = np.column_stack([rings.xy, np.full(len(rings.xy), float(z))])
-    vfeat = rings.feature[rings.vertex_poly()] if len(rings.xy) else np.empty(0, np.int64)
+    vfeat = feature[rings.feature[rings.vertex_poly()]] if len(rings.xy) else np.empty(0, np.int64)
     return vertices, triangulate(rings), vfeat
+
+
+def _chop(geoms: np.ndarray, max_holes: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cut polygons with many holes into grid pieces; return pieces and their feature index."""
+    feature = np.arange(len(geoms))
+    holes = shapely.get_num_interior_rings(geoms)  # -1 for non-polygons
+    big = np.flatnonzero(holes > max_holes)
+    if big.size == 0:
+        return geoms, feature
+    pieces, owner = [geoms[holes <= max_holes]], [feature[holes <= max_holes]]
+    for i in big.tolist():
+        g = geoms[i]
+        k = int(np.ceil(np.sqrt(holes[i] / (max_holes / 2))))
+        x0, y0, x1, y1 = g.bounds
+        xs, ys = np.linspace(x0, x1, k + 1), np.linspace(y0, y1, k + 1)
+        cut = np.array([shapely.clip_by_rect(g, xs[a], ys[b], xs[a + 1], ys[b + 1])
+                        for a in range(k) for b in range(k)], dtype=object)
+        pieces.append(cut)
+        owner.append(np.full(len(cut), i))
+    return np.concatenate(pieces), np.concatenate(owner)
 
 
 def ribbons(

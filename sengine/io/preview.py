@@ -66,21 +66,21 @@ def _nice(x: float) -> float:
     return float(max(m * e for m in (1, 2, 5) if m * e <= x))
 
 
-def _draw_polygons(draw: ImageDraw.ImageDraw, geoms: np.ndarray, to_px, values) -> None:
-    """Fill polygons (holes cleared to 0) with a per-feature index value."""
-    rings = ring_arrays(geoms)
+def _draw_polygons(draw: ImageDraw.ImageDraw, rings, to_px, values, outline: int | None = None) -> None:
+    """Fill polygons (holes filled with 0) with a per-feature index value."""
     if rings.n_polys == 0:
         return
     pix = np.rint(to_px(rings.xy)).astype(np.int64).ravel().tolist()
     rs = rings.ring_start.tolist()
     pr = rings.poly_ring.tolist()
-    vals = np.broadcast_to(np.asarray(values), (len(geoms),))[rings.feature].tolist()
+    vals = np.asarray(values)
+    vals = (vals[rings.feature] if vals.ndim else np.full(rings.n_polys, int(vals))).tolist()
     polygon = draw.polygon
     for p in range(rings.n_polys):
         r0, r1 = pr[p], pr[p + 1]
-        polygon(pix[2 * rs[r0]:2 * rs[r0 + 1]], fill=int(vals[p]))
+        polygon(pix[2 * rs[r0]:2 * rs[r0 + 1]], fill=vals[p], outline=outline)
         for r in range(r0 + 1, r1):
-            polygon(pix[2 * rs[r]:2 * rs[r + 1]], fill=0)
+            polygon(pix[2 * rs[r]:2 * rs[r + 1]], fill=0, outline=outline)
 
 
 def _draw_lines(draw: ImageDraw.ImageDraw, geoms: np.ndarray, to_px, value: int, widths) -> None:
@@ -115,17 +115,19 @@ def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Ima
     size : int
         Pixels along the longer side of the map.
     extent : tuple of float, optional
-        ``(xmin, ymin, xmax, ymax)`` (m) to show; the layers' bounds by default.
+        ``(xmin, ymin, xmax, ymax)`` (m) to show at least (the city extent);
+        the view also covers every layer's bounds.
     """
     layers = {k: v for k, v in layers.items() if v is not None and len(v)}
-    if extent is None:
-        bounds = [shapely.total_bounds(v.geometry) for v in layers.values()]
-        bounds = [b for b in bounds if np.all(np.isfinite(b))]
-        if bounds:
-            b = np.array(bounds)
-            extent = (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max())
-        else:
-            extent = (0.0, 0.0, 1.0, 1.0)
+    bounds = [shapely.total_bounds(v.geometry) for v in layers.values()]
+    if extent is not None:
+        bounds.append(np.asarray(extent, float))
+    bounds = [b for b in bounds if np.all(np.isfinite(b))]
+    if bounds:
+        b = np.array(bounds)
+        extent = (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max())
+    else:
+        extent = (0.0, 0.0, 1.0, 1.0)
     xmin, ymin, xmax, ymax = (float(v) for v in extent)
     span = max(xmax - xmin, ymax - ymin, 1e-9)
     pad = 10
@@ -136,29 +138,33 @@ def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Ima
     def to_px(xy: np.ndarray) -> np.ndarray:
         return np.column_stack([(xy[:, 0] - xmin) * scale + pad, (ymax - xy[:, 1]) * scale + pad])
 
-    canvas = np.zeros((h, w), np.uint8)
+    canvas = Image.new("L", (w, h), 0)
     hmin = hmax = 0.0
     for name in _ORDER:
         lay = layers.get(name)
         if lay is None:
             continue
-        img = Image.new("L", (w, h), 0)
-        draw = ImageDraw.Draw(img)
         geoms = lay.geometry
         types = shapely.get_type_id(geoms)
         polys = np.isin(types, (3, 6))
         lines = np.isin(types, (1, 2, 5))
         if polys.any():
+            rings = ring_arrays(geoms[polys])
+            holes = len(rings.ring_start) - 1 > rings.n_polys
+            # polygons with holes go through their own layer so the holes show what lies below
+            img = Image.new("L", (w, h), 0) if holes else canvas
+            draw = ImageDraw.Draw(img)
             if name == "buildings" and "height" in lay.attrs:
                 hts = np.nan_to_num(np.asarray(lay["height"], float))
                 hmin, hmax = float(hts.min()), float(hts.max())
                 t = (hts - hmin) / (hmax - hmin) if hmax > hmin else np.full(len(hts), 0.5)
                 vals = _RAMP0 + np.minimum((t * _RAMP_N).astype(int), _RAMP_N - 1)
-                _draw_polygons(draw, geoms[polys], to_px, vals[polys])
+                _draw_polygons(draw, rings, to_px, vals[polys])
             else:
-                _draw_polygons(draw, geoms[polys], to_px, _LAYER_INDEX.get(name, _FIXED["ink"]))
-            if name == "lots":
-                _draw_lines(draw, geoms[polys], to_px, _FIXED["lot_edge"], 1)
+                edge = _FIXED["lot_edge"] if name == "lots" else None
+                _draw_polygons(draw, rings, to_px, _LAYER_INDEX.get(name, _FIXED["ink"]), outline=edge)
+            if holes:
+                canvas.paste(img, mask=img.point(lambda v: 255 if v else 0))
         if lines.any():
             if name == "roads" and "streets" not in layers and "width" in lay.attrs:
                 widths = np.maximum(1, np.rint(np.nan_to_num(np.asarray(lay["width"], float))[lines] * scale))
@@ -166,9 +172,8 @@ def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Ima
                 widths = np.where(np.asarray(lay["major"], bool)[lines], 2, 1)
             else:
                 widths = 1
-            _draw_lines(draw, geoms[lines], to_px, _LAYER_INDEX.get(name, _FIXED["ink"]), widths)
-        a = np.asarray(img)
-        canvas = np.where(a > 0, a, canvas)
+            _draw_lines(ImageDraw.Draw(canvas), geoms[lines], to_px, _LAYER_INDEX.get(name, _FIXED["ink"]), widths)
+    canvas = np.asarray(canvas)
     image = Image.fromarray(np.vstack([canvas, np.zeros((64, w), np.uint8)]), "P")
     image.putpalette(PALETTE.ravel().tolist())
     _footer(image, h, w, scale, hmin, hmax, [n for n in _ORDER if n in layers])
@@ -209,6 +214,6 @@ def _footer(image: Image.Image, top: int, w: int, scale: float, hmin: float, hma
 def write_preview(path: str | Path, layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> tuple[int, int]:
     """Render and save ``preview.png``; return its pixel size."""
     image = render(layers, size=size, extent=extent)
-    image.save(Path(path), format="PNG", optimize=False, compress_level=6)
+    image.save(Path(path), format="PNG", optimize=False, compress_level=1)
     log.info("wrote %s: %dx%d px", path, *image.size)
     return image.size
