@@ -137,8 +137,13 @@ def point_keys(xy: np.ndarray) -> np.ndarray:
 
 
 def crossing_points(xy: np.ndarray, line: np.ndarray, level: np.ndarray,
-                    key: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Proper crossings between segments of lines on the same level that share no node.
+                    key: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """Where segments of lines on the same level meet without a shared node.
+
+    Proper crossings get a new node shared by both segments; a segment end
+    lying exactly on another segment's interior (a T-junction) splits that
+    segment at the end's node.  Collinear overlaps are left to the
+    duplicate merge.
 
     Parameters
     ----------
@@ -147,20 +152,25 @@ def crossing_points(xy: np.ndarray, line: np.ndarray, level: np.ndarray,
     line : ndarray of int (n,)
         Line of each point (non-decreasing).
     level : ndarray of int (nlines,)
-        Lines cross at a new junction only when their levels are equal.
+        Lines meet at a new junction only when their levels are equal.
     key : ndarray of int64 (n,), optional
         Node identity of each point (default: :func:`point_keys`).
 
     Returns
     -------
-    at : ndarray of int64 (2 k,)
-        For each inserted point, the index of the first point of the segment it splits.
-    t : ndarray of float (2 k,)
+    at : ndarray of int64 (k,)
+        For each point to insert, the index of the first point of the segment it splits.
+    t : ndarray of float (k,)
         Its position along that segment, in (0, 1).
-    point : ndarray (2 k, 2)
-        The crossing points; both copies of a crossing are bit-identical.
+    point : ndarray (k, 2)
+        The points; all copies of one junction are bit-identical.
+    node : ndarray of int64 (k,)
+        Node key of each inserted point: an existing key for a T-junction,
+        else ``-1 - c`` for the c-th new crossing node.
+    crossings : int
+        Number of new crossing nodes.
     """
-    empty = (np.empty(0, np.int64), np.empty(0), np.empty((0, 2)))
+    empty = (np.empty(0, np.int64), np.empty(0), np.empty((0, 2)), np.empty(0, np.int64), 0)
     a = np.flatnonzero(line[1:] == line[:-1])
     if len(a) < 2:
         return empty
@@ -180,10 +190,20 @@ def crossing_points(xy: np.ndarray, line: np.ndarray, level: np.ndarray,
     with np.errstate(divide="ignore", invalid="ignore"):
         t = (w[:, 0] * s[:, 1] - w[:, 1] * s[:, 0]) / den
         u = (w[:, 0] * r[:, 1] - w[:, 1] * r[:, 0]) / den
-    hit = (den != 0) & (t > 0) & (t < 1) & (u > 0) & (u < 1)
-    i, j, t, u = i[hit], j[hit], t[hit], u[hit]
+    in_i, in_j = (t > 0) & (t < 1), (u > 0) & (u < 1)
+    end_i, end_j = (t == 0) | (t == 1), (u == 0) | (u == 1)
+    hit = (den != 0) & ((in_i & in_j) | (in_i & end_j) | (end_i & in_j))
+    i, j, t, u, in_i, in_j = i[hit], j[hit], t[hit], u[hit], in_i[hit], in_j[hit]
     pt = p[i] + t[:, None] * (q[i] - p[i])
-    return np.r_[a[i], a[j]], np.r_[t, u], np.r_[pt, pt]
+    node = np.full(len(i), -1, np.int64)
+    for cond, idx in ((t == 0, a[i]), (t == 1, a[i] + 1), (u == 0, a[j]), (u == 1, a[j] + 1)):
+        pt[cond] = xy[idx[cond]]
+        node[cond] = key[idx[cond]]
+    cross = node < 0
+    ncross = int(cross.sum())
+    node[cross] = -1 - np.arange(ncross)
+    at = np.r_[a[i][in_i], a[j][in_j]]
+    return at, np.r_[t[in_i], u[in_j]], np.r_[pt[in_i], pt[in_j]], np.r_[node[in_i], node[in_j]], ncross
 
 
 def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | None = None,
@@ -220,7 +240,8 @@ def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | No
     key : ndarray of int64 (k,)
         Node identity of each point.
     counts : dict
-        ``crossings_noded``, ``duplicates_merged``, ``dead_ends_removed`` (segments).
+        ``crossings_noded``, ``t_junctions_noded``, ``duplicates_merged``,
+        ``dead_ends_removed`` (segments).
     """
     geoms = np.asarray(geoms, dtype=object)
     parts, src = shapely.get_parts(geoms, return_index=True)
@@ -229,7 +250,7 @@ def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | No
     part_line = pidx.astype(np.int64)
     nparts = len(parts)
     level_p = np.zeros(nparts, np.int64) if level is None else np.asarray(level, np.int64)[src]
-    counts = {"crossings_noded": 0, "duplicates_merged": 0, "dead_ends_removed": 0}
+    counts = {"crossings_noded": 0, "t_junctions_noded": 0, "duplicates_merged": 0, "dead_ends_removed": 0}
     if ends is not None and nparts == len(geoms) and len(xy):
         eu, ev = (np.asarray(e, np.int64) for e in ends)
         top = int(max(eu.max(initial=-1), ev.max(initial=-1))) + 1
@@ -246,14 +267,14 @@ def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | No
     keep, ndup = _duplicates(pieces, xy, key, r[src[pieces.line]], dup_tol)
     pieces = _take_pieces(pieces, keep)
     xy, key, part_line, part_of = xy[pieces.vertex], key[pieces.vertex], pieces.piece, pieces.line
-    at, t, pt = crossing_points(xy, part_line, level_p[part_of], key)
-    k = len(at) // 2
-    counts["crossings_noded"] = k
-    if k:
+    at, t, pt, node, ncross = crossing_points(xy, part_line, level_p[part_of], key)
+    counts["crossings_noded"] = ncross
+    counts["t_junctions_noded"] = int((node >= 0).sum())
+    if len(at):
         order = np.lexsort((np.r_[np.zeros(len(xy)), t], np.r_[np.arange(len(xy)), at]))
         xy = np.r_[xy, pt][order]
-        fresh = int(key.max()) + 1 + np.arange(k, dtype=np.int64)
-        key = np.r_[key, fresh, fresh][order]
+        node = np.where(node < 0, int(key.max()) + 1 + (-1 - node), node)
+        key = np.r_[key, node][order]
         part_line = np.r_[part_line, part_line[at]][order]
     pieces = split_at_junctions(key, part_line)
     pieces.line = src[part_of[pieces.line]]
