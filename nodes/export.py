@@ -27,7 +27,6 @@ import time
 from pathlib import Path
 
 from sengine import Layer, Param, Port, SENode, register
-from sengine.errors import ConfigError
 from sengine.geo import layer_crs, to_lonlat
 
 __all__ = ["FORMATS", "DEFAULT_FORMATS", "export_layers", "ExportCity"]
@@ -145,8 +144,10 @@ class ExportCity(SENode):
             blocks: Layer | None = None, lots: Layer | None = None, buildings: Layer | None = None,
             parks: Layer | None = None) -> dict[str, Layer]:
         out = self.context.out
-        if out is None:
-            raise ConfigError("no output folder to export into (run with -o OUT)", where=self.where)
+        if out is None:  # an in-memory run (tests, notebooks): nothing to write
+            log.info("%s: no output folder, nothing written", self.where)
+            self.report = {}
+            return {}
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         layers = {"roads": roads, "streets": streets, "sidewalks": sidewalks, "blocks": blocks, "lots": lots,

@@ -293,11 +293,10 @@ def test_report_counts(city, tmp_path):
     assert all(isinstance(v, (int, float)) for v in report.values())
 
 
-def test_no_output_folder_is_an_error(city):
-    from sengine.errors import ConfigError
-
-    with pytest.raises(ConfigError, match="no output folder"):
-        Export("export", {}, Context()).run()
+def test_in_memory_run_writes_nothing(city):
+    node = Export("export", {}, Context())
+    assert node.run(roads=city[1]["roads"]) == {}
+    assert node.report == {}
 
 
 def test_empty_layers_export(tmp_path):

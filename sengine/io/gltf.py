@@ -12,23 +12,28 @@ translation, so float32 vertex buffers keep centimetre precision while the
 scene's world coordinates stay those of the planar frame.  The offset and the
 CRS are also stored in the scene's ``extras``.
 
-The file holds no time stamp: the same layers give the same bytes.
+The writer is a few dozen lines of ``struct`` and ``json`` (glTF 2.0 §4.4,
+GLB file format) rather than trimesh's exporter: importing trimesh (and
+scipy.spatial with it) costs about half a second per run, more than writing
+a whole city.  The file holds no time stamp and its JSON keys are sorted:
+the same layers give the same bytes.  trimesh reads it back in the tests.
 """
 
 from __future__ import annotations
 
+import json
 import logging
+import struct
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 import shapely
-import trimesh
 
 from ..layer import Layer
 from . import mesh
 
-__all__ = ["LAYERS", "COLOURS", "LEVELS", "layer_mesh", "build_scene", "write_glb"]
+__all__ = ["LAYERS", "COLOURS", "LEVELS", "layer_mesh", "glb_bytes", "write_glb"]
 
 log = logging.getLogger(__name__)
 
@@ -88,41 +93,77 @@ def _offset(vertices: list[np.ndarray]) -> np.ndarray:
     return np.round((lo + hi) / 2.0, -3)
 
 
-def build_scene(
-    layers: Mapping[str, Layer], *, line_width: float = 1.0, crs: str | None = None
-) -> trimesh.Scene:
-    """A trimesh Scene with one node (and one mesh) per non-empty layer."""
+def glb_bytes(layers: Mapping[str, Layer], *, line_width: float = 1.0, crs: str | None = None
+              ) -> tuple[bytes, dict]:
+    """The binary glTF of ``layers`` and the vertex / triangle counts of each mesh.
+
+    One node, one mesh and one material per non-empty layer, in :data:`LAYERS`
+    order; float32 positions and uint32 indices, no normals (viewers shade flat).
+    """
     meshes = {name: layer_mesh(name, lay, line_width=line_width) for name, lay in layers.items() if lay is not None}
     meshes = {k: v for k, v in meshes.items() if len(v[1])}
     off = _offset([v for v, _ in meshes.values()])
-    scene = trimesh.Scene()
     order = [n for n in LAYERS if n in meshes] + sorted(n for n in meshes if n not in LAYERS)
-    transform = np.eye(4)
-    transform[:3, 3] = mesh.to_y_up(np.array([[off[0], off[1], 0.0]]))[0]
-    for name in order:
+    blobs: list[bytes] = []
+    views, accessors, gl_meshes, materials, nodes = [], [], [], [], []
+    length = 0
+    counts = {}
+
+    def add_view(data: bytes, target: int) -> int:
+        nonlocal length
+        views.append({"buffer": 0, "byteOffset": length, "byteLength": len(data), "target": target})
+        blobs.append(data)
+        length += len(data)  # float32 / uint32 data keeps 4-byte alignment
+        return len(views) - 1
+
+    translation = [float(off[0]), 0.0, float(-off[1])]
+    for k, name in enumerate(order):
         v, f = meshes[name]
         v = v.copy()
         v[:, :2] -= off
-        tm = trimesh.Trimesh(mesh.to_y_up(v), f, process=False, validate=False)
-        rgba = [c / 255.0 for c in COLOURS.get(name, _DEFAULT_COLOUR)] + [1.0]
-        material = trimesh.visual.material.PBRMaterial(
-            name=name, baseColorFactor=rgba, metallicFactor=0.0, roughnessFactor=0.9,
-            doubleSided=name != "buildings",
-        )
-        tm.visual = trimesh.visual.TextureVisuals(material=material)
-        scene.add_geometry(tm, geom_name=name, node_name=name, transform=transform)
-    scene.metadata.update({"sengine": {"units": "m", "up": "y", "planar_offset": [float(off[0]), float(off[1])],
-                                       "crs": crs or ""}})
-    return scene
+        pos = np.ascontiguousarray(mesh.to_y_up(v), dtype=np.float32)
+        idx = np.ascontiguousarray(f, dtype=np.uint32)
+        accessors.append({"bufferView": add_view(pos.tobytes(), 34962), "componentType": 5126, "count": len(pos),
+                          "type": "VEC3", "min": [float(c.min()) for c in pos.T],
+                          "max": [float(c.max()) for c in pos.T]})
+        accessors.append({"bufferView": add_view(idx.tobytes(), 34963), "componentType": 5125,
+                          "count": int(idx.size), "type": "SCALAR"})
+        rgba = [round(c / 255.0, 6) for c in COLOURS.get(name, _DEFAULT_COLOUR)] + [1.0]
+        materials.append({"name": name, "doubleSided": name != "buildings",
+                          "pbrMetallicRoughness": {"baseColorFactor": rgba, "metallicFactor": 0.0,
+                                                   "roughnessFactor": 0.9}})
+        gl_meshes.append({"name": name, "primitives": [{"attributes": {"POSITION": 2 * k}, "indices": 2 * k + 1,
+                                                         "material": k, "mode": 4}]})
+        node = {"name": name, "mesh": k}
+        if off.any():
+            node["translation"] = translation
+        nodes.append(node)
+        counts[name] = {"vertices": int(len(pos)), "triangles": int(len(f))}
+    doc = {
+        "asset": {"version": "2.0", "generator": "sengine"},
+        "scene": 0,
+        "scenes": [{"name": "city",
+                    "extras": {"sengine": {"units": "m", "up": "y", "crs": crs or "",
+                                           "planar_offset": [float(off[0]), float(off[1])]}}}],
+    }
+    if nodes:  # glTF arrays may not be empty: an empty city is a scene without nodes
+        doc["scenes"][0]["nodes"] = list(range(len(nodes)))
+        doc.update({"nodes": nodes, "meshes": gl_meshes, "materials": materials, "accessors": accessors, "bufferViews": views,
+                    "buffers": [{"byteLength": length}]})
+    text = json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()
+    text += b" " * (-len(text) % 4)
+    binary = b"".join(blobs)
+    binary += b"\0" * (-len(binary) % 4)
+    chunks = struct.pack("<II", len(text), 0x4E4F534A) + text
+    if binary:
+        chunks += struct.pack("<II", len(binary), 0x004E4942) + binary
+    return struct.pack("<III", 0x46546C67, 2, 12 + len(chunks)) + chunks, counts
 
 
 def write_glb(path: str | Path, layers: Mapping[str, Layer], *, line_width: float = 1.0,
               crs: str | None = None) -> dict:
     """Write ``layers`` to a binary glTF file; return vertex and face counts per layer."""
-    scene = build_scene(layers, line_width=line_width, crs=crs)
-    data = trimesh.exchange.gltf.export_glb(scene, include_normals=False)
+    data, counts = glb_bytes(layers, line_width=line_width, crs=crs)
     Path(path).write_bytes(data)
-    counts = {name: {"vertices": int(len(g.vertices)), "triangles": int(len(g.faces))}
-              for name, g in scene.geometry.items()}
     log.info("wrote %s: %d meshes, %d triangles", path, len(counts), sum(c["triangles"] for c in counts.values()))
     return counts
