@@ -236,3 +236,33 @@ def test_noding_bridges_would_change_monaco(monaco):
     plain = int((shapely.area(polys) >= MIN_AREA).sum())
     faces, _ = _sengine_faces(roads)
     assert plain > len(faces)
+
+
+# -- the load-map network: configs and `sengine osm` ------------------------------------
+
+CONFIGS = DATA.parent
+
+
+def test_helsinki_config_runs_the_loadmap_network(tmp_path):
+    from sengine.xmlconfig import load_config
+
+    net = load_config(CONFIGS / "helsinki.xml")
+    result = net.run(out=tmp_path / "out", formats={"geojson"})
+    counts = result.stats["counts"]
+    assert counts["majorRoads"] > 800 and counts["blocks"] > 40 and counts["buildings"] > counts["blocks"]
+    rep = result.stats["report"]["clean"]
+    assert rep["dead_ends_removed"] > 50 and rep["tunnels_dropped"] > 0
+    assert (tmp_path / "out" / "blocks.geojson").exists()
+
+
+def test_sengine_osm_command(tmp_path, cli):
+    done = cli("osm", OAKLAND, "-o", tmp_path / "oak", "--format", "geojson")
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "oak" / "stats.json").exists()
+    bad = tmp_path / "cut.osm.pbf"
+    bad.write_bytes(HELSINKI.read_bytes()[:100_000])
+    done = cli("osm", bad, "-o", tmp_path / "bad")
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "cut.osm.pbf" in lines[0]
+    assert not (tmp_path / "bad").exists()
