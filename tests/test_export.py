@@ -305,3 +305,41 @@ def test_empty_layers_export(tmp_path):
     assert sum(1 for o in osmium.FileProcessor(str(tmp_path / "streets.osm"))) == 0
     with Image.open(tmp_path / "preview.png") as im:
         im.load()
+
+
+# -- random polygons -------------------------------------------------------------------
+def _star(seed: int, n: int, hole: bool, offset: float):
+    rng = np.random.default_rng(seed)
+    ang = np.sort(rng.uniform(0, 2 * np.pi, n))
+    r = rng.uniform(5, 20, n)
+    shell = np.column_stack([np.cos(ang) * r, np.sin(ang) * r]) + offset
+    poly = shapely.Polygon(shell)
+    if hole:
+        poly = poly.difference(shapely.Point(offset, offset).buffer(2.0, 4))
+    return poly
+
+
+@pytest.mark.parametrize("offset", [0.0, 5.0e5])
+def test_random_polygons_mesh_exactly(offset):
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    @settings(max_examples=80, deadline=None)
+    @given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 40), hole=st.booleans(),
+           h=st.floats(0.5, 300), rev=st.booleans())
+    def check(seed, n, hole, h, rev):
+        poly = _star(seed, n, hole, offset)
+        if not poly.is_valid or poly.area < 1.0 or poly.geom_type != "Polygon":
+            return
+        if rev:
+            poly = shapely.orient_polygons(poly, exterior_cw=True)
+        v, f, _ = mesh.extrude(np.array([poly]), [h])
+        tm = trimesh.Trimesh(v - [offset, offset, 0], f, process=True)
+        assert tm.is_watertight and tm.is_winding_consistent
+        assert tm.volume == pytest.approx(poly.area * h, rel=1e-6)
+        v, f, _ = mesh.flat(np.array([poly]), 0.0)
+        flat = trimesh.Trimesh(v - [offset, offset, 0], f, process=False)
+        assert flat.area == pytest.approx(poly.area, rel=1e-6)
+        assert (flat.face_normals[:, 2] > 0).all()
+
+    check()
