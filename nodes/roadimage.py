@@ -97,7 +97,7 @@ def trace_polylines(n: int, u: np.ndarray, v: np.ndarray) -> list[np.ndarray]:
 
     def walk(a: int, k: int) -> None:
         path = [a]
-        prev, cur, e = a, int(other[k]), int(edge[k])
+        cur, e = int(other[k]), int(edge[k])
         used[e] = True
         path.append(cur)
         while deg[cur] == 2:
@@ -109,7 +109,7 @@ def trace_polylines(n: int, u: np.ndarray, v: np.ndarray) -> list[np.ndarray]:
             if nxt is None:
                 break
             used[edge[nxt]] = True
-            prev, cur = cur, int(other[nxt])
+            cur = int(other[nxt])
             path.append(cur)
         lines.append(np.asarray(path, np.int64))
 
