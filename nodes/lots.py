@@ -119,7 +119,7 @@ def lot_attributes(lots, owner, blocks, *, corner_angle: float = 30.0, edge_angl
     last_of[first[end]] = s[end]
     prev = np.where(start, last_of[first], s - 1)
     # skip zero-length predecessors is not needed for straight runs: treat as breaks
-    turn = np.abs(np.cross(dirn, dirn[prev])) > np.sin(np.radians(edge_angle))
+    turn = np.abs(_cross(dirn, dirn[prev])) > np.sin(np.radians(edge_angle))
     turn |= np.einsum("ij,ij->i", dirn, dirn[prev]) < 0
     new_edge = on & (~on[prev] | turn)
     # a ring whose every segment is frontage and never turns still counts one edge
@@ -139,9 +139,13 @@ def lot_attributes(lots, owner, blocks, *, corner_angle: float = 30.0, edge_angl
         d0[bl] = dirn[best]
         out["front_angle"][bl] = np.degrees(np.arctan2(dirn[best, 1], dirn[best, 0])) % 180.0
         big = on & (ln > 0.5)
-        crossv = np.abs(np.cross(dirn, d0[idx]))
+        crossv = np.abs(_cross(dirn, d0[idx]))
         out["corner"] = np.bincount(idx[big & (crossv > np.sin(np.radians(corner_angle)))], minlength=k) > 0
     return out
+
+
+def _cross(a, b):
+    return a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
 
 
 def _explode(geoms, owner):
@@ -225,9 +229,11 @@ def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, see
     Each piece larger than ``max_area`` is cut perpendicular to its longest
     edge, at the middle of its extent along that edge moved by up to
     ``jitter`` of the extent.  If a part of the cut would have less than
-    ``min_frontage`` of block boundary, the cut perpendicular to the main
-    axis of the piece's oriented bounding box is tried instead; if that
-    fails too the piece stays whole.
+    ``min_frontage`` of block boundary, the cut perpendicular to the
+    piece's longest street-facing edge is tried, then the one perpendicular
+    to the main axis of its oriented bounding box, then the street-facing
+    one again at the exact middle; if all fail the piece
+    stays whole (it may then be larger than ``max_area``).
 
     Parameters
     ----------
@@ -273,11 +279,17 @@ def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, see
         best = o[np.r_[idx[o][1:] != idx[o][:-1], True]]
         d_edge = np.zeros((k, 2))
         d_edge[idx[best]] = (p1[best] - p0[best]) / np.maximum(ln[best], 1e-300)[:, None]
+        on = segments_on(p0, p1, bnd[own[idx]], tol=ON_TOL)
+        lnf = np.where(on, ln, 0.0)
+        o = np.lexsort((lnf, idx))
+        bestf = o[np.r_[idx[o][1:] != idx[o][:-1], True]]
+        d_front = d_edge.copy()
+        d_front[idx[bestf]] = (p1[bestf] - p0[bestf]) / np.maximum(ln[bestf], 1e-300)[:, None]
         _, d_obb, _, _ = obb_frame(pieces)
         u01 = _hash01(seeds[own], key)
         accepted = np.zeros(k, bool)
         new_g, new_o, new_k = [], [], []
-        for d in (d_edge, d_obb):
+        for d, jit in ((d_edge, jitter), (d_front, jitter), (d_obb, jitter), (d_front, 0.0)):
             pending = np.flatnonzero(~accepted)
             if len(pending) == 0:
                 break
@@ -288,7 +300,7 @@ def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, see
             np.minimum.at(lo, idx, proj)
             np.maximum.at(hi, idx, proj)
             lo, hi = lo[pending], hi[pending]
-            t = 0.5 + jitter * (u01[pending] - 0.5)
+            t = 0.5 + jit * (u01[pending] - 0.5)
             c = lo + t * (hi - lo)
             b = shapely.bounds(pieces[pending])
             ref = (b[:, :2] + b[:, 2:]) / 2.0
@@ -376,6 +388,25 @@ def _paris_one(block, *, segment, depth, deviation, rng, min_frontage):
     outer = parts[fr >= min_frontage]
     core = shapely.difference(poly, shapely.union_all(outer)) if len(outer) else poly
     core_parts, _ = _explode([core], [0])
+    # small core crumbs (corners, clipped bow-ties) join the lot they share most boundary with
+    small = shapely.area(core_parts) < 0.5 * depth * segment
+    if small.any() and len(outer):
+        outer = outer.copy()
+        tree = shapely.STRtree(outer)
+        merged_away = []
+        for crumb in core_parts[small]:
+            near = tree.query(crumb, predicate="intersects")
+            if len(near) == 0:
+                continue
+            shared = shapely.length(shapely.intersection(shapely.boundary(outer[near]), crumb.boundary))
+            if shared.max() <= 0:
+                continue
+            j = near[np.argmax(shared)]
+            merged = shapely.union(outer[j], crumb)
+            if merged.geom_type == "Polygon" and abs(merged.area - outer[j].area - crumb.area) <= 1e-6 * merged.area:
+                outer[j] = merged
+                merged_away.append(crumb)
+        core_parts = np.asarray([c for c in core_parts if not any(c is m for m in merged_away)], dtype=object)
     lots = np.r_[outer, core_parts]
     is_inner = np.r_[np.zeros(len(outer), bool), np.ones(len(core_parts), bool)]
     return lots, is_inner
@@ -479,6 +510,8 @@ class _Lots(SENode):
         empty = shapely.is_empty(geoms) | (shapely.area(geoms) <= 0)
         report["skipped_empty"] = int(empty.sum())
         lots, owner, method, inner = self.split(blocks, report)
+        ok = ~shapely.is_empty(lots) & (shapely.get_type_id(lots) == 3)
+        lots, owner, method, inner = lots[ok], owner[ok], method[ok], inner[ok]
         lots, owner, keep, nwhole = _check_partition(geoms, lots, owner, report)
         method = np.r_[method[keep], np.full(nwhole, "whole")]
         inner = np.r_[inner[keep], np.zeros(nwhole, bool)]
@@ -505,6 +538,8 @@ def _manhattan(self, geoms, report, *, count, width, min_depth):
 def _recursive(self, geoms, ids, report, *, max_area, min_frontage, jitter):
     seeds = np.array([self.rng(int(i)).integers(0, 2**63, dtype=np.uint64) for i in ids], np.uint64)
     lots, owner = recursive_lots(geoms, max_area=max_area, min_frontage=min_frontage, jitter=jitter, seeds=seeds)
+    over = int((shapely.area(lots) > max_area).sum())
+    report["over_max_area"] = report.get("over_max_area", 0) + over
     return lots, owner, np.full(len(lots), "recursive"), np.zeros(len(lots), bool)
 
 
