@@ -401,15 +401,34 @@ def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> di
     ctx = multiprocessing.get_context("fork")  # workers inherit the registry and plugins
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
         parts = list(pool.map(_call_run, [node] * len(jobs), jobs))
+    reports = [r for _, r in parts if r]
+    if reports:
+        node.report = _sum_reports(reports)
     merged = {}
     for port in node.outputs:
-        ids = np.concatenate([p[port].ids for p in parts])
-        merged[port] = Layer.concat([p[port] for p in parts], renumber=len(np.unique(ids)) != len(ids))
+        layers = [out[port] for out, _ in parts]
+        ids = np.concatenate([lay.ids for lay in layers])
+        merged[port] = Layer.concat(layers, renumber=len(np.unique(ids)) != len(ids))
     return merged
 
 
-def _call_run(node: SENode, kwargs: dict[str, Layer | None]) -> dict[str, Layer]:
-    return node.run(**kwargs) or {}
+def _call_run(node: SENode, kwargs: dict[str, Layer | None]) -> tuple[dict[str, Layer], dict | None]:
+    outputs = node.run(**kwargs) or {}
+    return outputs, getattr(node, "report", None)
+
+
+def _sum_reports(reports: list[dict]) -> dict:
+    """Merge the reports of a node's chunks: numbers add up, the rest is taken from the first."""
+    total: dict = {}
+    for rep in reports:
+        for key, value in rep.items():
+            if isinstance(value, dict):
+                total[key] = _sum_reports([total.get(key, {}), value])
+            elif isinstance(value, (int, float)) and not isinstance(value, bool) and key in total:
+                total[key] = total[key] + value
+            else:
+                total.setdefault(key, value)
+    return total
 
 
 def _write_json(path: Path, data: Any) -> None:

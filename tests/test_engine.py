@@ -338,11 +338,13 @@ def test_layer_take_concat_and_columns():
 
 def test_workers_give_the_same_result(tmp_path, fixtures):
     """A feature-mapping node cut into chunks over 2 processes: same bytes as 1 process."""
-    files = []
+    files, reports = [], []
     for workers in (1, 2):
         net = sengine.load(fixtures / "squares.xml")
         net.set_param("source", "count", 1500)
-        net.run(seed=5, out=tmp_path / f"w{workers}", workers=workers)
+        result = net.run(seed=5, out=tmp_path / f"w{workers}", workers=workers)
         files.append((tmp_path / f"w{workers}" / "write.geojson").read_bytes())
+        reports.append(result.stats["report"])
     assert files[0] == files[1]
+    assert reports[0] == reports[1] == {"inset": {"shrunk": 1500, "method": "buffer"}}
     assert json.loads(files[0])["features"][1499]["properties"]["parent_id"] == 1499
