@@ -313,13 +313,20 @@ def _duplicates(pieces: Pieces, xy: np.ndarray, key: np.ndarray, rank: np.ndarra
         return keep, 0
     cand = np.flatnonzero(np.r_[False, same])
     grp_first = order[np.maximum.accumulate(np.where(np.r_[True, ~same], np.arange(len(order)), 0))]
+    # two straight pieces between the same nodes are the same street: no distance needed
+    npts = np.bincount(pieces.piece, minlength=len(pieces))
+    straight = (npts[order[cand]] == 2) & (npts[grp_first[cand]] == 2)
+    keep[order[cand[straight]]] = False
+    cand = cand[~straight]
+    if not len(cand):
+        return keep, int(straight.sum())
     need = np.unique(np.r_[order[cand], grp_first[cand]])
     sel = np.isin(pieces.piece, need)
     lines = np.empty(len(pieces), dtype=object)
     lines[need] = shapely.linestrings(xy[pieces.vertex[sel]], indices=np.searchsorted(need, pieces.piece[sel]))
     dup = shapely.hausdorff_distance(lines[order[cand]], lines[grp_first[cand]]) <= dup_tol
     keep[order[cand[dup]]] = False
-    return keep, int(dup.sum())
+    return keep, int(dup.sum() + straight.sum())
 
 
 def _take_pieces(pieces: Pieces, keep: np.ndarray) -> Pieces:
@@ -383,13 +390,13 @@ def find_slivers(nodes: np.ndarray, u: np.ndarray, v: np.ndarray, *, sliver_widt
     if not len(pairs):
         return empty
     eu, ev = pairs // n, pairs % n
-    _, face, _ = trace_faces(nodes, eu, ev)
+    nxt, face, _ = trace_faces(nodes, eu, ev)
     bridge = face[0::2] == face[1::2]
     if bridge.any():  # dead ends and connectors: same face on both sides
         eu, ev = eu[~bridge], ev[~bridge]
         if not len(eu):
             return empty
-        _, face, _ = trace_faces(nodes, eu, ev)
+        nxt, face, _ = trace_faces(nodes, eu, ev)
     org = np.stack([eu, ev], axis=1).ravel()
     dst = np.stack([ev, eu], axis=1).ravel()
     p, q = nodes[org], nodes[dst]
@@ -406,14 +413,27 @@ def find_slivers(nodes: np.ndarray, u: np.ndarray, v: np.ndarray, *, sliver_widt
     nfaces = int(bounded.sum())
     if not sel.any():
         return (*empty[:2], nfaces)
-    # polygons of the selected faces only: polygonize their boundary segments
-    h = np.flatnonzero(sel[face])
-    polys = shapely.get_parts(shapely.polygonize(shapely.linestrings(np.stack([p[h], q[h]], axis=1))))
-    pa = shapely.area(polys)
-    pw = 2.0 * pa / np.maximum(shapely.length(polys), 1e-12)
-    is_island = pa < island_area
-    keep = is_island | (pw < sliver_width)
-    return polys[keep], np.where(is_island[keep], "island", "median").astype(object), nfaces
+    # rings of the selected faces only: follow each walk's successor permutation
+    faces_sel = np.flatnonzero(sel)
+    head = np.full(nf, -1, np.int64)
+    hs = np.flatnonzero(sel[face])
+    head[face[hs[::-1]]] = hs[::-1]
+    rings, ring_of = [], []
+    for k, f in enumerate(faces_sel):
+        h0 = h = int(head[f])
+        walk = []
+        while True:
+            walk.append(org[h])
+            h = int(nxt[h])
+            if h == h0 or len(walk) > len(nxt):
+                break
+        rings.append(walk)
+        ring_of.append(np.full(len(walk), k))
+    polys = shapely.polygons(shapely.linearrings(nodes[np.concatenate(rings)], indices=np.concatenate(ring_of)))
+    bad = ~shapely.is_valid(polys)
+    if bad.any():  # a walk through a pinch vertex
+        polys[bad] = shapely.make_valid(polys[bad])
+    return polys, np.where(island[faces_sel], "island", "median").astype(object), nfaces
 
 
 @register
@@ -474,7 +494,10 @@ class RoadsClean(SENode):
         nodes, su, sv, pu, pv = segment_graph(pieces, xy, key)
         out = lay.take(pieces.line)
         out = Layer(np.asarray(geoms, dtype=object), np.arange(len(pieces), dtype=np.int64), out.ids.copy(),
-                    {**out.attrs, "u": pu, "v": pv}, {**meta, "planar": True, "nodes": nodes})
+                    {**out.attrs, "u": pu, "v": pv},
+                    {**meta, "planar": True, "nodes": nodes,
+                     # the plane straight-segment graph, valid for exactly these rows (see find_blocks)
+                     "graph": {"rows": len(pieces), "xy": nodes, "u": su, "v": sv}})
         counts["tunnels_dropped"] = int(n0 - n)
         slivers = Layer.empty(meta=meta, kind=object)
         counts["slivers_merged"] = counts["islands"] = counts["medians"] = 0
