@@ -5,8 +5,9 @@ Three methods, as in the paper:
 * **Manhattan** (§5.5, Fig. 9 right; a simplification of Aliaga et al. [1]):
   the block is split lengthwise along the main axis of its oriented bounding
   box into two halves, and each half into ``count`` lots (or lots about
-  ``width`` m wide).  All blocks are cut in one vectorized
-  ``shapely.intersection`` of strip boxes against the repeated blocks.
+  ``width`` m wide).  All blocks are cut in one vectorized call: each
+  (block, strip box) pair is mapped onto the unit square and clipped there
+  (:func:`sengine.geometry.clip_frame_boxes`).
 * **Paris** (§5.5, Fig. 9 left): the contour is split into equal segments;
   at each segment end the inner normal is computed; each segment is split
   into three rectilinear sub-segments whose ends are displaced inwards along
@@ -37,7 +38,7 @@ import shapely
 
 from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import ParameterError
-from sengine.geometry import boundary_segments, frame_boxes, obb_frame, segments_on, split_by_line
+from sengine.geometry import boundary_segments, clip_frame_boxes, obb_frame, segments_on, split_by_line
 
 __all__ = ["lot_attributes", "frontage", "manhattan_lots", "recursive_lots", "paris_lots",
            "LotsManhattan", "LotsParis", "LotsRecursive", "LotsDistrict"]
@@ -216,8 +217,7 @@ def manhattan_lots(blocks, *, count=0, width=65.0, min_depth=10.0):
     two = rows[own] == 2
     b0 = np.where(two & (row == 1), 0.0, -Wo / 2 - Mo)
     b1 = np.where(two & (row == 0), 0.0, Wo / 2 + Mo)
-    boxes = frame_boxes(center[own], axis[own], a0, a1, b0, b1)
-    pieces = shapely.intersection(blocks[own], boxes)
+    pieces = clip_frame_boxes(blocks[own], center[own], axis[own], a0, a1, b0, b1)
     return _explode(pieces, own)
 
 
