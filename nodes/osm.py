@@ -118,6 +118,9 @@ class OsmExtract:
     more : list of tuple
         For ways with more tags than ``highway``: (way index, name, layer,
         bridge, tunnel or covered, oneway) tag values (None when absent).
+    refs : list of list of int
+        OSM node ids of each kept way (only when asked for: it costs a
+        Python object per node).
     polygons : dict of str to (list of str, list of dict)
         ``"water"``, ``"parks"``, ``"buildings"``: hex WKB multipolygons and their attributes.
     clipped : int
@@ -129,12 +132,13 @@ class OsmExtract:
     code: list = field(default_factory=list)
     codes: dict = field(default_factory=dict)
     more: list = field(default_factory=list)
+    refs: list = field(default_factory=list)
     polygons: dict = field(default_factory=lambda: {k: ([], []) for k in ("water", "parks", "buildings")})
     clipped: int = 0
 
 
 def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras: frozenset[str] = frozenset(),
-             where: str | None = None) -> OsmExtract:
+             node_ids: bool = False, where: str | None = None) -> OsmExtract:
     """Stream an OSM file and collect its highway ways (and optional areas).
 
     Parameters
@@ -146,6 +150,8 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
     extras : frozenset of str
         Any of ``"water"``, ``"parks"``, ``"buildings"``: also assemble those
         areas (closed ways and multipolygon relations; costs a second pass).
+    node_ids : bool
+        Also keep the OSM node id of every way node (slower).
     where : str, optional
         Prefix for error messages.
 
@@ -181,10 +187,12 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
             if classes is not None and hw not in classes:
                 return
             code = codes[hw] = len(codes)
+        kept = None
         try:
             append_line(wkb.create_linestring(w, every))
         except osmium.InvalidLocationError:
-            if not _clipped_way(w, path, out, wkb, where):
+            kept = _clipped_way(w, path, out, where)
+            if kept is None:
                 return
         except RuntimeError:  # libosmium geometry_error: a way of fewer than two nodes
             return
@@ -193,6 +201,8 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
         if len(tags) > 1:  # most Liège-like street tables carry highway only
             append_more((len(out.code) - 1, tags.get("name", ""), tags.get("layer"), tags.get("bridge"),
                          tags.get("tunnel") or tags.get("covered"), tags.get("oneway")))
+        if node_ids:
+            out.refs.append(kept if kept is not None else [n.ref for n in w.nodes])
 
     def area(a):
         tags = a.tags
@@ -230,13 +240,16 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
     return out
 
 
-def _clipped_way(w, path, out, wkb, where) -> bool:
-    """Slow path for a way with missing node locations: keep its longest run of located nodes."""
+def _clipped_way(w, path, out, where) -> list[int] | None:
+    """Slow path for a way with missing node locations: keep its longest run of located nodes.
+
+    Returns the OSM ids of the kept nodes, or None when fewer than two are left.
+    """
     runs, run = [], []
     for n in w.nodes:
         loc = n.location
         if loc.valid():
-            run.append((loc.lon, loc.lat))
+            run.append((loc.lon, loc.lat, n.ref))
             continue
         if loc.x != 2147483647 or loc.y != 2147483647:  # present, but outside the valid range
             raise InputDataError(
@@ -248,9 +261,9 @@ def _clipped_way(w, path, out, wkb, where) -> bool:
     best = max(runs, key=len)
     out.clipped += 1
     if len(best) < 2:
-        return False
-    out.hex_wkb.append(shapely.to_wkb(shapely.linestrings(best), hex=True))
-    return True
+        return None
+    out.hex_wkb.append(shapely.to_wkb(shapely.linestrings([p[:2] for p in best]), hex=True))
+    return [p[2] for p in best]
 
 
 def decode_lines(hex_wkb: list[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -320,7 +333,8 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
         tunnels -1), ``bridge``, ``tunnel``, ``oneway`` (bool), ``u``, ``v``
         (junction indices into ``meta["nodes"]``); meta ``crs``, ``origin``
         (lat, lon), ``nodes`` ((k, 2) planar xy), ``node_keys`` (OSM
-        fixed-point location of each node, packed in an int64).
+        fixed-point location of each node, packed in an int64) and, when
+        read with ``node_ids``, ``node_ids`` (the OSM id of each node).
     """
     lonlat, line = decode_lines(ext.hex_wkb)
     if not len(lonlat):
@@ -354,13 +368,18 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
                   for v, b, t in zip(ly, bridge[i], tunnel[i], strict=True)]
     vkey = key[pieces.vertex]
     ukeys, uidx = np.unique(vkey, return_index=True)
+    meta_ids = {}
+    if ext.refs:
+        refs = np.fromiter((r for way in ext.refs for r in way), np.int64)
+        if len(refs) == len(key):
+            meta_ids = {"node_ids": refs[pieces.vertex[uidx]]}
     nodes = xy[pieces.vertex[uidx]]
     ends = np.searchsorted(ukeys, np.r_[key[pieces.first], key[pieces.last]])
     u, v = ends[: len(row)], ends[len(row):]
     c = code[row]
     return Layer.from_geoms(
         geoms,
-        meta={"crs": crs, "origin": origin, "nodes": nodes, "node_keys": ukeys, "source": "osm"},
+        meta={"crs": crs, "origin": origin, "nodes": nodes, "node_keys": ukeys, "source": "osm", **meta_ids},
         **{
             "class": names[c],
             "major": is_major[c],
@@ -423,6 +442,7 @@ class OsmRead(SENode):
         "major": Param("str", MAJOR_CLASSES, doc="comma list of highway values counted as major roads"),
         "minor": Param("str", MINOR_CLASSES, doc="comma list of highway values kept as minor roads; '*' all others; the rest is ignored"),
         "extras": Param("str", "water,parks,buildings", doc="comma list of extra layers to read: water, parks, buildings"),
+        "node_ids": Param("bool", False, doc="keep the OSM id of every junction in meta['node_ids'] (slower)"),
         "floor_height": Param("float", 3.2, min=2.0, max=10.0, unit="m", doc="storey height for building:levels"),
         "default_height": Param("float", 10.0, min=0.0, max=500.0, unit="m", doc="height of buildings with no height tag"),
     }
@@ -453,7 +473,7 @@ class OsmRead(SENode):
             raise ParameterError(f"extras={self.p.extras!r}: unknown layer {sorted(bad)[0]!r} "
                                  "(expected water, parks, buildings)", where=self.where)
         keep = None if "*" in minor else major | minor
-        ext = read_osm(path, classes=keep, extras=extras, where=where)
+        ext = read_osm(path, classes=keep, extras=extras, node_ids=self.p.node_ids, where=where)
         try:
             roads = streets_layer(ext, major=major, where=f"{where}: {path.name}")
         except InputDataError as exc:
@@ -469,7 +489,7 @@ class OsmRead(SENode):
             roads = roads.with_meta(**meta)
         log.info("%s: %d highway ways -> %d street segments (%s)", path.name, len(ext.code), len(roads),
                  meta.get("crs", "no CRS"))
-        small = {k: v for k, v in meta.items() if k not in ("nodes", "node_keys")}
+        small = {k: v for k, v in meta.items() if k not in ("nodes", "node_keys", "node_ids")}
         out = {"roads": roads}
         for kind in ("water", "parks", "buildings"):
             out[kind] = polygons_layer(ext, kind, small, floor_height=self.p.floor_height,

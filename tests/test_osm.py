@@ -266,3 +266,25 @@ def test_sengine_osm_command(tmp_path, cli):
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "cut.osm.pbf" in lines[0]
     assert not (tmp_path / "bad").exists()
+
+
+def test_osm_node_ids_on_request(helsinki):
+    out, _ = read(HELSINKI, extras="", node_ids="true")
+    roads = out["roads"]
+    ids = roads.meta["node_ids"]
+    assert len(ids) == len(roads.meta["nodes"]) and len(np.unique(ids)) == len(ids)
+    assert (ids > 0).all()
+    assert "node_ids" not in helsinki[0]["roads"].meta  # off by default: it costs a Python object per node
+    # a junction's id is shared by the segments that meet there
+    u_ids = ids[roads["u"]]
+    assert len(np.unique(u_ids)) < len(u_ids)
+    # and each id is the OSM node at that place
+    import osmium
+
+    from sengine.geo import from_lonlat
+
+    want = set(ids[:200].tolist())
+    loc = {n.id: (n.location.lon, n.location.lat) for n in osmium.FileProcessor(str(HELSINKI), osmium.osm.NODE)
+           if n.id in want}
+    xy = from_lonlat(roads.meta["crs"])(np.array([loc[i] for i in ids[:200]]))
+    assert np.allclose(xy, roads.meta["nodes"][:200], atol=1e-6)
