@@ -288,7 +288,7 @@ class BlocksCircuits(SENode):
                             doc="street widths from the roads' width column, or street_width for all"),
         "min_area": Param("float", 50.0, min=0.0, unit="m2", doc="faces and blocks smaller than this are dropped"),
         "node": Param("bool", True, doc="split crossing segments first (turn off only for plane input)"),
-        "decimals": Param("int", 6, min=0, max=12, doc="merge nodes equal to this many decimals (m)"),
+        "decimals": Param("int", 6, min=0, max=12, unit="1", doc="merge nodes equal to this many decimals (m)"),
     }
 
     def run(self, *, roads: Layer, outline: Layer | None = None, areas: Layer | None = None):

@@ -551,7 +551,7 @@ def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage)
 
 
 _P_MANHATTAN = {
-    "count": Param("int", 0, min=0, max=1000, doc="lots per side of the main axis; 0 = from width"),
+    "count": Param("int", 0, min=0, max=1000, unit="1", doc="lots per side of the main axis; 0 = from width"),
     "width": Param("float", 65.0, min=0.5, unit="m",
                    doc="target lot width along the main axis (65 m: ~8 lots per 80 x 270 m block, as in the paper)"),
     "min_depth": Param("float", 10.0, min=0.0, unit="m", doc="blocks narrower than twice this get one row"),
