@@ -5,20 +5,26 @@ Blocks are the minimal closed circuits of the street graph (skylineEngine
 shared nodes; a real map (OpenStreetMap, a traced image, an OBJ) is not
 quite one.  This module prepares it, on whole numpy arrays:
 
-1. **Crossings** -- two segments that cross without a shared node get one,
-   but only when they lie on the same level: ways tagged ``bridge`` /
-   ``tunnel`` or on different ``layer`` values pass over each other (in OSM
-   most junctions are shared nodes already).
-2. **Split** -- every line is cut at its junctions into street segments.
-3. **Duplicates** -- segments joining the same two junctions along the same
-   path (within ``dup_tol``) are merged; the higher-ranked class is kept.
+1. **Split** -- every line is cut at its junctions into street segments.
+2. **Duplicates** -- segments joining the same two junctions along the same
+   path (within ``dup_tol``) are merged, the higher-ranked class kept; done
+   first, so that twin ways (both directions of a street) are not cut at
+   two slightly different crossing points.
+3. **Crossings** -- two segments that cross without a shared node get one,
+   and a segment end lying exactly on another segment gets a T-junction,
+   but only on the same level: ways tagged ``bridge`` / ``tunnel`` or on
+   different ``layer`` values pass over each other (in OSM most junctions
+   are shared nodes already).  Then split and merge duplicates again.
 4. **Dead ends** -- segments ending at a degree-1 node are dropped,
    repeatedly, until none is left: they bound no block.
 5. **Slivers** -- the thin faces between dual carriageways and the tiny
    traffic islands inside junctions are street surface, not blocks: faces
    narrower than ``sliver_width`` or smaller than ``island_area`` are found
-   with the same face tracer the blocks use, counted, and handed on as
-   ``slivers`` (polygons of kind ``median`` / ``island``).
+   with the same face tracer the blocks use, counted (``slivers_merged``) and
+   handed on as ``slivers`` (polygons of kind ``median`` / ``island``) to
+   be drawn as street surface.  The graph keeps their edges, so the block
+   faces still partition the city; the blocks node's street and sidewalk
+   inset leaves nothing of them (``vanished_by_inset``).
 
 Point identity is exact coordinate equality: the importers project every
 shared node once, so shared nodes are bit-identical.

@@ -25,8 +25,8 @@ parks (``leisure=park``/``garden``) and buildings (with ``height`` /
 
 References
 ----------
-.. [1] Kelly, G., et al. / Martinez, J. et al., skylineEngine (paper 002),
-   §5.2 Input module and §5.3 Major & minor roads modules.
+skylineEngine (paper 002), §5.2 "Input Module" and §5.3 "Major & Minor
+Roads Modules".
 """
 
 from __future__ import annotations
