@@ -71,7 +71,7 @@ from shapely import STRtree
 
 from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import ConfigError, InputDataError
-from sengine.maps import classify, colour_hex, parse_colour, read_map, vectorize
+from sengine.maps import classify, parse_colour, read_map, vectorize
 
 from .patterns import (
     cell_edges,
