@@ -240,7 +240,7 @@ def plan_meta(plan) -> dict:
     return {"crs": crs, "origin": tuple(plan.origin), "extent": tuple(plan.extent)}
 
 
-def city_regions(plan, styles: list[DistrictStyle], *, simplify: float = 2.0, grid_size: float = 1e-3):
+def city_regions(plan, styles: list[DistrictStyle], *, simplify: float = 1.0, grid_size: float = 1e-3):
     """Vectorize the plan's maps into district regions and land-use regions.
 
     Parameters
@@ -456,7 +456,7 @@ class RoadsDistricts(SENode):
     params = {
         "merge": Param("float", 0.3, min=0.0, max=1.0, unit="1",
                        doc="areas under this share of the district's typical area merge into a neighbour"),
-        "simplify": Param("float", 2.0, min=0.0, max=20.0, unit="px",
+        "simplify": Param("float", 1.0, min=0.0, max=20.0, unit="px",
                           doc="simplification of the map regions' pixel staircase"),
         "grid": Param("float", 0.001, min=1e-6, max=1.0, unit="m", doc="snap-rounding grid of the noding"),
     }

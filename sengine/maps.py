@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 import shapely
+from shapely import STRtree
 
 from .errors import InputDataError
 
@@ -427,9 +428,14 @@ def vectorize(
 
     The borders between pixels of different labels (plus the image frame) are
     noded and polygonized into faces; each face takes the label under it.
-    The faces are simplified together with ``shapely.coverage_simplify`` so
-    the pixel staircase becomes straight or diagonal edges while neighbours
-    keep one shared border, and the faces of each label are dissolved.
+    To lose the pixel staircase, the noded linework is cut into edges between
+    junctions; each edge's vertices are replaced by its segments' midpoints
+    (a staircase becomes a line within half a pixel of the drawn border) and
+    the edge is simplified (Douglas-Peucker, ``simplify`` pixels) with its end
+    points fixed.  Every border exists once, as one edge, so neighbouring
+    regions keep exactly one shared border; the smoothed edges are noded and
+    polygonized again, each new face takes the label of the pixel face it
+    overlaps most, and the faces of each label are dissolved.
 
     Parameters
     ----------
@@ -438,7 +444,7 @@ def vectorize(
     labels : numpy.ndarray of int, shape (rows, cols)
         A label per pixel (from :func:`classify`).
     simplify : float
-        Simplification tolerance in pixels (0 keeps the staircase).
+        Simplification tolerance in pixels (0 keeps the pixel staircase).
     grid_size : float
         When positive, coordinates are snapped to this grid (m).
 
@@ -461,8 +467,19 @@ def vectorize(
     pts = shapely.point_on_surface(faces)
     face_label = labels[img.pixel_index(shapely.get_x(pts), shapely.get_y(pts))[::-1]]
     if simplify > 0 and len(faces) > 1:
-        tol = simplify * max(img.pixel_size)
-        faces = shapely.coverage_simplify(faces, tol, simplify_boundary=False)
+        edges = np.asarray(shapely.get_parts(shapely.line_merge(lines)), dtype=object)
+        smooth = _smooth_edges(edges, img.extent)
+        smooth = shapely.simplify(smooth, simplify * max(img.pixel_size), preserve_topology=False)
+        noded = shapely.union_all(smooth)
+        new = np.asarray(shapely.get_parts(shapely.polygonize([noded])), dtype=object)
+        # each new face takes the label of the pixel face it overlaps most
+        ni, fi = STRtree(faces).query(new, predicate="intersects")
+        share = shapely.area(shapely.intersection(new[ni], faces[fi]))
+        order = np.lexsort((-share, ni))
+        first = order[np.r_[True, ni[order][1:] != ni[order][:-1]]]
+        new_label = np.full(len(new), -1, np.int64)
+        new_label[ni[first]] = face_label[fi[first]]
+        faces, face_label = new[new_label >= 0], new_label[new_label >= 0]
     if grid_size > 0:
         faces = shapely.set_precision(faces, grid_size)
     out: dict[int, shapely.Geometry] = {}
@@ -470,6 +487,42 @@ def vectorize(
         out[int(k)] = shapely.union_all(faces[face_label == k], grid_size=grid_size or None)
     log.debug("vectorized %s: %d faces into %d regions", img.src.name, len(faces), len(out))
     return out
+
+
+def _smooth_edges(edges: np.ndarray, extent) -> np.ndarray:
+    """Replace each edge's inner vertices by its segments' midpoints.
+
+    A pixel staircase becomes a line within half a pixel of the drawn border;
+    the edge's end points (the junctions shared with other edges) and every
+    vertex on the image frame stay where they are, so neighbouring faces
+    still meet exactly.
+    """
+    xmin, ymin, xmax, ymax = extent
+    out = []
+    for e in edges:
+        xy = shapely.get_coordinates(e)
+        if len(xy) < 3:
+            out.append(e)
+            continue
+        mids = (xy[:-1] + xy[1:]) / 2.0
+        on_frame = (np.isclose(xy[:, 0], xmin) | np.isclose(xy[:, 0], xmax)
+                    | np.isclose(xy[:, 1], ymin) | np.isclose(xy[:, 1], ymax))
+        closed = bool(np.all(xy[0] == xy[-1]))
+        pts = []
+        if not closed or on_frame[0]:
+            pts.append(xy[0])
+        for i in range(len(mids)):
+            pts.append(mids[i])
+            if 0 < i + 1 < len(xy) - 1 and on_frame[i + 1]:
+                pts.append(xy[i + 1])
+        if not closed or on_frame[0]:
+            pts.append(xy[-1])
+        else:
+            pts.append(mids[0])
+        out.append(shapely.linestrings(np.asarray(pts)))
+    arr = np.empty(len(out), dtype=object)
+    arr[:] = out
+    return arr
 
 
 def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
