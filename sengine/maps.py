@@ -429,8 +429,9 @@ def vectorize(
     The borders between pixels of different labels (plus the image frame) are
     noded and polygonized into faces; each face takes the label under it.
     To lose the pixel staircase, the noded linework is cut into edges between
-    junctions; each edge's vertices are replaced by its segments' midpoints
-    (a staircase becomes a line within half a pixel of the drawn border) and
+    junctions; each edge's pixel steps are replaced by its segments' midpoints
+    (a staircase becomes a line within half a pixel of the drawn border,
+    corners between two sides longer than 1.5 pixels stay) and
     the edge is simplified (Douglas-Peucker, ``simplify`` pixels) with its end
     points fixed.  Every border exists once, as one edge, so neighbouring
     regions keep exactly one shared border; the smoothed edges are noded and
@@ -468,7 +469,7 @@ def vectorize(
     face_label = labels[img.pixel_index(shapely.get_x(pts), shapely.get_y(pts))[::-1]]
     if simplify > 0 and len(faces) > 1:
         edges = np.asarray(shapely.get_parts(shapely.line_merge(lines)), dtype=object)
-        smooth = _smooth_edges(edges, img.extent)
+        smooth = _smooth_edges(edges, img.extent, 1.5 * max(img.pixel_size))
         smooth = shapely.simplify(smooth, simplify * max(img.pixel_size), preserve_topology=False)
         noded = shapely.union_all(smooth)
         new = np.asarray(shapely.get_parts(shapely.polygonize([noded])), dtype=object)
@@ -489,13 +490,15 @@ def vectorize(
     return out
 
 
-def _smooth_edges(edges: np.ndarray, extent) -> np.ndarray:
-    """Replace each edge's inner vertices by its segments' midpoints.
+def _smooth_edges(edges: np.ndarray, extent, corner: float) -> np.ndarray:
+    """Replace the staircase vertices of each edge by its segments' midpoints.
 
-    A pixel staircase becomes a line within half a pixel of the drawn border;
-    the edge's end points (the junctions shared with other edges) and every
-    vertex on the image frame stay where they are, so neighbouring faces
-    still meet exactly.
+    A vertex between two segments longer than ``corner`` (m) is a drawn
+    corner and stays; a vertex next to a short segment is a pixel step and is
+    replaced by the midpoints of its segments, so a staircase becomes a line
+    within half a pixel of the drawn border.  The edge's end points (the
+    junctions shared with other edges) and every vertex on the image frame
+    stay too, so neighbouring faces still meet exactly.
     """
     xmin, ymin, xmax, ymax = extent
     out = []
@@ -504,21 +507,26 @@ def _smooth_edges(edges: np.ndarray, extent) -> np.ndarray:
         if len(xy) < 3:
             out.append(e)
             continue
+        closed = bool(np.all(xy[0] == xy[-1]))
+        seg = np.hypot(*(xy[1:] - xy[:-1]).T)
         mids = (xy[:-1] + xy[1:]) / 2.0
         on_frame = (np.isclose(xy[:, 0], xmin) | np.isclose(xy[:, 0], xmax)
                     | np.isclose(xy[:, 1], ymin) | np.isclose(xy[:, 1], ymax))
-        closed = bool(np.all(xy[0] == xy[-1]))
-        pts = []
-        if not closed or on_frame[0]:
-            pts.append(xy[0])
-        for i in range(len(mids)):
+        keep = np.zeros(len(xy), bool)
+        keep[1:-1] = on_frame[1:-1] | ((seg[:-1] > corner) & (seg[1:] > corner))
+        if closed:
+            keep[0] = on_frame[0] | ((seg[-1] > corner) & (seg[0] > corner))
+        else:
+            keep[0] = keep[-1] = True
+        pts = [xy[0]] if keep[0] else []
+        for i in range(len(seg)):
             pts.append(mids[i])
-            if 0 < i + 1 < len(xy) - 1 and on_frame[i + 1]:
+            if i + 1 < len(xy) - 1 and keep[i + 1]:
                 pts.append(xy[i + 1])
-        if not closed or on_frame[0]:
+        if not closed:
             pts.append(xy[-1])
         else:
-            pts.append(mids[0])
+            pts.append(pts[0])
         out.append(shapely.linestrings(np.asarray(pts)))
     arr = np.empty(len(out), dtype=object)
     arr[:] = out

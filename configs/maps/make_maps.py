@@ -12,7 +12,7 @@ engine samples them bilinearly).
   the bearing of Manhattan's grid (29 deg east of north) in water, a
   Central-Park-like rectangle, four districts along the island, a skyline
   with a downtown and a midtown peak.
-* ``paris_*`` (configs/paris.xml, 6000 x 4000 m): a river crossing the city,
+* ``paris_*`` (configs/paris.xml, 4500 x 3000 m): a river crossing the city,
   a radial star in the west, organic quarters around, one square park.
 * ``districts_*`` (configs/districts.xml, 3000 x 2000 m): a grid, a radial
   and an organic district meeting along curved borders, with a lake.
@@ -144,20 +144,25 @@ def river(points, width):
 
 
 def make_paris():
-    size, px = (6000.0, 4000.0), (450, 300)
+    k = 0.75  # shapes drawn for a 6 x 4 km city, placed on 4.5 x 3 km
+
+    def sc(pts):
+        return [(x * k, y * k) for x, y in pts]
+
+    size, px = (4500.0, 3000.0), (450, 300)
     seine = [(-100, 2300), (900, 2500), (1900, 2250), (2800, 1900), (3700, 1950), (4600, 2300),
              (5400, 2150), (6100, 1800)]
     land = Canvas(size, px, LAND)
-    land.polygon(river(seine, 150.0), WATER)
-    land.polygon([(3900, 1250), (4500, 1250), (4500, 1700), (3900, 1700)], PARK)
+    land.polygon(sc(river(seine, 170.0)), WATER)
+    land.polygon(sc([(3900, 1250), (4500, 1250), (4500, 1700), (3900, 1700)]), PARK)
     land.save("paris_landuse.png")
     dist = Canvas(size, px, hexrgb("#c8a060"))  # organic outskirts
     star = [(1600 + 1300 * math.cos(t), 2000 + 1300 * math.sin(t)) for t in np.linspace(0, 2 * math.pi, 40)]
-    dist.polygon(star, hexrgb("#5080c0"))  # radial star (l'Étoile)
+    dist.polygon(sc(star), hexrgb("#5080c0"))  # radial star (l'Etoile), centre (1200, 1500)
     centre = [(3300, 1100), (4800, 900), (5300, 2000), (4900, 3000), (3400, 3100), (3000, 2200)]
-    dist.polygon(centre, hexrgb("#a04060"))  # organic centre, denser
+    dist.polygon(sc(centre), hexrgb("#a04060"))  # organic centre, denser
     dist.save("paris_districts.png")
-    height_png("paris_height.png", size, (60, 40), [(3900, 2100, 900.0, 0.35), (1600, 2000, 700.0, 0.3)],
+    height_png("paris_height.png", size, (60, 40), [(2900, 1600, 700.0, 0.35), (1200, 1500, 500.0, 0.3)],
                base=0.25)
 
 
