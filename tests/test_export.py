@@ -314,7 +314,7 @@ def _star(seed: int, n: int, hole: bool, offset: float):
     r = rng.uniform(5, 20, n)
     shell = np.column_stack([np.cos(ang) * r, np.sin(ang) * r]) + offset
     poly = shapely.Polygon(shell)
-    if hole:
+    if hole and poly.is_valid:
         poly = poly.difference(shapely.Point(offset, offset).buffer(2.0, 4))
     return poly
 
