@@ -43,6 +43,7 @@ from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import InputDataError
 from sengine.geo import from_lonlat, utm_crs
 
+from ._pbf import PbfUnsupported, PbfWays, read_pbf_ways
 from .clean import split_at_junctions
 
 __all__ = [
@@ -105,41 +106,54 @@ def parse_height(value: str | None) -> float:
 
 @dataclass
 class OsmExtract:
-    """What :func:`read_osm` collects, still in WGS84 lon/lat.
+    """What :func:`read_osm` collects, still in WGS84.
 
     Attributes
     ----------
-    hex_wkb : list of str
-        One hex WKB LineString per kept highway way (every node, libosmium order).
-    way_id, code : list of int
+    fixed : ndarray (n, 2) of int64
+        Every node of every kept highway way, way after way in file order,
+        as (lon, lat) in libosmium's fixed point (1e-7 deg): equal values
+        are the same place.
+    line : ndarray (n,) of int64
+        Index of each point's way (non-decreasing).
+    way_id, code : ndarray (w,) of int64
         Per kept way: OSM id and the code of its ``highway`` value in ``codes``.
     codes : dict of str to int
         ``highway`` value -> code.
-    more : list of tuple
-        For ways with more tags than ``highway``: (way index, name, layer,
-        bridge, tunnel or covered, oneway) tag values (None when absent).
-    refs : list of list of int
-        OSM node ids of each kept way (only when asked for: it costs a
-        Python object per node).
+    tags : dict of str to ndarray (w,) of object
+        ``name``, ``layer``, ``bridge``, ``tunnel`` (``tunnel`` or else
+        ``covered``) and ``oneway`` values per way, None when absent.
+    node_ids : ndarray (n,) of int64 or None
+        OSM node id of each point (only when asked for).
     polygons : dict of str to (list of str, list of dict)
         ``"water"``, ``"parks"``, ``"buildings"``: hex WKB multipolygons and their attributes.
     clipped : int
         Ways whose nodes are partly missing from the file (cut by the extract's bounding box).
     """
 
-    hex_wkb: list = field(default_factory=list)
-    way_id: list = field(default_factory=list)
-    code: list = field(default_factory=list)
+    fixed: np.ndarray = field(default_factory=lambda: np.empty((0, 2), np.int64))
+    line: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+    way_id: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+    code: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
     codes: dict = field(default_factory=dict)
-    more: list = field(default_factory=list)
-    refs: list = field(default_factory=list)
+    tags: dict = field(default_factory=dict)
+    node_ids: np.ndarray | None = None
     polygons: dict = field(default_factory=lambda: {k: ([], []) for k in ("water", "parks", "buildings")})
     clipped: int = 0
+
+
+_TAG_KEYS = ("name", "layer", "bridge", "tunnel", "oneway")
+_UNDEFINED = 2147483647  # libosmium's coordinate of a node missing from the file
 
 
 def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras: frozenset[str] = frozenset(),
              node_ids: bool = False, where: str | None = None) -> OsmExtract:
     """Stream an OSM file and collect its highway ways (and optional areas).
+
+    A plain PBF file (zlib blocks, dense nodes: what osmium, osmosis and the
+    Geofabrik extracts write) is decoded by numpy (``nodes/_pbf.py``); any
+    other file, or a PBF using features that decoder leaves alone, is read
+    with pyosmium.  Both give the same extract.
 
     Parameters
     ----------
@@ -149,9 +163,10 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
         ``highway`` values to keep; all when None.
     extras : frozenset of str
         Any of ``"water"``, ``"parks"``, ``"buildings"``: also assemble those
-        areas (closed ways and multipolygon relations; costs a second pass).
+        areas (closed ways and multipolygon relations, with pyosmium; costs
+        a pass over the file).
     node_ids : bool
-        Also keep the OSM node id of every way node (slower).
+        Also keep the OSM node id of every way node (slower when read with pyosmium).
     where : str, optional
         Prefix for error messages.
 
@@ -165,17 +180,107 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
         Missing, truncated, corrupt or non-OSM file; a node outside
         [-180, 180] x [-90, 90].
     """
-    import osmium
-
     path = Path(path)
     if not path.is_file():
         raise InputDataError(f"OSM file {str(path)!r} does not exist", where=where)
+    pbf = None
+    if path.name.lower().endswith(".pbf"):
+        try:
+            pbf = read_pbf_ways(path, ("highway", *_TAG_KEYS, "covered"))
+        except PbfUnsupported as exc:
+            log.debug("%s: read with pyosmium (%s)", path.name, exc)
+    if pbf is None:
+        return _read_pyosmium(path, classes=classes, extras=extras, node_ids=node_ids, where=where)
+    out = _pbf_extract(pbf, classes=classes, node_ids=node_ids, path=path, where=where)
+    if extras:
+        _read_pyosmium(path, classes=classes, extras=extras, node_ids=False, where=where, ways=False, out=out)
+    return out
+
+
+def _pbf_extract(pbf: PbfWays, *, classes, node_ids: bool, path: Path, where) -> OsmExtract:
+    """The extract of the highway ways of a decoded PBF file (as pyosmium would give it)."""
     out = OsmExtract()
+    hw = pbf.tags["highway"]
+    names, inv = np.unique(hw.astype(str), return_inverse=True)
+    inv = inv.ravel()
+    ok_name = np.ones(len(names), bool) if classes is None else np.isin(names, list(classes))
+    keep = ok_name[inv]
+    # each node's place; a way with a node missing from the file keeps its longest located run
+    count = np.diff(pbf.ref_start)
+    owner = np.repeat(np.arange(len(count)), count)
+    pos = np.minimum(np.searchsorted(pbf.node_id, pbf.refs), max(len(pbf.node_id) - 1, 0))
+    present = (pbf.node_id[pos] == pbf.refs) if len(pbf.node_id) else np.zeros(len(pbf.refs), bool)
+    fixed = pbf.node_xy[pos] if len(pbf.node_id) else np.zeros((len(pbf.refs), 2), np.int64)
+    valid = present & (np.abs(fixed[:, 0]) <= 1_800_000_000) & (np.abs(fixed[:, 1]) <= 900_000_000)
+    bad_way = np.zeros(len(count), bool)
+    bad_way[owner[~valid]] = True
+    take = keep & ~bad_way & (count >= 2)  # a way of fewer than two nodes is no line
+    sel = take[owner]
+    parts_fixed, parts_line, parts_ref = [fixed[sel]], [owner[sel]], [pbf.refs[sel]]
+    for w in np.flatnonzero(keep & bad_way):
+        a, b = pbf.ref_start[w], pbf.ref_start[w + 1]
+        ok = valid[a:b]
+        wrong = np.flatnonzero(present[a:b] & ~ok)
+        if len(wrong):
+            i = a + wrong[0]
+            raise InputDataError(
+                f"OSM file {str(path)!r}: node {pbf.refs[i]} has coordinates ({fixed[i, 0] / 1e7}, "
+                f"{fixed[i, 1] / 1e7}) outside [-180, 180] x [-90, 90]", where=where)
+        out.clipped += 1
+        # longest run of located nodes (the first of equal ones)
+        edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
+        if not len(edges):
+            continue
+        run_start, run_stop = edges[0::2], edges[1::2]
+        r = int(np.argmax(run_stop - run_start))
+        if run_stop[r] - run_start[r] < 2:
+            continue
+        s = slice(a + run_start[r], a + run_stop[r])
+        parts_fixed.append(fixed[s])
+        parts_line.append(np.full(s.stop - s.start, w))
+        parts_ref.append(pbf.refs[s])
+        take[w] = True
+    line = np.concatenate(parts_line)
+    order = np.argsort(line, kind="stable")  # clipped ways back in file order
+    kept = np.flatnonzero(take)
+    renum = np.full(len(count), -1, np.int64)
+    renum[kept] = np.arange(len(kept))
+    out.fixed = np.concatenate(parts_fixed)[order]
+    out.line = renum[line[order]]
+    if node_ids:
+        out.node_ids = np.concatenate(parts_ref)[order]
+    out.way_id = pbf.way_id[kept]
+    # highway codes in order of first appearance, as the streaming reader numbers them
+    first = np.unique(inv[kept], return_index=True)[1] if len(kept) else np.empty(0, np.int64)
+    seen = inv[kept][np.sort(first)]
+    out.codes = {str(names[c]): i for i, c in enumerate(seen)}
+    code_of = np.full(len(names), -1, np.int64)
+    code_of[seen] = np.arange(len(seen))
+    out.code = code_of[inv[kept]]
+    tunnel = pbf.tags["tunnel"]
+    tunnel = np.where(np.array([bool(t) for t in tunnel.tolist()], bool) if len(tunnel) else np.zeros(0, bool),
+                      tunnel, pbf.tags["covered"])
+    out.tags = {k: (tunnel if k == "tunnel" else pbf.tags[k])[kept] for k in _TAG_KEYS}
+    return out
+
+
+def _read_pyosmium(path: Path, *, classes, extras, node_ids: bool, where, ways: bool = True,
+                   out: OsmExtract | None = None) -> OsmExtract:
+    """:func:`read_osm` with pyosmium callbacks (any format); ``ways=False`` reads the areas only."""
+    import osmium
+
+    out = OsmExtract() if out is None else out
     wkb = osmium.geom.WKBFactory()
     every = osmium.geom.ALL
-    append_line = out.hex_wkb.append
+    hex_wkb: list = []
+    way_id: list = []
+    code_l: list = []
+    more: list = []
+    refs: list = []
+    append_line = hex_wkb.append
     codes = out.codes
-    append_id, append_code, append_more = out.way_id.append, out.code.append, out.more.append
+    append_id, append_code, append_more = way_id.append, code_l.append, more.append
+    clipped = [0]
 
     def way(w):
         tags = w.tags
@@ -191,7 +296,8 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
         try:
             append_line(wkb.create_linestring(w, every))
         except osmium.InvalidLocationError:
-            kept = _clipped_way(w, path, out, where)
+            kept = _clipped_way(w, path, hex_wkb, where)
+            clipped[0] += 1
             if kept is None:
                 return
         except RuntimeError:  # libosmium geometry_error: a way of fewer than two nodes
@@ -199,10 +305,10 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
         append_id(w.id)
         append_code(code)
         if len(tags) > 1:  # most Liège-like street tables carry highway only
-            append_more((len(out.code) - 1, tags.get("name", ""), tags.get("layer"), tags.get("bridge"),
+            append_more((len(code_l) - 1, tags.get("name"), tags.get("layer"), tags.get("bridge"),
                          tags.get("tunnel") or tags.get("covered"), tags.get("oneway")))
         if node_ids:
-            out.refs.append(kept if kept is not None else [n.ref for n in w.nodes])
+            refs.append(kept if kept is not None else [n.ref for n in w.nodes])
 
     def area(a):
         tags = a.tags
@@ -227,7 +333,10 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
             "levels": _int_tag(tags.get("building:levels")),
         })
 
-    handler = osmium.make_simple_handler(way=way, area=area) if extras else osmium.make_simple_handler(way=way)
+    callbacks = {"way": way} if ways else {}
+    if extras:
+        callbacks["area"] = area
+    handler = osmium.make_simple_handler(**callbacks)
     try:
         handler.apply_file(str(path), locations=True)
     except InputDataError:
@@ -235,12 +344,29 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
     except (RuntimeError, ValueError, osmium.InvalidLocationError) as exc:
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise InputDataError(f"cannot read OSM file {str(path)!r}: {msg}", where=where) from None
+    if not ways:
+        return out
+    out.clipped = clipped[0]
     if out.clipped:
         log.info("%s: %d ways lose nodes outside the extract; kept their parts inside", path.name, out.clipped)
+    lonlat, line = decode_lines(hex_wkb)
+    out.fixed = np.rint(lonlat * 1e7).astype(np.int64)
+    out.line = line
+    out.way_id = np.asarray(way_id, np.int64)
+    out.code = np.asarray(code_l, np.int64)
+    nway = len(code_l)
+    out.tags = {k: np.full(nway, None, dtype=object) for k in _TAG_KEYS}
+    if more:
+        i, *cols = zip(*more, strict=True)
+        i = np.asarray(i, np.int64)
+        for k, col in zip(_TAG_KEYS, cols, strict=True):
+            out.tags[k][i] = col
+    if node_ids:
+        out.node_ids = np.fromiter((r for way in refs for r in way), np.int64)
     return out
 
 
-def _clipped_way(w, path, out, where) -> list[int] | None:
+def _clipped_way(w, path, hex_wkb, where) -> list[int] | None:
     """Slow path for a way with missing node locations: keep its longest run of located nodes.
 
     Returns the OSM ids of the kept nodes, or None when fewer than two are left.
@@ -251,7 +377,7 @@ def _clipped_way(w, path, out, where) -> list[int] | None:
         if loc.valid():
             run.append((loc.lon, loc.lat, n.ref))
             continue
-        if loc.x != 2147483647 or loc.y != 2147483647:  # present, but outside the valid range
+        if loc.x != _UNDEFINED or loc.y != _UNDEFINED:  # present, but outside the valid range
             raise InputDataError(
                 f"OSM file {str(path)!r}: node {n.ref} has coordinates ({loc.x / 1e7}, {loc.y / 1e7}) "
                 "outside [-180, 180] x [-90, 90]", where=where)
@@ -259,10 +385,9 @@ def _clipped_way(w, path, out, where) -> list[int] | None:
         run = []
     runs.append(run)
     best = max(runs, key=len)
-    out.clipped += 1
     if len(best) < 2:
         return None
-    out.hex_wkb.append(shapely.to_wkb(shapely.linestrings([p[:2] for p in best]), hex=True))
+    hex_wkb.append(shapely.to_wkb(shapely.linestrings([p[:2] for p in best]), hex=True))
     return [p[2] for p in best]
 
 
@@ -297,8 +422,11 @@ def decode_lines(hex_wkb: list[str]) -> tuple[np.ndarray, np.ndarray]:
     return xy, line
 
 
-def project_extract(xy_lonlat: np.ndarray) -> tuple[np.ndarray, str, tuple[float, float]]:
+def project_extract(xy_lonlat: np.ndarray, bounds: tuple | None = None) -> tuple[np.ndarray, str, tuple[float, float]]:
     """Project lon/lat points to the UTM zone of their bounding-box centre.
+
+    ``bounds`` ((lon, lat) min, (lon, lat) max) replaces the points' own
+    bounding box when given.
 
     Returns
     -------
@@ -309,10 +437,20 @@ def project_extract(xy_lonlat: np.ndarray) -> tuple[np.ndarray, str, tuple[float
     origin : (lat, lon)
         The bounding-box centre (deg), the city's geographic origin.
     """
-    lo, hi = xy_lonlat.min(axis=0), xy_lonlat.max(axis=0)
+    lo, hi = (xy_lonlat.min(axis=0), xy_lonlat.max(axis=0)) if bounds is None else bounds
     lon, lat = (lo + hi) / 2.0
     crs = utm_crs(lat, lon)
     return from_lonlat(crs)(xy_lonlat), crs, (float(lat), float(lon))
+
+
+def _flags(values: np.ndarray, test) -> np.ndarray:
+    """``test(value)`` per element of an object array, evaluated once per distinct value."""
+    out = np.zeros(len(values), bool)
+    has = np.flatnonzero(values != None)  # noqa: E711 (elementwise)
+    if len(has):
+        cache: dict = {}
+        out[has] = [cache[v] if v in cache else cache.setdefault(v, test(v)) for v in values[has].tolist()]
+    return out
 
 
 def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None = None) -> Layer:
@@ -336,46 +474,42 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
         fixed-point location of each node, packed in an int64) and, when
         read with ``node_ids``, ``node_ids`` (the OSM id of each node).
     """
-    lonlat, line = decode_lines(ext.hex_wkb)
-    if not len(lonlat):
+    fixed, line = ext.fixed, ext.line
+    if not len(fixed):
         return Layer.empty(**{"class": object, "major": bool, "width": float})
-    if np.any(np.abs(lonlat[:, 0]) > 180.0) or np.any(np.abs(lonlat[:, 1]) > 90.0):
+    if np.any(np.abs(fixed[:, 0]) > 1_800_000_000) or np.any(np.abs(fixed[:, 1]) > 900_000_000):
         raise InputDataError("coordinates outside [-180, 180] x [-90, 90]", where=where)
-    fixed = np.rint(lonlat * 1e7).astype(np.int64)
     key = (fixed[:, 0] + 1_800_000_000) * 2_000_000_000 + (fixed[:, 1] + 900_000_000)
-    xy, crs, origin = project_extract(lonlat)
     pieces = split_at_junctions(key, line)
-    geoms = shapely.linestrings(xy[pieces.vertex], indices=pieces.piece)
+    # the frame from all points; project only those kept (consecutive repeats dropped)
+    xy, crs, origin = project_extract(fixed[pieces.vertex] / 1e7, bounds=(fixed.min(axis=0) / 1e7,
+                                                                          fixed.max(axis=0) / 1e7))
+    geoms = shapely.linestrings(xy, indices=pieces.piece)
     row = pieces.line
-    nway = len(ext.code)
     names = np.array(list(ext.codes), dtype=object)
-    code = np.asarray(ext.code, np.int64)
+    code = ext.code
     is_major = np.isin(names, list(major)) if major else np.zeros(len(names), bool)
     widths = np.array([STREET_WIDTHS.get(c.removesuffix("_link"), _DEFAULT_WIDTH) for c in names])
-    name = np.full(nway, "", dtype=object)
-    lay = np.zeros(nway, np.int64)
-    bridge = np.zeros(nway, bool)
-    tunnel = np.zeros(nway, bool)
-    oneway = np.zeros(nway, bool)
-    if ext.more:
-        i, nm, ly, br, tu, ow = zip(*ext.more, strict=True)
-        i = np.asarray(i, np.int64)
-        name[i] = nm
-        bridge[i] = [b not in (None, "no") for b in br]
-        tunnel[i] = [b not in (None, "no") for b in tu]
-        oneway[i] = [b in ("yes", "1", "true", "-1") for b in ow]
-        lay[i] = [_int_tag(v) if v is not None else (1 if b else -1 if t else 0)
-                  for v, b, t in zip(ly, bridge[i], tunnel[i], strict=True)]
+    tags = ext.tags
+    nway = len(code)
+    col = {k: tags.get(k, np.full(nway, None, dtype=object)) for k in _TAG_KEYS}
+    name = np.where(col["name"] == None, "", col["name"])  # noqa: E711 (elementwise)
+    bridge = _flags(col["bridge"], lambda b: b != "no")
+    tunnel = _flags(col["tunnel"], lambda b: b != "no")
+    oneway = _flags(col["oneway"], lambda b: b in ("yes", "1", "true", "-1"))
+    lay = np.where(bridge, 1, np.where(tunnel, -1, 0)).astype(np.int64)
+    has = np.flatnonzero(col["layer"] != None)  # noqa: E711 (elementwise)
+    if len(has):
+        lay[has] = [_int_tag(v) for v in col["layer"][has].tolist()]
     vkey = key[pieces.vertex]
-    ukeys, uidx = np.unique(vkey, return_index=True)
+    ukeys, uidx, vnode = np.unique(vkey, return_index=True, return_inverse=True)
+    vnode = vnode.ravel()
     meta_ids = {}
-    if ext.refs:
-        refs = np.fromiter((r for way in ext.refs for r in way), np.int64)
-        if len(refs) == len(key):
-            meta_ids = {"node_ids": refs[pieces.vertex[uidx]]}
-    nodes = xy[pieces.vertex[uidx]]
-    ends = np.searchsorted(ukeys, np.r_[key[pieces.first], key[pieces.last]])
-    u, v = ends[: len(row)], ends[len(row):]
+    if ext.node_ids is not None and len(ext.node_ids) == len(key):
+        meta_ids = {"node_ids": ext.node_ids[pieces.vertex[uidx]]}
+    nodes = xy[uidx]
+    brk = np.flatnonzero(np.r_[True, pieces.piece[1:] != pieces.piece[:-1]])
+    u, v = vnode[brk], vnode[np.r_[brk[1:], len(vnode)] - 1]
     c = code[row]
     return Layer.from_geoms(
         geoms,
@@ -384,7 +518,7 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
             "class": names[c],
             "major": is_major[c],
             "width": widths[c],
-            "osm_id": np.asarray(ext.way_id, dtype=np.int64)[row],
+            "osm_id": ext.way_id[row],
             "name": name[row],
             "layer": lay[row],
             "bridge": bridge[row],

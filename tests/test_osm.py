@@ -122,6 +122,97 @@ def test_path_from_the_plan():
         get("osm.read")("majorRoads", {"path": str(OAKLAND), "extras": "trees"}, Context()).run()
 
 
+# -- the numpy PBF decoder gives what pyosmium gives ----------------------------------------
+
+def _osm_module():
+    import importlib
+
+    return importlib.import_module("sengine_nodes.osm")
+
+
+def _same_extract(a, b):
+    assert np.array_equal(a.fixed, b.fixed) and np.array_equal(a.line, b.line)
+    assert np.array_equal(a.way_id, b.way_id) and a.clipped == b.clipped
+    assert list(np.array(list(a.codes), object)[a.code]) == list(np.array(list(b.codes), object)[b.code])
+    for k in b.tags:
+        assert list(a.tags[k]) == list(b.tags[k]), k
+    assert (a.node_ids is None) == (b.node_ids is None)
+    if a.node_ids is not None:
+        assert np.array_equal(a.node_ids, b.node_ids)
+    for kind in b.polygons:
+        assert a.polygons[kind][0] == b.polygons[kind][0]
+
+
+@pytest.mark.parametrize("path", [HELSINKI, MONACO])
+@pytest.mark.parametrize("classes", [None, frozenset({"primary", "residential", "footway"})])
+def test_pbf_decoder_matches_pyosmium(path, classes):
+    osm = _osm_module()
+    extras = frozenset({"water", "parks", "buildings"})
+    pbf = osm.read_pbf_ways(path, ("highway",))
+    assert len(pbf.way_id) > 2000 and len(pbf.node_id) > 20_000
+    fast = osm.read_osm(path, classes=classes, extras=extras, node_ids=True)
+    slow = osm._read_pyosmium(path, classes=classes, extras=extras, node_ids=True, where=None)
+    _same_extract(fast, slow)
+    assert fast.clipped > 0 or path == MONACO  # Helsinki's extract cuts ways: longest located runs kept
+
+
+def _write_pbf(path, nodes, ways, options=""):
+    import osmium
+
+    w = osmium.SimpleWriter(osmium.io.File(str(path), "pbf" + options))
+    for i, lon, lat in nodes:
+        w.add_node(osmium.osm.mutable.Node(id=i, location=(lon, lat)))
+    for i, refs, tags in ways:
+        w.add_way(osmium.osm.mutable.Way(id=i, nodes=refs, tags=tags))
+    w.close()
+
+
+def test_pbf_decoder_edge_cases(tmp_path):
+    osm = _osm_module()
+    nodes = [(i, 7.40 + 0.001 * i, 43.70 + 0.0005 * (i % 3)) for i in range(1, 12)]
+    ways = [
+        (100, [1, 2, 3], {"highway": "residential", "name": "Rue A", "oneway": "yes"}),
+        (101, [3, 99, 4, 5, 6, 98, 7], {"highway": "primary"}),  # missing nodes: longest run 4-5-6 kept
+        (102, [8], {"highway": "residential"}),  # one node: no line
+        (103, [8, 8], {"highway": "service", "bridge": "yes", "layer": "2"}),
+        (104, [9, 97], {"highway": "residential"}),  # one located node left: dropped, counted clipped
+        (105, [9, 10, 11], {"highway": "footway", "covered": "yes"}),
+        (106, [1, 11], {"building": "yes"}),
+        (107, [], {"highway": "residential"}),
+    ]
+    path = tmp_path / "edge.osm.pbf"
+    _write_pbf(path, nodes, ways)
+    for classes in (None, frozenset({"residential"})):
+        fast = osm.read_osm(path, classes=classes, node_ids=True)
+        slow = osm._read_pyosmium(path, classes=classes, extras=frozenset(), node_ids=True, where=None)
+        _same_extract(fast, slow)
+    fast = osm.read_osm(path, node_ids=True)
+    assert list(fast.way_id) == [100, 101, 103, 105] and fast.clipped == 2
+    assert list(fast.node_ids) == [1, 2, 3, 4, 5, 6, 8, 8, 9, 10, 11]
+    assert fast.tags["tunnel"][3] == "yes" and fast.tags["layer"][2] == "2"
+    # raw blocks (no zlib) decode too; non-dense nodes are left to pyosmium
+    raw = tmp_path / "raw.osm.pbf"
+    _write_pbf(raw, nodes, ways, ",pbf_compression=none")
+    _same_extract(osm.read_osm(raw, node_ids=True), fast)
+    sparse = tmp_path / "sparse.osm.pbf"
+    _write_pbf(sparse, nodes, ways, ",pbf_dense_nodes=false")
+    with pytest.raises(osm.PbfUnsupported):
+        osm.read_pbf_ways(sparse, ("highway",))
+    _same_extract(osm.read_osm(sparse, node_ids=True), fast)
+
+
+def test_pbf_node_out_of_range(tmp_path):
+    path = tmp_path / "wild.osm.pbf"
+    _write_pbf(path, [(1, 7.4, 95.0), (2, 7.41, 43.7)], [(10, [1, 2], {"highway": "residential"})])
+    osm = _osm_module()
+    with pytest.raises(InputDataError, match="outside") as exc:
+        osm.read_osm(path)
+    msg = _one_line_naming(exc, path)
+    with pytest.raises(InputDataError) as exc:
+        osm._read_pyosmium(path, classes=None, extras=frozenset(), node_ids=False, where=None)
+    assert str(exc.value) == msg
+
+
 # -- bad input: one line naming the file ---------------------------------------------
 
 def _one_line_naming(exc, path):

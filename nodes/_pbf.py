@@ -1,0 +1,435 @@
+"""A vectorized reader for the ways of an OpenStreetMap PBF file.
+
+pyosmium hands every way to a Python callback, which costs several
+microseconds per way before any work is done (about 0.7 s for Liège's 80,000
+street ways, against 0.15 s for libosmium's own pass).  This module decodes
+the file's blocks with ``zlib`` and numpy instead, with no Python object per
+way or node:
+
+* a *primitive group* of ways holds nothing but protocol-buffer varints
+  (tags, lengths, ids, packed keys / values / node refs, the metadata
+  message), so the whole group is decoded as one varint stream;
+* the field structure is recovered from the lengths: for every token read
+  as a field tag, the token where the next field starts is one gather, the
+  ways are one chain of those jumps, and the fields inside all ways are
+  followed side by side (a handful of steps, one per field);
+* packed arrays (keys, values, delta-coded node refs, dense-node ids and
+  coordinates) are ranges of tokens, expanded and zig-zag decoded in numpy.
+
+Only what the street import needs is returned: way ids, the values of a few
+tag keys, node refs, and the locations of the file's dense nodes in
+libosmium's fixed point (1e-7 deg).  Anything this reader does not know
+(non-dense nodes, history files, locations on ways, compression other than
+zlib, malformed data) raises :class:`PbfUnsupported`, and the caller falls
+back to pyosmium, which also produces the error messages for broken files.
+
+References
+----------
+OpenStreetMap wiki, "PBF Format"; protocol buffers "Encoding" (varints,
+zig-zag, packed repeated fields).
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["PbfUnsupported", "PbfWays", "read_pbf_ways"]
+
+_KNOWN_FEATURES = {"OsmSchema-V0.6", "DenseNodes"}
+_RESOLUTION = 100  # PBF nanodegrees -> libosmium's 1e-7 deg fixed point
+
+
+class PbfUnsupported(Exception):
+    """The file uses a PBF feature this reader leaves to pyosmium (or is broken)."""
+
+
+@dataclass
+class PbfWays:
+    """Ways and dense nodes of a PBF file (see :func:`read_pbf_ways`).
+
+    Attributes
+    ----------
+    way_id : ndarray of int64 (w,)
+        Ways holding the first wanted key, in file order.
+    tags : dict of str to ndarray of object (w,)
+        Value of each wanted key per way (``str``), None when absent.
+    ref_start : ndarray of int64 (w + 1,)
+        Way ``i``'s node refs are ``refs[ref_start[i]:ref_start[i + 1]]``.
+    refs : ndarray of int64
+        OSM node ids.
+    node_id : ndarray of int64 (n,)
+        Ids of the file's nodes, ascending.
+    node_xy : ndarray of int64 (n, 2)
+        Their (lon, lat) in 1e-7 deg (libosmium's ``Location.x / y``).
+    """
+
+    way_id: np.ndarray
+    tags: dict
+    ref_start: np.ndarray
+    refs: np.ndarray
+    node_id: np.ndarray
+    node_xy: np.ndarray
+
+
+# -- protocol buffers ------------------------------------------------------------------
+
+def _varint(buf: bytes, pos: int) -> tuple[int, int]:
+    shift = result = 0
+    while True:
+        if pos >= len(buf):
+            raise PbfUnsupported("truncated varint")
+        b = buf[pos]
+        pos += 1
+        result |= (b & 0x7F) << shift
+        if b < 0x80:
+            return result, pos
+        shift += 7
+        if shift > 63:
+            raise PbfUnsupported("varint too long")
+
+
+def _fields(buf: bytes, pos: int = 0, end: int | None = None):
+    """Top-level fields of a message: ``(number, value)``, value an int or a ``(start, end)`` slice."""
+    end = len(buf) if end is None else end
+    while pos < end:
+        tag, pos = _varint(buf, pos)
+        wire = tag & 7
+        if wire == 0:
+            value, pos = _varint(buf, pos)
+        elif wire == 2:
+            size, pos = _varint(buf, pos)
+            value = (pos, pos + size)
+            pos += size
+        elif wire == 5:
+            value, pos = buf[pos:pos + 4], pos + 4
+        elif wire == 1:
+            value, pos = buf[pos:pos + 8], pos + 8
+        else:
+            raise PbfUnsupported(f"wire type {wire}")
+        if pos > end:
+            raise PbfUnsupported("field runs past its message")
+        yield tag >> 3, value
+
+
+def _tokens(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Decode a byte array that is nothing but varints.
+
+    Returns
+    -------
+    value : ndarray of uint64 (k,)
+    start, end : ndarray of int64 (k,)
+        First and last byte of each varint.
+    """
+    end = np.flatnonzero(raw < 0x80)
+    if not len(end) or end[-1] != len(raw) - 1:
+        raise PbfUnsupported("stream does not end on a varint")
+    start = np.empty_like(end)
+    start[0] = 0
+    start[1:] = end[:-1] + 1
+    value = (raw[start] & 0x7F).astype(np.uint64)
+    idx = np.flatnonzero(end > start)  # most varints are one byte: go on with the longer ones only
+    for j in range(1, 10):
+        if not len(idx):
+            break
+        value[idx] |= (raw[start[idx] + j] & 0x7F).astype(np.uint64) << np.uint64(7 * j)
+        idx = idx[end[idx] > start[idx] + j]
+    if len(idx):
+        raise PbfUnsupported("varint too long")
+    return value, start, end
+
+
+def _packed(buf: bytes, span: tuple[int, int], *, zigzag: bool) -> np.ndarray:
+    """A packed repeated varint field as int64 (zig-zag decoded for ``sint``)."""
+    a, b = span
+    if a == b:
+        return np.empty(0, np.int64)
+    v = _tokens(np.frombuffer(buf, np.uint8, b - a, a))[0]
+    if zigzag:
+        return (v >> np.uint64(1)).astype(np.int64) ^ -(v & np.uint64(1)).astype(np.int64)
+    return v.astype(np.int64)
+
+
+def _ranges(first: np.ndarray, stop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Concatenated ``arange(first[i], stop[i])`` and the ``i`` of each element."""
+    n = np.maximum(stop - first, 0)
+    owner = np.repeat(np.arange(len(first)), n)
+    offs = np.cumsum(n) - n
+    return first[owner] + np.arange(int(n.sum())) - offs[owner], owner
+
+
+# -- blocks ----------------------------------------------------------------------------
+
+def _strings(buf: bytes, span: tuple[int, int]) -> list[bytes]:
+    return [bytes(buf[a:b]) for f, (a, b) in _fields(buf, *span) if f == 1]
+
+
+def _dense(buf: bytes, span, gran: int, lat_off: int, lon_off: int) -> tuple[np.ndarray, np.ndarray]:
+    ids = lat = lon = None
+    for f, val in _fields(buf, *span):
+        if f == 1:
+            ids = np.cumsum(_packed(buf, val, zigzag=True))
+        elif f == 8:
+            lat = np.cumsum(_packed(buf, val, zigzag=True))
+        elif f == 9:
+            lon = np.cumsum(_packed(buf, val, zigzag=True))
+    if ids is None or lat is None or lon is None or not (len(ids) == len(lat) == len(lon)):
+        raise PbfUnsupported("dense nodes without ids or coordinates")
+
+    def fixed(c, off):  # C++ integer division truncates towards zero, as libosmium does
+        c = c * gran + off
+        return np.sign(c) * (np.abs(c) // _RESOLUTION)
+
+    return ids, np.stack([fixed(lon, lon_off), fixed(lat, lat_off)], axis=1)
+
+
+def _chain(val: np.ndarray, nxt: np.ndarray) -> np.ndarray:
+    """Tokens where the ways of a group start: the chain ``0, nxt[0], nxt[nxt[0]] ...`` up to the end.
+
+    Every way message starts with the tag of field 3 (``0x1a``) and, inside,
+    with its id (field 1, ``0x08``); of the tokens looking like that, those
+    inside an earlier candidate's message are dropped.  The result is
+    checked to be exactly the chain; if a packed value happened to fool the
+    guess, the chain is walked in Python instead.
+    """
+    k = len(val)
+    cand = np.flatnonzero(val[:-2] == 0x1A)
+    cand = cand[val[cand + 2] == 0x08]
+    reach = nxt[cand]
+    prev = np.maximum.accumulate(np.r_[0, reach[:-1]]) if len(cand) else reach
+    heads = cand[cand >= prev]
+    if len(heads) and heads[0] == 0 and np.array_equal(nxt[heads], np.r_[heads[1:], k]):
+        return heads
+    chain = nxt.tolist()
+    out = []
+    i = 0
+    while i < k:
+        out.append(i)
+        i = chain[i]
+        if i < 0:
+            raise PbfUnsupported("broken way message")
+    return np.asarray(out, np.int64)
+
+
+def _ways(buf: bytes, span, strings: list[bytes], keys: tuple[str, ...]):
+    """Ways of one primitive group that hold ``keys[0]``: ids, wanted tag values, refs."""
+    raw = np.frombuffer(buf, np.uint8, span[1] - span[0], span[0])
+    val, start, end = _tokens(raw)
+    k = len(val)
+    # for every token taken as a field tag, the token where the next field starts
+    wire = (val & np.uint64(7)).astype(np.int64)
+    nxt = np.arange(k) + 2
+    ln = np.zeros(k, np.int64)
+    ln[:-1] = val[1:].astype(np.int64)
+    cend = np.full(k, -1, np.int64)
+    cend[:-1] = end[1:] + 1 + ln[:-1]
+    at = np.full(len(raw) + 1, -1, np.int64)
+    at[start] = np.arange(k)
+    at[len(raw)] = k
+    ok2 = (wire == 2) & (cend >= 0) & (cend <= len(raw))
+    nxt[ok2] = at[cend[ok2]]
+    nxt[(wire != 0) & ~ok2] = -1
+    # the group: one chain of ways (field 3, length-delimited)
+    if val[0] != 0x1A:
+        raise PbfUnsupported("primitive group of ways expected")
+    heads = _chain(val, nxt)
+    if np.any(val[heads] != 0x1A):
+        raise PbfUnsupported("a primitive group mixes ways with other objects")
+    stop = nxt[heads]
+    # the fields of every way, followed side by side
+    fw, ft = [], []
+    cur = heads + 2
+    live = np.flatnonzero(cur < stop)
+    while len(live):
+        c = cur[live]
+        if np.any(c < 0):
+            raise PbfUnsupported("broken way field")
+        fw.append(live)
+        ft.append(c)
+        cur[live] = nxt[c]
+        live = live[(cur[live] < stop[live]) & (cur[live] >= 0)]
+        if np.any(cur[fw[-1]] < 0):
+            raise PbfUnsupported("broken way field")
+    fw, ft = np.concatenate(fw), np.concatenate(ft)
+    if np.any(stop[fw] < nxt[ft]):
+        raise PbfUnsupported("way field runs past its way")
+    fnum = (val[ft] >> np.uint64(3)).astype(np.int64)
+    fwire = wire[ft]
+    nw = len(heads)
+
+    def packed(num, zigzag=False):
+        sel = (fnum == num)
+        if np.any(fwire[sel] != 2):
+            raise PbfUnsupported(f"way field {num} is not packed")
+        t, w = ft[sel], fw[sel]
+        idx, owner = _ranges(t + 2, nxt[t])
+        v = val[idx]
+        if zigzag:
+            v = (v >> np.uint64(1)).astype(np.int64) ^ -(v & np.uint64(1)).astype(np.int64)
+        else:
+            v = v.astype(np.int64)
+        return v, w[owner]
+
+    sel = (fnum == 1) & (fwire == 0)
+    way_id = np.zeros(nw, np.int64)
+    way_id[fw[sel]] = val[ft[sel] + 1].view(np.int64)
+    tkey, tw = packed(2)
+    tval, tw2 = packed(3)
+    if len(tkey) != len(tval) or np.any(tw != tw2):
+        raise PbfUnsupported("keys and values differ")
+    if len(tkey) and (tkey.max() >= len(strings) or tval.max() >= len(strings)):
+        raise PbfUnsupported("string index out of range")
+    lookup = {s: i for i, s in enumerate(strings)}
+    found = {}
+    for key in keys:
+        sid = lookup.get(key.encode())
+        hit = np.flatnonzero(tkey == sid) if sid is not None else np.empty(0, np.int64)
+        found[key] = (tw[hit], tval[hit])
+    has = np.zeros(nw, bool)
+    has[found[keys[0]][0]] = True
+    kept = np.flatnonzero(has)
+    renum = np.full(nw, -1, np.int64)
+    renum[kept] = np.arange(len(kept))
+    tags = {}
+    for key, (w, s) in found.items():
+        col = np.full(len(kept), None, dtype=object)
+        m = has[w]
+        if m.any():
+            u, inv = np.unique(s[m], return_inverse=True)
+            text = np.array([strings[i].decode("utf-8", "replace") for i in u.tolist()] + [None], dtype=object)
+            col[renum[w[m]]] = text[:-1][inv.ravel()]
+        tags[key] = col
+    refs, rw = packed(8, zigzag=True)
+    m = has[rw]
+    refs, rw = refs[m], renum[rw[m]]
+    order = np.argsort(rw, kind="stable")  # fields come way after way already; keep it safe
+    refs, rw = refs[order], rw[order]
+    count = np.bincount(rw, minlength=len(kept))
+    ref_start = np.r_[0, np.cumsum(count)]
+    # delta coding restarts in every way
+    csum = np.cumsum(refs)
+    base = np.r_[0, csum][ref_start[:-1]]
+    refs = csum - np.repeat(base, count)
+    return way_id[kept], tags, count, refs
+
+
+def read_pbf_ways(path: str | Path, keys: tuple[str, ...]) -> PbfWays:
+    """Read the ways carrying ``keys[0]`` and every dense node of a PBF file.
+
+    Parameters
+    ----------
+    path : str or Path
+        An ``.osm.pbf`` file.
+    keys : tuple of str
+        Tag keys whose values are returned; ways without ``keys[0]`` are skipped.
+
+    Returns
+    -------
+    PbfWays
+
+    Raises
+    ------
+    PbfUnsupported
+        Anything outside plain, zlib-compressed, dense-node PBF (the caller
+        then reads the file with pyosmium).
+    """
+    data = Path(path).read_bytes()
+    pos, n = 0, len(data)
+    ids, xys = [], []
+    way_ids, counts, refs = [], [], []
+    tags: dict = {k: [] for k in keys}
+    seen_header = False
+    while pos < n:
+        if pos + 4 > n:
+            raise PbfUnsupported("truncated blob header")
+        hlen = int.from_bytes(data[pos:pos + 4], "big")
+        pos += 4
+        if hlen > 64 * 1024 or pos + hlen > n:
+            raise PbfUnsupported("bad blob header")
+        btype, size = None, None
+        for f, v in _fields(data, pos, pos + hlen):
+            if f == 1:
+                btype = bytes(data[v[0]:v[1]])
+            elif f == 3:
+                size = v
+        pos += hlen
+        if btype is None or size is None or pos + size > n or size > 64 * 1024 * 1024:
+            raise PbfUnsupported("bad blob")
+        raw = None
+        for f, v in _fields(data, pos, pos + size):
+            if f == 1:
+                raw = data[v[0]:v[1]]
+            elif f == 3:
+                try:
+                    raw = zlib.decompress(data[v[0]:v[1]])
+                except zlib.error as exc:
+                    raise PbfUnsupported(str(exc)) from None
+            elif f in (4, 5, 6, 7):
+                raise PbfUnsupported("compression other than zlib")
+        pos += size
+        if raw is None:
+            raise PbfUnsupported("empty blob")
+        if btype == b"OSMHeader":
+            seen_header = True
+            for f, v in _fields(raw):
+                if f == 4 and bytes(raw[v[0]:v[1]]).decode("utf-8", "replace") not in _KNOWN_FEATURES:
+                    raise PbfUnsupported("required feature " + bytes(raw[v[0]:v[1]]).decode("utf-8", "replace"))
+            continue
+        if btype != b"OSMData" or not seen_header:
+            raise PbfUnsupported("not an OSM data blob")
+        strings, groups = [], []
+        gran, lat_off, lon_off = 100, 0, 0
+        for f, v in _fields(raw):
+            if f == 1:
+                strings = _strings(raw, v)
+            elif f == 2:
+                groups.append(v)
+            elif f == 17:
+                gran = v
+            elif f == 19:
+                lat_off = v if v < 1 << 63 else v - (1 << 64)
+            elif f == 20:
+                lon_off = v if v < 1 << 63 else v - (1 << 64)
+        for g in groups:
+            for f, v in _fields(raw, *g):
+                if f == 2:
+                    i, xy = _dense(raw, v, gran, lat_off, lon_off)
+                    ids.append(i)
+                    xys.append(xy)
+                    break
+                if f == 3:
+                    wid, wt, cnt, rf = _ways(raw, g, strings, keys)
+                    way_ids.append(wid)
+                    counts.append(cnt)
+                    refs.append(rf)
+                    for k in keys:
+                        tags[k].append(wt[k])
+                    break
+                if f == 1:
+                    raise PbfUnsupported("non-dense nodes")
+                break  # relations, changesets: not needed
+    if not seen_header:
+        raise PbfUnsupported("no OSM header")
+
+    def cat(parts, dtype, shape=(0,)):
+        return np.concatenate(parts) if parts else np.empty(shape, dtype)
+
+    node_id = cat(ids, np.int64)
+    node_xy = cat(xys, np.int64, (0, 2))
+    if len(node_id) and np.any(node_id[1:] <= node_id[:-1]):
+        order = np.argsort(node_id, kind="stable")
+        node_id, node_xy = node_id[order], node_xy[order]
+        if np.any(node_id[1:] == node_id[:-1]):
+            raise PbfUnsupported("repeated node ids")
+    count = cat(counts, np.int64)
+    return PbfWays(
+        way_id=cat(way_ids, np.int64),
+        tags={k: cat(v, object) for k, v in tags.items()},
+        ref_start=np.r_[0, np.cumsum(count)].astype(np.int64),
+        refs=cat(refs, np.int64),
+        node_id=node_id,
+        node_xy=node_xy,
+    )
