@@ -347,9 +347,11 @@ def classify(
         The legend, 0-255 per channel.
     tolerance : float, optional
         Largest Euclidean RGB distance between a pixel and its legend colour.
-        Default 0 for lossless files, 60 for lossy ones (JPEG), whose pixels
-        are then also smoothed with a 3x3 majority filter so compression
-        noise at colour borders does not leave specks.
+        Default 0 for lossless files, 60 for lossy ones (JPEG).  In a lossy
+        file the blended pixels along colour borders take their nearest
+        legend colour (only a 3x3 patch of off-legend pixels is an error) and
+        the labels are smoothed with a 3x3 majority filter, so compression
+        noise leaves no specks.
     names : sequence of str, optional
         Names of the legend entries, quoted in the error message.
     what : str
@@ -383,6 +385,14 @@ def classify(
     d2 = ((urgb[:, None, :] - legend[None, :, :]) ** 2).sum(axis=2)
     best = d2.argmin(axis=1)
     bad = np.sqrt(d2[np.arange(len(uniq)), best]) > tolerance + 1e-9
+    if bad.any() and img.lossy:
+        # compression blends colours along borders: a pixel off the legend is
+        # an error only inside a 3x3 patch of such pixels
+        from scipy.ndimage import binary_erosion
+
+        patch = binary_erosion(bad[inverse.reshape(rows, cols)], np.ones((3, 3), bool))
+        bad = np.zeros(len(uniq), bool)
+        bad[np.unique(inverse.reshape(rows, cols)[patch])] = True
     if bad.any():
         counts = np.bincount(inverse.ravel(), minlength=len(uniq))
         worst = int(np.flatnonzero(bad)[np.argmax(counts[bad])])
@@ -469,8 +479,15 @@ def vectorize(
     face_label = labels[img.pixel_index(shapely.get_x(pts), shapely.get_y(pts))[::-1]]
     if simplify > 0 and len(faces) > 1:
         edges = np.asarray(shapely.get_parts(shapely.line_merge(lines)), dtype=object)
-        smooth = _smooth_edges(edges, img.extent, 1.5 * max(img.pixel_size))
-        smooth = shapely.simplify(smooth, simplify * max(img.pixel_size), preserve_topology=False)
+        # edges along the image frame stay as they are (they hold its corners)
+        xy, idx = shapely.get_coordinates(edges, return_index=True)
+        xmin, ymin, xmax, ymax = img.extent
+        off = ~(np.isclose(xy[:, 0], xmin) | np.isclose(xy[:, 0], xmax)
+                | np.isclose(xy[:, 1], ymin) | np.isclose(xy[:, 1], ymax))
+        inner = np.bincount(idx, weights=off, minlength=len(edges)) > 0
+        smooth = edges.copy()
+        smooth[inner] = shapely.simplify(_smooth_edges(edges[inner], img.extent, 1.5 * max(img.pixel_size)),
+                                         simplify * max(img.pixel_size), preserve_topology=True)
         noded = shapely.union_all(smooth)
         new = np.asarray(shapely.get_parts(shapely.polygonize([noded])), dtype=object)
         # each new face takes the label of the pixel face it overlaps most
