@@ -149,7 +149,9 @@ def minor_network(areas, district, major, major_attrs: dict, styles, rng_of, *, 
     full = np.where(np.isfinite(full), full, pos**2)
     cells, cell_area, merged = merge_small_cells(
         cells, cell_area, merge * full[cell_area], merge * pos[cell_area], grid_size=grid_size)
-    edges = cell_edges(cells, grid_size=grid_size, extra=major)
+    # the streets are the blocks' borders: the major roads are among them (snapped where
+    # minor roads meet them), so they are not added again, which would double them
+    edges = cell_edges(cells, grid_size=grid_size)
     n = len(edges)
     source = np.full(n, -1, np.int64)
     if n and len(major):
