@@ -1,0 +1,86 @@
+"""The demo configs run end to end through the pattern network; Manhattan lands near the paper's counts.
+
+skylineEngine (paper 002, §8 and Fig. 2): two images give 86 areas enclosed by
+major roads -> 931 blocks -> 7,471 lots.  configs/manhattan.xml must land
+within 25 % of each.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import shapely
+
+import sengine
+
+CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+PAPER = {"majorRoads": 86, "blocks": 931, "lots": 7471}
+
+
+@pytest.fixture(scope="module")
+def manhattan(tmp_path_factory):
+    out = tmp_path_factory.mktemp("manhattan") / "out"
+    layers, stats = sengine.load(CONFIGS / "manhattan.xml").run(seed=7, out=out)
+    return layers, stats, out
+
+
+@pytest.mark.parametrize("stage", list(PAPER))
+def test_manhattan_counts_near_the_paper(manhattan, stage):
+    _, stats, _ = manhattan
+    got = stats["counts"][stage]
+    assert abs(got - PAPER[stage]) <= 0.25 * PAPER[stage], f"{stage}: {got} vs the paper's {PAPER[stage]}"
+
+
+def test_manhattan_blocks_and_lots_have_manhattan_sizes(manhattan):
+    layers, _, _ = manhattan
+    blocks = layers["blocks"]["blocks"]
+    grid = np.isin(blocks["district"], [2, 3])  # midtown and uptown: the 1811 grid
+    rect = shapely.oriented_envelope(blocks.geometry[grid])
+    xy = shapely.get_coordinates(rect).reshape(-1, 5, 2)
+    a = np.hypot(*(xy[:, 1] - xy[:, 0]).T)
+    b = np.hypot(*(xy[:, 2] - xy[:, 1]).T)
+    long, short = np.maximum(a, b), np.minimum(a, b)
+    # blocks between street centre lines are 270 m x 80 m; between fronts, streets and sidewalks off
+    assert 230 <= np.median(long) <= 270 and 50 <= np.median(short) <= 80
+    lots = layers["lots"]["lots"]
+    per_block = len(lots) / len(blocks)
+    assert 5 <= per_block <= 10  # the paper's 7,471 / 931 = 8
+
+
+def test_manhattan_has_its_park_water_and_outputs(manhattan):
+    layers, stats, out = manhattan
+    parks = layers["majorRoads"]["parks"]
+    assert len(parks) == 1 and parks["level"][0] == "district"
+    assert 0.8e6 < parks.geometry[0].area < 1.4e6  # 2 km x 540 m
+    outline = layers["majorRoads"]["outline"].geometry[0]
+    assert outline.area < 0.3 * 7200 * 10800  # an island
+    assert (out / "stats.json").is_file()
+    heights = layers["buildings"]["buildings"]["height"]
+    assert heights.min() >= 12 * 0.7 and heights.max() <= 240 * 1.3 and np.ptp(heights) > 100
+
+
+@pytest.mark.parametrize("name,districts,lots", [("paris.xml", 3, {"paris"}),
+                                                  ("districts.xml", 3, {"manhattan", "paris", "recursive"})])
+def test_other_demos(tmp_path, name, districts, lots):
+    layers, stats = sengine.load(CONFIGS / name).run(out=tmp_path / "out")
+    counts = stats["counts"]
+    assert counts["majorRoads"] > 20
+    assert counts["blocks"] > 2 * counts["majorRoads"]
+    assert counts["lots"] > counts["blocks"]
+    areas = layers["majorRoads"]["areas"]
+    assert len(set(areas["district"])) == districts
+    assert shapely.area(areas.geometry).sum() == pytest.approx(layers["majorRoads"]["outline"].geometry[0].area,
+                                                               rel=1e-6)
+    assert set(layers["lots"]["lots"]["method"]) >= lots
+    blocks = layers["blocks"]["blocks"]
+    assert set(blocks["district"]) == set(range(districts))
+
+
+def test_same_seed_same_city(manhattan):
+    first, _, _ = manhattan
+    again, _ = sengine.load(CONFIGS / "manhattan.xml").run(seed=7)
+    for node, port in (("majorRoads", "areas"), ("minorRoads", "roads"), ("lots", "lots")):
+        ga, gb = first[node][port].geometry, again[node][port].geometry
+        assert list(shapely.to_wkb(ga)) == list(shapely.to_wkb(gb))
