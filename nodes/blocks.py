@@ -30,7 +30,7 @@ skylineEngine, §5.4 "Blocks Module" and Figure 8.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import networkx as nx
 import numpy as np
@@ -47,7 +47,7 @@ from sengine.geometry import (
     segments_from_lines,
 )
 
-__all__ = ["find_blocks", "BlockFaces", "face_half_widths", "shrink_faces", "street_graph", "BlocksCircuits"]
+__all__ = ["find_blocks", "BlockFaces", "traced_faces", "face_half_widths", "shrink_faces", "street_graph", "BlocksCircuits"]
 
 log = logging.getLogger(__name__)
 
@@ -77,6 +77,9 @@ class BlockFaces:
     counts : dict
         Numbers for the node's report (segments, crossings, duplicates,
         bridges, faces, holes, degenerate ...).
+    walk_vertex, walk_start, walk_area : ndarray
+        Every closed walk traced, as :class:`sengine.geometry.PlanarFaces`
+        gives them (node ids into ``xy``).
     """
 
     faces: np.ndarray
@@ -88,6 +91,9 @@ class BlockFaces:
     bridge: np.ndarray
     outline: np.ndarray
     counts: dict = field(default_factory=dict)
+    walk_vertex: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+    walk_start: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
+    walk_area: np.ndarray = field(default_factory=lambda: np.empty(0))
 
 
 def find_blocks(streets, *, node: bool = True, decimals: int | None = 6) -> BlockFaces:
@@ -157,7 +163,33 @@ def find_blocks(streets, *, node: bool = True, decimals: int | None = 6) -> Bloc
         counts[k] = pf.counts.get(k, 0)
     log.info("blocks: %d segments -> %d faces (%d dead-end/bridge segments dropped, %d holes)",
              counts["segments"], counts["faces"], counts["bridges"], counts["holes"])
-    return BlockFaces(pf.polygons, xy, u, v, src, pf.edge_faces, pf.bridge, pf.outline, counts)
+    return BlockFaces(pf.polygons, xy, u, v, src, pf.edge_faces, pf.bridge, pf.outline, counts,
+                      pf.walk_vertex, pf.walk_start, pf.walk_area)
+
+
+def traced_faces(meta: dict, rows: int, *, decimals: int | None) -> BlockFaces | None:
+    """The faces a road layer already carries, when they are what :func:`find_blocks` would give.
+
+    ``roads.clean`` traces the faces of its plane segment graph once (to find
+    slivers) and hands them on in ``meta["graph"]``; they are taken over when
+    that graph belongs to exactly these ``rows`` and merging nodes to
+    ``decimals`` would merge none (the graph is then the one the lines
+    give, only numbered differently).
+
+    Returns
+    -------
+    BlockFaces or None
+        With ``src`` indexing the rows, as the lines entry gives it.
+    """
+    g = meta.get("graph")
+    if not isinstance(g, dict) or g.get("rows") != rows or not isinstance(g.get("blocks"), BlockFaces):
+        return None
+    bf = g["blocks"]
+    if decimals is not None and len(bf.xy):
+        key = np.ascontiguousarray(np.round(bf.xy, decimals), np.float64) + 0.0
+        if len(np.unique(key.view(np.complex128))) != len(key):
+            return None
+    return replace(bf, src=np.asarray(g["row"], np.int64)[bf.src], counts=dict(bf.counts))
 
 
 def face_half_widths(bf: BlockFaces, widths) -> np.ndarray:
@@ -292,7 +324,7 @@ class BlocksCircuits(SENode):
     }
 
     def run(self, *, roads: Layer, outline: Layer | None = None, areas: Layer | None = None):
-        meta = dict(roads.meta)
+        meta = {k: v for k, v in roads.meta.items() if k != "graph"}  # the roads' graph, not the blocks'
         report: dict = {}
         lines = roads.geometry
         keep = ~shapely.is_empty(lines) if len(lines) else np.zeros(0, bool)
@@ -301,7 +333,11 @@ class BlocksCircuits(SENode):
         if self.p.width_from == "roads" and "width" in roads:
             w = np.asarray(roads["width"], np.float64)[keep]
             width = np.where(np.isfinite(w) & (w >= 0), w, self.p.street_width)
-        bf = find_blocks(lines, node=self.p.node, decimals=self.p.decimals)
+        bf = None
+        if not self.p.node and keep.all():  # faces roads.clean traced already
+            bf = traced_faces(roads.meta, len(roads), decimals=self.p.decimals)
+        if bf is None:
+            bf = find_blocks(lines, node=self.p.node, decimals=self.p.decimals)
         report.update({k: int(v) for k, v in bf.counts.items()})
         faces = bf.faces
         fid = np.arange(len(faces))

@@ -39,7 +39,9 @@ import numpy as np
 import shapely
 
 from sengine import Layer, Param, Port, SENode, register
-from sengine.geometry import trace_faces
+from sengine.geometry import planar_faces
+
+from .blocks import find_blocks
 
 __all__ = [
     "Pieces",
@@ -355,6 +357,8 @@ def segment_graph(pieces: Pieces, xy: np.ndarray, key: np.ndarray):
         End node ids of every straight segment.
     pu, pv : ndarray of int64
         End node ids of every piece (street segment).
+    row : ndarray of int64
+        Piece of every straight segment.
     """
     _, first, inv = np.unique(key[pieces.vertex], return_index=True, return_inverse=True)
     inv = inv.ravel()
@@ -363,11 +367,11 @@ def segment_graph(pieces: Pieces, xy: np.ndarray, key: np.ndarray):
     s = np.flatnonzero(lab[1:] == lab[:-1])
     starts = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]]) if len(lab) else np.empty(0, np.int64)
     ends = np.r_[starts[1:] - 1, len(lab) - 1] if len(lab) else starts
-    return nodes, inv[s], inv[s + 1], inv[starts], inv[ends]
+    return nodes, inv[s], inv[s + 1], inv[starts], inv[ends], lab[s]
 
 
 def find_slivers(nodes: np.ndarray, u: np.ndarray, v: np.ndarray, *, sliver_width: float,
-                 island_area: float) -> tuple[np.ndarray, np.ndarray, int]:
+                 island_area: float, faces=None) -> tuple[np.ndarray, np.ndarray, int]:
     """Faces of the street graph that are street surface, not blocks.
 
     Parameters
@@ -379,6 +383,9 @@ def find_slivers(nodes: np.ndarray, u: np.ndarray, v: np.ndarray, *, sliver_widt
         medians between dual carriageways.
     island_area : float
         Faces smaller than this (m2) are traffic islands.
+    faces : PlanarFaces or BlockFaces, optional
+        The faces of exactly this graph, already traced (their closed walks
+        are used); traced here when None.
 
     Returns
     -------
@@ -387,30 +394,29 @@ def find_slivers(nodes: np.ndarray, u: np.ndarray, v: np.ndarray, *, sliver_widt
         ``"island"`` or ``"median"``.
     nfaces : int
         Number of faces of the graph.
+
+    Notes
+    -----
+    Area and perimeter are those of each face's closed walk (its outer
+    ring; what lies inside does not count), and a sliver's polygon is that
+    walk as a ring (made valid when the walk touches itself).
     """
     empty = (np.empty(0, object), np.empty(0, object), 0)
-    a, b = np.minimum(u, v), np.maximum(u, v)
-    ok = a != b
-    n = max(len(nodes), 1)
-    pairs = np.unique(a[ok] * n + b[ok])
-    if not len(pairs):
+    if faces is None:
+        faces = planar_faces(nodes, u, v)
+    wv, ws, warea = faces.walk_vertex, faces.walk_start, faces.walk_area
+    nf = len(warea)
+    if nf == 0 or not len(wv):
         return empty
-    eu, ev = pairs // n, pairs % n
-    nxt, face, _ = trace_faces(nodes, eu, ev)
-    bridge = face[0::2] == face[1::2]
-    if bridge.any():  # dead ends and connectors: same face on both sides
-        eu, ev = eu[~bridge], ev[~bridge]
-        if not len(eu):
-            return empty
-        nxt, face, _ = trace_faces(nodes, eu, ev)
-    org = np.stack([eu, ev], axis=1).ravel()
-    dst = np.stack([ev, eu], axis=1).ravel()
-    p, q = nodes[org], nodes[dst]
-    nf = int(face.max()) + 1
-    area = np.bincount(face, weights=p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1], minlength=nf) / 2.0
-    perimeter = np.bincount(face, weights=np.hypot(*(q - p).T), minlength=nf)
+    size = np.diff(ws)
+    walk = np.repeat(np.arange(nf), size)
+    k = np.arange(len(wv))
+    first = ws[:-1][walk]
+    nxt = np.where(k + 1 < first + size[walk], k + 1, first)
+    p, q = nodes[wv], nodes[wv[nxt]]
+    perimeter = np.bincount(walk, weights=np.hypot(*(q - p).T), minlength=nf)
     # bounded faces turn the other way round from the outer face (the largest walk)
-    area = area * -np.sign(area[np.argmax(np.abs(area))])
+    area = warea * -np.sign(warea[np.argmax(np.abs(warea))])
     bounded = area > 0
     width = 2.0 * area / np.maximum(perimeter, 1e-12)
     island = bounded & (area < island_area)
@@ -419,23 +425,11 @@ def find_slivers(nodes: np.ndarray, u: np.ndarray, v: np.ndarray, *, sliver_widt
     nfaces = int(bounded.sum())
     if not sel.any():
         return (*empty[:2], nfaces)
-    # rings of the selected faces only: follow each walk's successor permutation
     faces_sel = np.flatnonzero(sel)
-    head = np.full(nf, -1, np.int64)
-    hs = np.flatnonzero(sel[face])
-    head[face[hs[::-1]]] = hs[::-1]
-    rings, ring_of = [], []
-    for k, f in enumerate(faces_sel):
-        h0 = h = int(head[f])
-        walk = []
-        while True:
-            walk.append(org[h])
-            h = int(nxt[h])
-            if h == h0 or len(walk) > len(nxt):
-                break
-        rings.append(walk)
-        ring_of.append(np.full(len(walk), k))
-    polys = shapely.polygons(shapely.linearrings(nodes[np.concatenate(rings)], indices=np.concatenate(ring_of)))
+    n = size[faces_sel]
+    owner = np.repeat(np.arange(len(faces_sel)), n)
+    idx = ws[faces_sel][owner] + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+    polys = shapely.polygons(shapely.linearrings(nodes[wv[idx]], indices=owner))
     bad = ~shapely.is_valid(polys)
     if bad.any():  # a walk through a pinch vertex
         polys[bad] = shapely.make_valid(polys[bad])
@@ -497,19 +491,23 @@ class RoadsClean(SENode):
         pieces, xy, key, counts = clean_streets(lay.geometry, ends=ends, level=level, rank=rank,
                                                 dup_tol=self.p.dup_tol, dead_ends=self.p.dead_ends)
         geoms = shapely.linestrings(xy[pieces.vertex], indices=pieces.piece) if len(pieces) else np.empty(0, object)
-        nodes, su, sv, pu, pv = segment_graph(pieces, xy, key)
+        nodes, su, sv, pu, pv, row = segment_graph(pieces, xy, key)
+        # the faces are traced once, here: blocks.circuits takes them over (meta["graph"]["blocks"])
+        faces = find_blocks((nodes, su, sv), node=False, decimals=None) if self.p.find_slivers and len(pieces) else None
         out = lay.take(pieces.line)
         out = Layer(np.asarray(geoms, dtype=object), np.arange(len(pieces), dtype=np.int64), out.ids.copy(),
                     {**out.attrs, "u": pu, "v": pv},
                     {**meta, "planar": True, "nodes": nodes,
-                     # the plane straight-segment graph, valid for exactly these rows (see find_blocks)
-                     "graph": {"rows": len(pieces), "xy": nodes, "u": su, "v": sv}})
+                     # the plane straight-segment graph, valid for exactly these rows (see find_blocks):
+                     # segment k joins nodes u[k], v[k] and lies on row[k]; its traced faces when found
+                     "graph": {"rows": len(pieces), "xy": nodes, "u": su, "v": sv, "row": row,
+                               **({"blocks": faces} if faces is not None else {})}})
         counts["tunnels_dropped"] = int(n0 - n)
         slivers = Layer.empty(meta=meta, kind=object)
         counts["slivers_merged"] = counts["islands"] = counts["medians"] = 0
-        if self.p.find_slivers and len(pieces):
+        if faces is not None:
             polys, kind, nfaces = find_slivers(nodes, su, sv, sliver_width=self.p.sliver_width,
-                                               island_area=self.p.island_area)
+                                               island_area=self.p.island_area, faces=faces)
             slivers = Layer.from_geoms(polys, meta=meta, kind=kind)
             counts["faces"] = nfaces
             counts["islands"] = int((kind == "island").sum())

@@ -395,6 +395,14 @@ class PlanarFaces:
     counts : dict
         ``edges``, ``duplicates``, ``self_loops``, ``bridges``, ``faces``,
         ``holes``, ``degenerate``, ``pinched`` (faces split at a vertex).
+    walk_vertex : ndarray of int64
+        The closed walks traced (cycles of the half-edge permutation of the
+        bridgeless graph, bounded or not), walk after walk: the node id of
+        each half-edge's origin, in walk order from the walk's lowest half-edge.
+    walk_start : ndarray of int64, shape (w + 1,)
+        Walk ``k`` is ``walk_vertex[walk_start[k]:walk_start[k + 1]]``.
+    walk_area : ndarray of float, shape (w,)
+        Signed area of each walk (m2): positive for bounded faces.
     """
 
     polygons: np.ndarray
@@ -402,6 +410,9 @@ class PlanarFaces:
     outline: np.ndarray
     bridge: np.ndarray
     counts: dict = field(default_factory=dict)
+    walk_vertex: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+    walk_start: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
+    walk_area: np.ndarray = field(default_factory=lambda: np.empty(0))
 
 
 def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
@@ -567,7 +578,7 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     bridge[ok] = bridge_u[emap[ok]]
     counts["faces"] = int(len(polygons))
     return PlanarFaces(np.asarray(polygons, dtype=object), edge_faces, np.asarray(outline, dtype=object),
-                       bridge, counts)
+                       bridge, counts, ovid, np.r_[offset, len(ovid)].astype(np.int64), area)
 
 
 # -- rings, boxes, frames ------------------------------------------------------------

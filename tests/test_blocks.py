@@ -202,3 +202,32 @@ def test_monaco_blocks_match_polygonize():
     assert bf.counts["bridges"] > 0
     assert len(bf.faces) == len(ref)
     assert_partition_like(bf.faces, ref)
+
+
+@pytest.mark.skipif(MONACO is None, reason="monaco.osm.pbf not available")
+def test_faces_traced_by_clean_are_taken_over():
+    from sengine import Context
+
+    roads = get("osm.read")("r", {"path": str(MONACO), "extras": ""}, Context()).run()["roads"]
+    cleaned = get("roads.clean")("c", {}, Context()).run(roads=roads)["roads"]
+    graph = cleaned.meta["graph"]
+    assert isinstance(graph["blocks"], B.BlockFaces) and len(graph["row"]) == len(graph["u"])
+    node = get("blocks.circuits")("b", {"node": "false"}, Context())
+    taken = node.run(roads=cleaned)
+    rep_taken = dict(node.report)
+    traced = node.run(roads=cleaned.with_meta(graph=None))  # no graph: traced from the lines
+    assert rep_taken == node.report
+    for port in ("faces", "blocks", "streets", "sidewalks"):
+        a, b = taken[port].geometry, traced[port].geometry
+        assert len(a) == len(b)
+        assert np.allclose(np.sort(shapely.area(a)), np.sort(shapely.area(b)), rtol=1e-9, atol=1e-6)
+    assert "graph" not in taken["blocks"].meta
+    # the faces are handed on only for the rows they were traced on, and only when no nodes merge
+    assert B.traced_faces(cleaned.meta, len(cleaned) - 1, decimals=6) is None
+    bf = B.traced_faces(cleaned.meta, len(cleaned), decimals=6)
+    assert np.array_equal(np.unique(bf.src), np.unique(graph["row"][graph["blocks"].src]))
+    close = bf.xy.copy()
+    close[1] = close[0] + 1e-8
+    stacked = {"graph": {**graph, "blocks": B.BlockFaces(**{**bf.__dict__, "xy": close})}}
+    assert B.traced_faces(stacked, len(cleaned), decimals=6) is None
+    assert B.traced_faces(stacked, len(cleaned), decimals=None) is not None
