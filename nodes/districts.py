@@ -381,7 +381,7 @@ def major_network(styles, districts, buildable, rngs, *, merge: float = 0.3, gri
         lines.append(pieces)
         owner.append(np.full(len(pieces), k))
     lines_arr = np.concatenate(lines) if lines else np.empty(0, object)
-    cells, region = split_cells(regions, lines_arr, grid_size=grid_size)
+    cells, region, noded = split_cells(regions, lines_arr, grid_size=grid_size)
     # thresholds: the grid cell when the pattern fixes it, else the median cell
     min_area = np.zeros(len(cells))
     min_width = np.zeros(len(cells))
@@ -397,7 +397,7 @@ def major_network(styles, districts, buildable, rngs, *, merge: float = 0.3, gri
             min_width[sel] = merge * size[1] * 0.5
     cells, region, merged = merge_small_cells(cells, region, min_area, min_width, grid_size=grid_size)
     cell_district = np.asarray(used, dtype=np.int64)[region] if len(cells) else np.empty(0, np.int64)
-    edges = cell_edges(cells, grid_size=grid_size)
+    edges = cell_edges(cells, grid_size=grid_size, noded=noded)
     cls, dist, width = classify_edges(edges, cells, cell_district,
                                       {s.index: s.major_width for s in styles})
     outline = shapely.union_all(regions, grid_size=grid_size)

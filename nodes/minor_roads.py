@@ -144,14 +144,12 @@ def minor_network(areas, district, major, major_attrs: dict, styles, rng_of, *, 
         for f in (0.25, 0.5, 0.75):
             near &= shapely.distance(shapely.line_interpolate_point(pieces, f, normalized=True), rings) < tol
         pieces = pieces[~near]
-    cells, cell_area = split_cells(areas, pieces, grid_size=grid_size)
+    cells, cell_area, noded = split_cells(areas, pieces, grid_size=grid_size, borders=major if len(major) else None)
     full = np.prod(np.where(spacing > 0, spacing, np.nan), axis=1) if len(spacing) else np.zeros(0)
     full = np.where(np.isfinite(full), full, pos**2)
     cells, cell_area, merged = merge_small_cells(
         cells, cell_area, merge * full[cell_area], merge * pos[cell_area], grid_size=grid_size)
-    # the streets are the blocks' borders: the major roads are among them (snapped where
-    # minor roads meet them), so they are not added again, which would double them
-    edges = cell_edges(cells, grid_size=grid_size)
+    edges = cell_edges(cells, grid_size=grid_size, noded=noded)
     n = len(edges)
     source = np.full(n, -1, np.int64)
     if n and len(major):

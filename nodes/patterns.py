@@ -296,7 +296,7 @@ def clip_lines(lines, regions, *, along: float = 1.0):
     return parts[~near], idx[~near]
 
 
-def split_cells(regions, lines, *, grid_size: float = 1e-3):
+def split_cells(regions, lines, *, grid_size: float = 1e-3, borders=None):
     """Polygonize region borders plus lines into cells.
 
     Parameters
@@ -307,26 +307,32 @@ def split_cells(regions, lines, *, grid_size: float = 1e-3):
         Lines inside the regions (already clipped).
     grid_size : float
         Snap-rounding grid of the noding (m).
+    borders : array_like of shapely.LineString, optional
+        The regions' borders when known as lines (each shared border once);
+        default the regions' boundaries.
 
     Returns
     -------
     cells : numpy.ndarray of shapely.Polygon
     region : numpy.ndarray of int
         Index of each cell's region.
+    noded : numpy.ndarray of shapely.LineString
+        The noded linework the cells were made of (for :func:`cell_edges`).
     """
     regions = np.asarray(regions, dtype=object)
     lines = np.asarray(lines, dtype=object)
-    work = np.concatenate([shapely.boundary(regions), lines]) if len(lines) else shapely.boundary(regions)
-    noded = shapely.union_all(work, grid_size=grid_size)
-    faces = np.asarray(shapely.get_parts(shapely.polygonize(shapely.get_parts(noded))), dtype=object)
+    rim = shapely.boundary(regions) if borders is None else np.asarray(borders, dtype=object)
+    work = np.concatenate([rim, lines]) if len(lines) else rim
+    noded = np.asarray(shapely.get_parts(shapely.union_all(work, grid_size=grid_size)), dtype=object)
+    faces = np.asarray(shapely.get_parts(shapely.polygonize(noded)), dtype=object)
     if len(faces) == 0:
-        return faces, np.empty(0, np.int64)
+        return faces, np.empty(0, np.int64), noded
     pts = shapely.point_on_surface(faces)
     fi, ri = STRtree(regions).query(pts, predicate="within")
     region = np.full(len(faces), -1, np.int64)
     region[fi] = ri
     keep = region >= 0
-    return faces[keep], region[keep]
+    return faces[keep], region[keep], noded
 
 
 def cell_width(cells) -> np.ndarray:
@@ -411,22 +417,31 @@ def merge_small_cells(cells, region, min_area, min_width, *, grid_size: float = 
     return parts, region[alive][idx], merged
 
 
-def cell_edges(cells, *, grid_size: float = 1e-3, extra=None) -> np.ndarray:
+def cell_edges(cells, *, grid_size: float = 1e-3, noded=None) -> np.ndarray:
     """Street segments between junctions along the borders of ``cells``.
 
-    The cell borders (and optional ``extra`` lines) are noded together and
+    The cell borders are noded together (or, given ``noded``, the linework
+    the cells were polygonized from is kept where it lies on a cell border:
+    pieces dissolved by :func:`merge_small_cells` and dangles drop out) and
     merged through every vertex of degree two, so each segment runs from one
-    junction (or dead end) to the next.
+    junction to the next.
 
     Returns
     -------
     numpy.ndarray of shapely.LineString
     """
-    work = [shapely.boundary(np.asarray(cells, dtype=object))]
-    if extra is not None and len(extra):
-        work.append(np.asarray(extra, dtype=object))
-    noded = shapely.union_all(np.concatenate(work), grid_size=grid_size)
-    merged = shapely.line_merge(noded)
+    cells = np.asarray(cells, dtype=object)
+    if noded is None:
+        merged_in = shapely.union_all(shapely.boundary(cells), grid_size=grid_size)
+    else:
+        noded = np.asarray(noded, dtype=object)
+        rims = shapely.boundary(cells)
+        mids = shapely.line_interpolate_point(noded, 0.5, normalized=True)
+        on = np.zeros(len(noded), bool)
+        hit, _ = STRtree(rims).query(mids, predicate="dwithin", distance=grid_size * 1e-3)
+        on[hit] = True
+        merged_in = shapely.multilinestrings(noded[on])
+    merged = shapely.line_merge(merged_in)
     parts = shapely.get_parts(merged)
     parts = parts[(shapely.get_type_id(parts) == 1) & (shapely.length(parts) > 0)]
     return np.asarray(parts, dtype=object)
