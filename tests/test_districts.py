@@ -267,3 +267,27 @@ def test_random_patterns_partition(seed, angle, dx, dy, pattern):
     out, _ = run_major(CityPlan(size=(1700.0, 1100.0), rules=[Rule("district", attrs, "t.xml:3")]), seed=seed)
     assert_partition(out["areas"], out["outline"].geometry[0])
     assert_planar(out["roads"])
+
+
+# -- parks at block level (paper §4: one park module, several levels) --------------------------------
+@pytest.mark.parametrize("mode", ["every", "random", "largest"])
+def test_block_parks_split_the_blocks(mode):
+    from sengine import Layer
+
+    rng = np.random.default_rng(0)
+    geoms = [shapely.box(x, y, x + rng.uniform(20, 90), y + 60) for x in range(0, 1000, 100) for y in (0, 100, 200)]
+    blocks = Layer.from_geoms(geoms, ids=np.arange(100, 130), district=np.zeros(30, np.int64))
+    upstream = Layer.from_geoms([shapely.box(0, 500, 100, 600)], level=["district"], district=[0])
+    node = get("parks.block")("smallParks", {"mode": mode, "every": "7", "share": "0.2"}, Context(seed=3))
+    out = node.run(blocks=blocks, parks=upstream)
+    parks, rest = out["parks"], out["blocks"]
+    new = parks.take(parks["level"] == "block")
+    assert len(new) + len(rest) == len(blocks) and len(new) > 0
+    assert set(new.parent) | set(rest.ids) == set(blocks.ids)
+    assert list(parks["level"]).count("district") == 1
+    if mode == "every":
+        assert set(new.parent) == {105, 112, 119, 126}
+    if mode == "largest":
+        assert shapely.area(new.geometry).min() >= shapely.area(rest.geometry).max()
+    again = get("parks.block")("smallParks", {"mode": mode, "every": "7", "share": "0.2"}, Context(seed=3))
+    assert list(again.run(blocks=blocks, parks=upstream)["blocks"].ids) == list(rest.ids)
