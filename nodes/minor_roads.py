@@ -144,7 +144,12 @@ def minor_network(areas, district, major, major_attrs: dict, styles, rng_of, *, 
         for f in (0.25, 0.5, 0.75):
             near &= shapely.distance(shapely.line_interpolate_point(pieces, f, normalized=True), rings) < tol
         pieces = pieces[~near]
+    # the major roads are the areas' borders, each once; if they do not close every
+    # area (roads from elsewhere), fall back to the areas' own boundaries
     cells, cell_area, noded = split_cells(areas, pieces, grid_size=grid_size, borders=major if len(major) else None)
+    if len(major) and abs(shapely.area(cells).sum() - shapely.area(areas).sum()) > 1e-6 * shapely.area(areas).sum():
+        log.warning("roads.minor: the major roads do not enclose every area; using the areas' boundaries")
+        cells, cell_area, noded = split_cells(areas, np.concatenate([pieces, major]), grid_size=grid_size)
     full = np.prod(np.where(spacing > 0, spacing, np.nan), axis=1) if len(spacing) else np.zeros(0)
     full = np.where(np.isfinite(full), full, pos**2)
     cells, cell_area, merged = merge_small_cells(

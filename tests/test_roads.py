@@ -162,3 +162,12 @@ def test_random_minor_grids_make_plane_graphs(seed, angle, mdx, mdy, how, patter
     assert_plane_graph(out["roads"])
     f = faces(out["roads"])
     assert shapely.area(f).sum() == pytest.approx(major["outline"].geometry[0].area, rel=1e-6)
+
+
+def test_roads_that_do_not_enclose_the_areas_fall_back_to_area_borders():
+    areas = np.array([shapely.box(0, 0, 300, 200), shapely.box(300, 0, 600, 200)], dtype=object)
+    styles = [MINOR.DistrictStyle(index=0, name="a", colour=None, minor_spacing=(100.0, 50.0), minor_angle=0.0)]
+    only_one = np.array([shapely.LineString([(300, 0), (300, 200)])], dtype=object)
+    net = MINOR.minor_network(areas, np.array([0, 0]), only_one, {}, styles, lambda i: np.random.default_rng(i))
+    assert len(net["cells"]) == 24
+    assert shapely.area(net["cells"]).sum() == pytest.approx(600 * 200)
