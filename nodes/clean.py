@@ -75,6 +75,9 @@ class Pieces:
         Source line of each piece.
     first, last : ndarray of int64
         Input index of the first and last point of each piece.
+    whole : ndarray of bool, optional
+        Set by :func:`clean_streets`: the piece is its source line,
+        unchanged (same points, none added or dropped).
     """
 
     vertex: np.ndarray
@@ -82,6 +85,7 @@ class Pieces:
     line: np.ndarray
     first: np.ndarray
     last: np.ndarray
+    whole: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.line)
@@ -252,8 +256,13 @@ def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | No
         ``dead_ends_removed`` (segments).
     """
     geoms = np.asarray(geoms, dtype=object)
-    parts, src = shapely.get_parts(geoms, return_index=True)
+    plain = bool(len(geoms)) and bool(np.all(shapely.get_type_id(geoms) == 1))
+    if plain:  # LineStrings are their own single part (get_parts would copy each one)
+        parts, src = geoms, np.arange(len(geoms))
+    else:
+        parts, src = shapely.get_parts(geoms, return_index=True)
     xy, pidx = shapely.get_coordinates(parts, return_index=True)
+    orig = np.arange(len(xy))  # where each point comes from (-1: added)
     # parts of one multi-line must stay apart: split them by part index instead of source line
     part_line = pidx.astype(np.int64)
     nparts = len(parts)
@@ -275,6 +284,7 @@ def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | No
     keep, ndup = _duplicates(pieces, xy, key, r[src[pieces.line]], dup_tol)
     pieces = _take_pieces(pieces, keep)
     xy, key, part_line, part_of = xy[pieces.vertex], key[pieces.vertex], pieces.piece, pieces.line
+    orig = orig[pieces.vertex]
     at, t, pt, node, ncross = crossing_points(xy, part_line, level_p[part_of], key)
     counts["crossings_noded"] = ncross
     counts["t_junctions_noded"] = int((node >= 0).sum())
@@ -284,27 +294,54 @@ def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | No
         node = np.where(node < 0, int(key.max()) + 1 + (-1 - node), node)
         key = np.r_[key, node][order]
         part_line = np.r_[part_line, part_line[at]][order]
+        orig = np.r_[orig, np.full(len(at), -1)][order]
     pieces = split_at_junctions(key, part_line)
-    pieces.line = src[part_of[pieces.line]]
+    part = part_of[pieces.line]
+    pieces.line = src[part]
     keep, ndup2 = _duplicates(pieces, xy, key, r[pieces.line], dup_tol)
     counts["duplicates_merged"] = ndup + ndup2
     if dead_ends:
-        _, inv = np.unique(np.r_[key[pieces.first], key[pieces.last]], return_inverse=True)
-        inv = inv.ravel()
-        m = len(pieces)
-        u, v = inv[:m], inv[m:]
-        nn = int(inv.max(initial=-1)) + 1
-        removed = 0
-        while True:
-            live = np.flatnonzero(keep)
-            deg = np.bincount(u[live], minlength=nn) + np.bincount(v[live], minlength=nn)
-            dead = (deg[u[live]] == 1) | (deg[v[live]] == 1)
-            if not dead.any():
-                break
-            keep[live[dead]] = False
-            removed += int(dead.sum())
-        counts["dead_ends_removed"] = removed
+        counts["dead_ends_removed"] = _drop_dead_ends(pieces, key, keep)
+    if plain:
+        npts = np.bincount(pidx, minlength=nparts)
+        pstart = np.cumsum(npts) - npts
+        size = np.bincount(pieces.piece, minlength=len(pieces))
+        o0, o1 = orig[pieces.first], orig[pieces.last]
+        pieces.whole = (size == npts[part]) & (o0 == pstart[part]) & (o1 == pstart[part] + npts[part] - 1)
     return _take_pieces(pieces, keep), xy, key, counts
+
+
+def _drop_dead_ends(pieces: Pieces, key: np.ndarray, keep: np.ndarray) -> int:
+    """Unset ``keep`` of pieces ending at a node of degree 1, round after round; the number dropped.
+
+    Each round drops every live piece with an end of degree one; only the
+    ends of the pieces just dropped can reach degree one next, so later
+    rounds look at their incident pieces alone.
+    """
+    m = len(pieces)
+    if not m:
+        return 0
+    _, inv = np.unique(np.r_[key[pieces.first], key[pieces.last]], return_inverse=True)
+    inv = inv.ravel()
+    u, v = inv[:m], inv[m:]
+    nn = int(inv.max()) + 1
+    deg = np.bincount(u[keep], minlength=nn) + np.bincount(v[keep], minlength=nn)
+    order = np.argsort(inv, kind="stable")  # node -> incident pieces
+    inc = np.r_[np.arange(m), np.arange(m)][order]
+    inc_start = np.searchsorted(inv[order], np.arange(nn + 1))
+    dead = np.flatnonzero(keep & ((deg[u] == 1) | (deg[v] == 1)))
+    removed = 0
+    while len(dead):
+        keep[dead] = False
+        removed += len(dead)
+        deg -= np.bincount(u[dead], minlength=nn) + np.bincount(v[dead], minlength=nn)
+        ends = np.unique(np.r_[u[dead], v[dead]])
+        ends = ends[deg[ends] == 1]
+        n = inc_start[ends + 1] - inc_start[ends]
+        idx = np.repeat(inc_start[ends] - (np.cumsum(n) - n), n) + np.arange(int(n.sum()))
+        dead = np.unique(inc[idx])
+        dead = dead[keep[dead]]
+    return removed
 
 
 def _duplicates(pieces: Pieces, xy: np.ndarray, key: np.ndarray, rank: np.ndarray,
@@ -343,7 +380,7 @@ def _take_pieces(pieces: Pieces, keep: np.ndarray) -> Pieces:
     renum[kept] = np.arange(len(kept))
     sel = keep[pieces.piece]
     return Pieces(pieces.vertex[sel], renum[pieces.piece[sel]], pieces.line[kept], pieces.first[kept],
-                  pieces.last[kept])
+                  pieces.last[kept], None if pieces.whole is None else pieces.whole[kept])
 
 
 def segment_graph(pieces: Pieces, xy: np.ndarray, key: np.ndarray):
@@ -490,7 +527,14 @@ class RoadsClean(SENode):
         ends = (lay["u"], lay["v"]) if "u" in lay and "v" in lay else None
         pieces, xy, key, counts = clean_streets(lay.geometry, ends=ends, level=level, rank=rank,
                                                 dup_tol=self.p.dup_tol, dead_ends=self.p.dead_ends)
-        geoms = shapely.linestrings(xy[pieces.vertex], indices=pieces.piece) if len(pieces) else np.empty(0, object)
+        geoms = np.empty(len(pieces), dtype=object)
+        whole = pieces.whole if pieces.whole is not None else np.zeros(len(pieces), bool)
+        geoms[whole] = lay.geometry[pieces.line[whole]]  # untouched lines: the same (immutable) geometries
+        if not whole.all():
+            sel = ~whole[pieces.piece]
+            rest = np.flatnonzero(~whole)
+            geoms[rest] = shapely.linestrings(xy[pieces.vertex[sel]],
+                                              indices=np.searchsorted(rest, pieces.piece[sel]))
         nodes, su, sv, pu, pv, row = segment_graph(pieces, xy, key)
         # the faces are traced once, here: blocks.circuits takes them over (meta["graph"]["blocks"])
         faces = find_blocks((nodes, su, sv), node=False, decimals=None) if self.p.find_slivers and len(pieces) else None

@@ -237,7 +237,15 @@ def planarize(xy, u, v, *, decimals: int | None = 9):
 
 # -- faces ---------------------------------------------------------------------
 
-def trace_faces(xy: np.ndarray, u: np.ndarray, v: np.ndarray):
+def _angular_order(xy: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Half-edges (``2 e``: u -> v, ``2 e + 1``: v -> u) sorted by origin node, then angle."""
+    org = np.stack([u, v], axis=1).ravel()
+    dst = np.stack([v, u], axis=1).ravel()
+    d = xy[dst] - xy[org]
+    return np.lexsort((np.arctan2(d[:, 1], d[:, 0]), org))
+
+
+def trace_faces(xy: np.ndarray, u: np.ndarray, v: np.ndarray, *, order: np.ndarray | None = None):
     """Cycles of the half-edge "next" permutation of a plane graph.
 
     Around each node, outgoing half-edges are sorted by angle (one
@@ -252,6 +260,10 @@ def trace_faces(xy: np.ndarray, u: np.ndarray, v: np.ndarray):
         Node coordinates.
     u, v : ndarray of int (m,)
         Edges; no self-loops, no duplicates (see :func:`planar_faces`).
+    order : ndarray of int64 (2 m,), optional
+        The half-edges already sorted by origin node, then angle (for
+        example a larger graph's order with the removed edges filtered
+        out, which keeps it sorted); sorted here when None.
 
     Returns
     -------
@@ -270,11 +282,8 @@ def trace_faces(xy: np.ndarray, u: np.ndarray, v: np.ndarray):
     dst = np.empty(2 * m, np.int64)
     dst[0::2] = v
     dst[1::2] = u
-    d = xy[dst] - xy[org]
-    ang = np.arctan2(d[:, 1], d[:, 0])
-    order = np.lexsort((ang, org))
-    pos = np.empty(2 * m, np.int64)
-    pos[order] = h
+    if order is None:
+        order = _angular_order(xy, u, v)
     so = org[order]
     # start and size of each node's group in sorted order
     brk = np.flatnonzero(np.r_[True, so[1:] != so[:-1]])
@@ -470,7 +479,8 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
                                              "degenerate": 0, "pinched": 0})
     if len(uniq) == 0:
         return empty
-    nxt, face, area = trace_faces(xy, eu, ev)
+    order = _angular_order(xy, eu, ev)
+    nxt, face, area = trace_faces(xy, eu, ev, order=order)
     br = face[0::2] == face[1::2]
     if br.any():
         bridge_u[br] = True
@@ -479,7 +489,10 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
             empty.bridge = bridge_u[np.maximum(emap, 0)] & (emap >= 0)
             empty.counts["bridges"] = int(br.sum())
             return empty
-        nxt, face, area = trace_faces(xy, eu[live], ev[live])
+        renum = np.full(len(uniq), -1, np.int64)
+        renum[live] = np.arange(len(live))
+        e = renum[order >> 1]
+        nxt, face, area = trace_faces(xy, eu[live], ev[live], order=2 * e[e >= 0] + (order[e >= 0] & 1))
     counts["bridges"] = int(bridge_u.sum())
     nf = len(area)
     lu, lv = eu[live], ev[live]
