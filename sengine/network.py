@@ -153,6 +153,16 @@ class Network:
         """Connect ``"node"`` or ``"node.port"`` to ``"node"`` or ``"node.port"``."""
         self.connections.append(Connection.parse(src, dst, where))
 
+    def disconnect(self, src: str, dst: str, *, where: str = "") -> None:
+        """Remove the connections from ``src`` to ``dst`` (a port left out matches any)."""
+        want = Connection.parse(src, dst)
+        keep = [c for c in self.connections if not (
+            c.src == want.src and c.dst == want.dst
+            and want.src_port in (None, c.src_port) and want.dst_port in (None, c.dst_port))]
+        if len(keep) == len(self.connections):
+            raise NetworkError(f"there is no connection from {src!r} to {dst!r} to remove", where=where or None)
+        self.connections = keep
+
     def _spec(self, node_id: str, where: str = "") -> NodeSpec:
         try:
             return self.specs[node_id]

@@ -149,6 +149,8 @@ def _apply_network(net: Network, el: etree._Element, label: str) -> None:
             net.set_param(child.get("node"), child.get("name"), child.get("value"), where=w)
         elif child.tag == "connect":
             net.connect(child.get("from"), child.get("to"), where=w)
+        elif child.tag == "disconnect":
+            net.disconnect(child.get("from"), child.get("to"), where=w)
 
 
 def _base_network(el: etree._Element, label: str, folder: Path, depth: int, **kw: Any) -> Network:

@@ -43,6 +43,8 @@ CASES = {
     "input connected twice": (net(SRC + '    <node id="s2" type="demo.squares"/>\n' + INSET + WIRE
                                   + '    <connect from="s2" to="inset.polygons"/>\n'),
                               r"input 'inset.polygons' is connected twice"),
+    "disconnect what is not connected": (net(SRC + INSET + '    <disconnect from="inset" to="source"/>\n'),
+                                         r"t\.xml:7: there is no connection from 'inset' to 'source' to remove"),
     "duplicate node id": (net(SRC + SRC), r"t\.xml:6: node id 'source' is defined twice"),
     "parameter below minimum": (net('    <node id="s" type="demo.squares">\n      <param name="count" value="0"/>\n'
                                     '    </node>\n'), r"t\.xml:6: node 's' \(demo.squares\): count=0 is below the minimum 1"),

@@ -348,3 +348,19 @@ def test_workers_give_the_same_result(tmp_path, fixtures):
     assert files[0] == files[1]
     assert reports[0] == reports[1] == {"inset": {"shrunk": 1500, "method": "buffer"}}
     assert json.loads(files[0])["features"][1499]["properties"]["parent_id"] == 1499
+
+
+def test_disconnect_then_connect_inserts_a_node(tmp_path):
+    """A base network's connection is removed and a node put in between."""
+    base = tmp_path / "base.xml"
+    base.write_text(f'<sengine version="1"><plugin path="{PLUGIN}"/><network>'
+                    '<node id="src" type="demo.squares"/><node id="out" type="demo.inset"/>'
+                    '<connect from="src.squares" to="out.polygons"/></network></sengine>')
+    config = tmp_path / "c.xml"
+    config.write_text('<sengine version="1"><network file="base.xml">'
+                      '<node id="mid" type="demo.inset"><param name="distance" value="2"/></node>'
+                      '<disconnect from="src" to="out"/>'
+                      '<connect from="src" to="mid"/><connect from="mid" to="out"/></network></sengine>')
+    layers, stats = sengine.load(config).run(seed=1)
+    assert list(stats["counts"]) == ["src", "mid", "out"]
+    assert shapely.area(layers["out"]["polygons"].geometry) == pytest.approx(np.full(5, 9.0))
