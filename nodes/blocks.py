@@ -238,32 +238,55 @@ def shrink_faces(faces, half_width, sidewalk: float):
     faces = np.asarray(faces, dtype=object)
     hw = np.asarray(half_width, np.float64)
     edge = inset(faces, hw)
-    block = inset(faces, hw + sidewalk) if sidewalk > 0 else edge
-    return _ring_between(faces, edge), _ring_between(edge, block), block
+    if sidewalk > 0:
+        # a face with nothing left inside its street surface has no block either: no second inset for it
+        block = edge.copy()
+        live = np.flatnonzero(~shapely.is_empty(edge))
+        block[live] = inset(faces[live], hw[live] + sidewalk)
+    else:
+        block = edge
+    return (_ring_between(faces, edge, gap=hw > 0),
+            _ring_between(edge, block, gap=np.full(len(faces), sidewalk > 0)), block)
 
 
-def _ring_between(outer, inner):
+def _ring_between(outer, inner, gap=None):
     """``outer - inner`` where ``inner`` lies inside ``outer``.
 
-    When both are simple polygons (no holes, one part) the result is built
-    directly as ``Polygon(outer shell, [inner shell])``; the rest goes
-    through ``shapely.difference``.
+    Where ``gap`` is set (``inner`` an inset of ``outer`` by a positive
+    distance, so no ring of one touches a ring of the other), an ``outer``
+    Polygon and an ``inner`` Polygon or MultiPolygon without holes give the
+    result directly: ``outer``'s rings with ``inner``'s shells as more
+    holes; an empty ``inner`` gives ``outer``.  The rest goes through
+    ``shapely.difference``.
     """
     out = np.empty(len(outer), dtype=object)
     if len(outer) == 0:
         return out
-    simple = (
-        (shapely.get_type_id(outer) == 3) & (shapely.get_num_interior_rings(outer) == 0)
-        & (shapely.get_type_id(inner) == 3) & (shapely.get_num_interior_rings(inner) == 0)
-        & ~shapely.is_empty(inner)
-    )
-    if simple.any():
-        shells = shapely.get_exterior_ring(outer[simple])
-        holes = shapely.get_exterior_ring(inner[simple])
-        rings = np.stack([shells, holes], axis=1).ravel()
-        out[simple] = shapely.polygons(rings, indices=np.repeat(np.arange(int(simple.sum())), 2))
-    if (~simple).any():
-        out[~simple] = shapely.difference(outer[~simple], inner[~simple])
+    gap = np.ones(len(outer), bool) if gap is None else np.asarray(gap, bool)
+    empty = shapely.is_empty(inner)
+    tin = shapely.get_type_id(inner)
+    simple_in = ((tin == 3) & (shapely.get_num_interior_rings(inner) == 0)) | (tin == 6)
+    direct = gap & (shapely.get_type_id(outer) == 3) & ~empty & simple_in
+    if np.any(direct & (tin == 6)):  # a MultiPolygon qualifies only when no part has holes
+        m = np.flatnonzero(direct & (tin == 6))
+        parts, pidx = shapely.get_parts(inner[m], return_index=True)
+        holed = np.zeros(len(m), bool)
+        holed[pidx[shapely.get_num_interior_rings(parts) > 0]] = True
+        direct[m[holed]] = False
+    same = gap & empty
+    out[same] = outer[same]
+    idx = np.flatnonzero(direct)
+    if len(idx):
+        orings, oi = shapely.get_rings(outer[idx], return_index=True)
+        parts, pi = shapely.get_parts(inner[idx], return_index=True)
+        rings = np.concatenate([orings, shapely.get_exterior_ring(parts)])
+        owner = np.concatenate([oi, pi])
+        # per result: outer shell, outer holes, then inner shells (get_rings lists the shell first)
+        o = np.argsort(owner, kind="stable")
+        out[idx] = shapely.polygons(rings[o], indices=owner[o])
+    rest = ~direct & ~same
+    if rest.any():
+        out[rest] = shapely.difference(outer[rest], inner[rest])
     return out
 
 

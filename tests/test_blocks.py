@@ -27,9 +27,7 @@ MONACO = next((p for p in (Path(__file__).resolve().parent.parent / "configs/dat
 def polygonize_ref(lines):
     noded = shapely.node(shapely.multilinestrings(shapely.get_parts(np.asarray(lines, dtype=object))))
     ref = shapely.get_parts(shapely.polygonize(shapely.get_parts(noded)))
-    # GEOS noding of nearly collinear overlaps (nanometre jitter) leaves slivers of ~1e-8 m2 that
-    # find_blocks' 1e-6 m node merge closes: below a square micrometre they are not faces
-    return ref[shapely.area(ref) > 1e-6]
+    return ref[shapely.area(ref) > 1e-9]
 
 
 def assert_partition_like(faces, ref):
@@ -50,7 +48,10 @@ def jittered_grid(draw):
     seed = draw(st.integers(0, 2**31))
     rng = np.random.default_rng(seed)
     step = draw(st.floats(20, 120))
+    # jitter near find_blocks' node merge (1e-6 m) makes nanometre slivers that one route closes
+    # and the other keeps: none, or at least a millimetre
     jitter = draw(st.floats(0, 0.3)) * step
+    jitter = jitter if jitter >= 1e-3 else 0.0
     gx, gy = np.meshgrid(np.arange(nx_ + 1) * step, np.arange(ny + 1) * step, indexing="ij")
     pts = np.stack([gx, gy], -1) + rng.uniform(-jitter, jitter, (nx_ + 1, ny + 1, 2))
     lines = []
