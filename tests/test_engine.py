@@ -363,4 +363,4 @@ def test_disconnect_then_connect_inserts_a_node(tmp_path):
                       '<connect from="src" to="mid"/><connect from="mid" to="out"/></network></sengine>')
     layers, stats = sengine.load(config).run(seed=1)
     assert list(stats["counts"]) == ["src", "mid", "out"]
-    assert shapely.area(layers["out"]["polygons"].geometry) == pytest.approx(np.full(5, 9.0))
+    assert shapely.area(layers["out"]["polygons"].geometry) == pytest.approx(np.full(5, 16.0))  # 10 - 2*2 - 2*1
