@@ -55,8 +55,9 @@ class PbfWays:
     ----------
     way_id : ndarray of int64 (w,)
         Ways holding the first wanted key, in file order.
-    tags : dict of str to ndarray of object (w,)
-        Value of each wanted key per way (``str``), None when absent.
+    tags : dict of str to (list of str, ndarray of int32 (w,))
+        For each wanted key: its distinct values, and per way the index of
+        its value in that list (``-1`` when the way lacks the key).
     ref_start : ndarray of int64 (w + 1,)
         Way ``i``'s node refs are ``refs[ref_start[i]:ref_start[i + 1]]``.
     refs : ndarray of int64
@@ -214,8 +215,11 @@ def _chain(val: np.ndarray, nxt: np.ndarray) -> np.ndarray:
     return np.asarray(out, np.int64)
 
 
-def _ways(buf: bytes, span, strings: list[bytes], keys: tuple[str, ...]):
-    """Ways of one primitive group that hold ``keys[0]``: ids, wanted tag values, refs."""
+def _ways(buf: bytes, span, strings: list[bytes], keys: tuple[str, ...], values: dict):
+    """Ways of one primitive group that hold ``keys[0]``: ids, wanted tag values, refs.
+
+    ``values[key]`` maps each value met so far to its number (extended here).
+    """
     raw = np.frombuffer(buf, np.uint8, span[1] - span[0], span[0])
     val, start, end = _tokens(raw)
     k = len(val)
@@ -295,18 +299,20 @@ def _ways(buf: bytes, span, strings: list[bytes], keys: tuple[str, ...]):
     renum[kept] = np.arange(len(kept))
     tags = {}
     for key, (w, s) in found.items():
-        col = np.full(len(kept), None, dtype=object)
+        col = np.full(len(kept), -1, np.int32)
         m = has[w]
         if m.any():
             u, inv = np.unique(s[m], return_inverse=True)
-            text = np.array([strings[i].decode("utf-8", "replace") for i in u.tolist()] + [None], dtype=object)
-            col[renum[w[m]]] = text[:-1][inv.ravel()]
+            known = values[key]
+            ids = [known.setdefault(strings[i].decode("utf-8", "replace"), len(known)) for i in u.tolist()]
+            col[renum[w[m]]] = np.asarray(ids, np.int32)[inv.ravel()]
         tags[key] = col
     refs, rw = packed(8, zigzag=True)
     m = has[rw]
     refs, rw = refs[m], renum[rw[m]]
-    order = np.argsort(rw, kind="stable")  # fields come way after way already; keep it safe
-    refs, rw = refs[order], rw[order]
+    if np.any(rw[1:] < rw[:-1]):  # fields come way after way; keep it safe
+        order = np.argsort(rw, kind="stable")
+        refs, rw = refs[order], rw[order]
     count = np.bincount(rw, minlength=len(kept))
     ref_start = np.r_[0, np.cumsum(count)]
     # delta coding restarts in every way
@@ -341,6 +347,7 @@ def read_pbf_ways(path: str | Path, keys: tuple[str, ...]) -> PbfWays:
     ids, xys = [], []
     way_ids, counts, refs = [], [], []
     tags: dict = {k: [] for k in keys}
+    values: dict = {k: {} for k in keys}
     seen_header = False
     while pos < n:
         if pos + 4 > n:
@@ -401,7 +408,7 @@ def read_pbf_ways(path: str | Path, keys: tuple[str, ...]) -> PbfWays:
                     xys.append(xy)
                     break
                 if f == 3:
-                    wid, wt, cnt, rf = _ways(raw, g, strings, keys)
+                    wid, wt, cnt, rf = _ways(raw, g, strings, keys, values)
                     way_ids.append(wid)
                     counts.append(cnt)
                     refs.append(rf)
@@ -427,7 +434,7 @@ def read_pbf_ways(path: str | Path, keys: tuple[str, ...]) -> PbfWays:
     count = cat(counts, np.int64)
     return PbfWays(
         way_id=cat(way_ids, np.int64),
-        tags={k: cat(v, object) for k, v in tags.items()},
+        tags={k: (list(values[k]), cat(v, np.int32)) for k, v in tags.items()},
         ref_start=np.r_[0, np.cumsum(count)].astype(np.int64),
         refs=cat(refs, np.int64),
         node_id=node_id,

@@ -78,6 +78,9 @@ class Pieces:
     whole : ndarray of bool, optional
         Set by :func:`clean_streets`: the piece is its source line,
         unchanged (same points, none added or dropped).
+    node, node_key : ndarray of int64, optional
+        Set by :func:`split_at_junctions`: the node of each entry of
+        ``vertex`` (``0 .. k-1``) and the key of each node (ascending).
     """
 
     vertex: np.ndarray
@@ -86,6 +89,8 @@ class Pieces:
     first: np.ndarray
     last: np.ndarray
     whole: np.ndarray | None = None
+    node: np.ndarray | None = None
+    node_key: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.line)
@@ -125,20 +130,22 @@ def split_at_junctions(key: np.ndarray, line: np.ndarray) -> Pieces:
         return Pieces(z, z, z, z, z)
     first = np.r_[True, ln[1:] != ln[:-1]]
     last = np.r_[ln[1:] != ln[:-1], True]
-    _, inv = np.unique(k, return_inverse=True)
-    used = np.bincount(inv.ravel())[inv.ravel()]
+    ukey, inv = np.unique(k, return_inverse=True)
+    inv = inv.ravel()
+    used = np.bincount(inv)[inv]
     junction = (used >= 2) | first | last
     start = junction & ~last
     p = np.cumsum(start) - 1
     inner = np.flatnonzero(junction & ~first & ~last)
     pos = np.r_[np.arange(m), inner]
     lab = np.r_[p, p[inner] - 1]
-    order = np.lexsort((pos, lab))
-    pos, lab = pos[order], lab[order]
+    if len(inner):  # an inner junction ends one piece and starts the next: put its copy in place
+        order = np.lexsort((pos, lab))
+        pos, lab = pos[order], lab[order]
     brk = np.r_[True, lab[1:] != lab[:-1]]
     ends = np.r_[lab[1:] != lab[:-1], True]
     vertex = idx[pos]
-    return Pieces(vertex, lab, ln[pos[brk]], vertex[brk], vertex[ends])
+    return Pieces(vertex, lab, ln[pos[brk]], vertex[brk], vertex[ends], node=inv[pos], node_key=ukey)
 
 
 def point_keys(xy: np.ndarray) -> np.ndarray:

@@ -200,15 +200,16 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
 def _pbf_extract(pbf: PbfWays, *, classes, node_ids: bool, path: Path, where) -> OsmExtract:
     """The extract of the highway ways of a decoded PBF file (as pyosmium would give it)."""
     out = OsmExtract()
-    hw = pbf.tags["highway"]
-    names, inv = np.unique(hw.astype(str), return_inverse=True)
-    inv = inv.ravel()
-    ok_name = np.ones(len(names), bool) if classes is None else np.isin(names, list(classes))
+    names, inv = pbf.tags["highway"]
+    ok_name = np.array([classes is None or n in classes for n in names], bool)
     keep = ok_name[inv]
     # each node's place; a way with a node missing from the file keeps its longest located run
     count = np.diff(pbf.ref_start)
     owner = np.repeat(np.arange(len(count)), count)
-    pos = np.minimum(np.searchsorted(pbf.node_id, pbf.refs), max(len(pbf.node_id) - 1, 0))
+    # look the refs up in sorted order: far fewer cache misses than in file order
+    uref, rinv = np.unique(pbf.refs, return_inverse=True)
+    upos = np.minimum(np.searchsorted(pbf.node_id, uref), max(len(pbf.node_id) - 1, 0))
+    pos = upos[rinv.ravel()]
     present = (pbf.node_id[pos] == pbf.refs) if len(pbf.node_id) else np.zeros(len(pbf.refs), bool)
     fixed = pbf.node_xy[pos] if len(pbf.node_id) else np.zeros((len(pbf.refs), 2), np.int64)
     valid = present & (np.abs(fixed[:, 0]) <= 1_800_000_000) & (np.abs(fixed[:, 1]) <= 900_000_000)
@@ -241,26 +242,38 @@ def _pbf_extract(pbf: PbfWays, *, classes, node_ids: bool, path: Path, where) ->
         parts_ref.append(pbf.refs[s])
         take[w] = True
     line = np.concatenate(parts_line)
-    order = np.argsort(line, kind="stable")  # clipped ways back in file order
+    if len(parts_line) > 1:  # clipped ways back in file order
+        order = np.argsort(line, kind="stable")
+        line = line[order]
+        parts_fixed = [np.concatenate(parts_fixed)[order]]
+        parts_ref = [np.concatenate(parts_ref)[order]]
     kept = np.flatnonzero(take)
     renum = np.full(len(count), -1, np.int64)
     renum[kept] = np.arange(len(kept))
-    out.fixed = np.concatenate(parts_fixed)[order]
-    out.line = renum[line[order]]
+    out.fixed = parts_fixed[0]
+    out.line = renum[line]
     if node_ids:
-        out.node_ids = np.concatenate(parts_ref)[order]
+        out.node_ids = parts_ref[0]
     out.way_id = pbf.way_id[kept]
     # highway codes in order of first appearance, as the streaming reader numbers them
-    first = np.unique(inv[kept], return_index=True)[1] if len(kept) else np.empty(0, np.int64)
-    seen = inv[kept][np.sort(first)]
-    out.codes = {str(names[c]): i for i, c in enumerate(seen)}
+    hw = inv[kept]
+    first = np.full(len(names), len(hw), np.int64)
+    np.minimum.at(first, hw, np.arange(len(hw)))
+    seen = np.flatnonzero(first < len(hw))
+    seen = seen[np.argsort(first[seen])]
+    out.codes = {names[c]: i for i, c in enumerate(seen.tolist())}
     code_of = np.full(len(names), -1, np.int64)
     code_of[seen] = np.arange(len(seen))
-    out.code = code_of[inv[kept]]
-    tunnel = pbf.tags["tunnel"]
-    tunnel = np.where(np.array([bool(t) for t in tunnel.tolist()], bool) if len(tunnel) else np.zeros(0, bool),
-                      tunnel, pbf.tags["covered"])
-    out.tags = {k: (tunnel if k == "tunnel" else pbf.tags[k])[kept] for k in _TAG_KEYS}
+    out.code = code_of[hw]
+
+    def column(key):
+        vals, idx = pbf.tags[key]
+        return np.array([*vals, None], dtype=object)[idx[kept]]  # -1: the None at the end
+
+    out.tags = {k: column(k) for k in _TAG_KEYS}
+    tvals, tidx = pbf.tags["tunnel"]
+    tunnel_set = np.array([bool(t) for t in tvals] + [False], bool)[tidx[kept]]  # tunnel, or else covered
+    out.tags["tunnel"] = np.where(tunnel_set, out.tags["tunnel"], column("covered"))
     return out
 
 
@@ -481,10 +494,13 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
         raise InputDataError("coordinates outside [-180, 180] x [-90, 90]", where=where)
     key = (fixed[:, 0] + 1_800_000_000) * 2_000_000_000 + (fixed[:, 1] + 900_000_000)
     pieces = split_at_junctions(key, line)
-    # the frame from all points; project only those kept (consecutive repeats dropped)
-    xy, crs, origin = project_extract(fixed[pieces.vertex] / 1e7, bounds=(fixed.min(axis=0) / 1e7,
-                                                                          fixed.max(axis=0) / 1e7))
-    geoms = shapely.linestrings(xy, indices=pieces.piece)
+    vnode, ukeys = pieces.node, pieces.node_key
+    uidx = np.empty(len(ukeys), np.int64)  # the first entry of each node
+    uidx[vnode[::-1]] = np.arange(len(vnode) - 1, -1, -1)
+    # the frame from all points; each node (junctions are shared) projected once
+    nodes, crs, origin = project_extract(fixed[pieces.vertex[uidx]] / 1e7,
+                                         bounds=(fixed.min(axis=0) / 1e7, fixed.max(axis=0) / 1e7))
+    geoms = shapely.linestrings(nodes[vnode], indices=pieces.piece)
     row = pieces.line
     names = np.array(list(ext.codes), dtype=object)
     code = ext.code
@@ -501,13 +517,9 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
     has = np.flatnonzero(col["layer"] != None)  # noqa: E711 (elementwise)
     if len(has):
         lay[has] = [_int_tag(v) for v in col["layer"][has].tolist()]
-    vkey = key[pieces.vertex]
-    ukeys, uidx, vnode = np.unique(vkey, return_index=True, return_inverse=True)
-    vnode = vnode.ravel()
     meta_ids = {}
     if ext.node_ids is not None and len(ext.node_ids) == len(key):
         meta_ids = {"node_ids": ext.node_ids[pieces.vertex[uidx]]}
-    nodes = xy[uidx]
     brk = np.flatnonzero(np.r_[True, pieces.piece[1:] != pieces.piece[:-1]])
     u, v = vnode[brk], vnode[np.r_[brk[1:], len(vnode)] - 1]
     c = code[row]
