@@ -155,8 +155,8 @@ def point_keys(xy: np.ndarray) -> np.ndarray:
     return inv.ravel().astype(np.int64)
 
 
-def crossing_points(xy: np.ndarray, line: np.ndarray, level: np.ndarray,
-                    key: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+def crossing_points(xy: np.ndarray, line: np.ndarray, level: np.ndarray, key: np.ndarray | None = None,
+                    segs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Where segments of lines on the same level meet without a shared node.
 
     Proper crossings get a new node shared by both segments; a segment end
@@ -174,6 +174,9 @@ def crossing_points(xy: np.ndarray, line: np.ndarray, level: np.ndarray,
         Lines meet at a new junction only when their levels are equal.
     key : ndarray of int64 (n,), optional
         Node identity of each point (default: :func:`point_keys`).
+    segs : ndarray of object, optional
+        For each line of two points, its shapely LineString when one is at
+        hand (None elsewhere); the other segments are made here.
 
     Returns
     -------
@@ -195,7 +198,13 @@ def crossing_points(xy: np.ndarray, line: np.ndarray, level: np.ndarray,
         return empty
     key = point_keys(xy) if key is None else key
     p, q = xy[a], xy[a + 1]
-    segs = shapely.linestrings(np.stack([p, q], axis=1))
+    given = None if segs is None else np.asarray(segs, dtype=object)[line[a]]
+    segs = np.empty(len(a), dtype=object)
+    have = np.zeros(len(a), bool) if given is None else np.not_equal(given, None)
+    if have.any():
+        segs[have] = given[have]
+    if not have.all():
+        segs[~have] = shapely.linestrings(np.stack([p[~have], q[~have]], axis=1))
     i, j = shapely.STRtree(segs).query(segs)  # bounding boxes only
     sel = i < j
     i, j = i[sel], j[sel]
@@ -290,9 +299,17 @@ def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | No
     pieces = split_at_junctions(key, part_line)
     keep, ndup = _duplicates(pieces, xy, key, r[src[pieces.line]], dup_tol)
     pieces = _take_pieces(pieces, keep)
+    npts = np.bincount(pidx, minlength=nparts)
+    pstart = np.cumsum(npts) - npts
+    segs = None
+    if plain:  # a piece that is a whole two-point input line is its own segment: no new geometry
+        size = np.bincount(pieces.piece, minlength=len(pieces))
+        part = pieces.line
+        two = (size == 2) & (npts[part] == 2) & (orig[pieces.first] == pstart[part])
+        segs = np.where(two, parts[part], None)
     xy, key, part_line, part_of = xy[pieces.vertex], key[pieces.vertex], pieces.piece, pieces.line
     orig = orig[pieces.vertex]
-    at, t, pt, node, ncross = crossing_points(xy, part_line, level_p[part_of], key)
+    at, t, pt, node, ncross = crossing_points(xy, part_line, level_p[part_of], key, segs=segs)
     counts["crossings_noded"] = ncross
     counts["t_junctions_noded"] = int((node >= 0).sum())
     if len(at):
@@ -310,8 +327,6 @@ def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | No
     if dead_ends:
         counts["dead_ends_removed"] = _drop_dead_ends(pieces, key, keep)
     if plain:
-        npts = np.bincount(pidx, minlength=nparts)
-        pstart = np.cumsum(npts) - npts
         size = np.bincount(pieces.piece, minlength=len(pieces))
         o0, o1 = orig[pieces.first], orig[pieces.last]
         pieces.whole = (size == npts[part]) & (o0 == pstart[part]) & (o1 == pstart[part] + npts[part] - 1)
@@ -328,9 +343,14 @@ def _drop_dead_ends(pieces: Pieces, key: np.ndarray, keep: np.ndarray) -> int:
     m = len(pieces)
     if not m:
         return 0
-    _, inv = np.unique(np.r_[key[pieces.first], key[pieces.last]], return_inverse=True)
-    inv = inv.ravel()
-    u, v = inv[:m], inv[m:]
+    if pieces.node is not None:
+        starts = np.flatnonzero(np.r_[True, pieces.piece[1:] != pieces.piece[:-1]])
+        u, v = pieces.node[starts], pieces.node[np.r_[starts[1:], len(pieces.piece)] - 1]
+        inv = np.r_[u, v]
+    else:
+        _, inv = np.unique(np.r_[key[pieces.first], key[pieces.last]], return_inverse=True)
+        inv = inv.ravel()
+        u, v = inv[:m], inv[m:]
     nn = int(inv.max()) + 1
     deg = np.bincount(u[keep], minlength=nn) + np.bincount(v[keep], minlength=nn)
     order = np.argsort(inv, kind="stable")  # node -> incident pieces
@@ -387,7 +407,8 @@ def _take_pieces(pieces: Pieces, keep: np.ndarray) -> Pieces:
     renum[kept] = np.arange(len(kept))
     sel = keep[pieces.piece]
     return Pieces(pieces.vertex[sel], renum[pieces.piece[sel]], pieces.line[kept], pieces.first[kept],
-                  pieces.last[kept], None if pieces.whole is None else pieces.whole[kept])
+                  pieces.last[kept], None if pieces.whole is None else pieces.whole[kept],
+                  None if pieces.node is None else pieces.node[sel], pieces.node_key)
 
 
 def segment_graph(pieces: Pieces, xy: np.ndarray, key: np.ndarray):
@@ -404,8 +425,15 @@ def segment_graph(pieces: Pieces, xy: np.ndarray, key: np.ndarray):
     row : ndarray of int64
         Piece of every straight segment.
     """
-    _, first, inv = np.unique(key[pieces.vertex], return_index=True, return_inverse=True)
-    inv = inv.ravel()
+    if pieces.node is not None:  # the split's node numbering (ascending key), without unused nodes
+        used = np.zeros(len(pieces.node_key), bool)
+        used[pieces.node] = True
+        inv = (np.cumsum(used) - 1)[pieces.node]
+        first = np.empty(int(used.sum()), np.int64)
+        first[inv[::-1]] = np.arange(len(inv) - 1, -1, -1)
+    else:
+        _, first, inv = np.unique(key[pieces.vertex], return_index=True, return_inverse=True)
+        inv = inv.ravel()
     nodes = xy[pieces.vertex[first]]
     lab = pieces.piece
     s = np.flatnonzero(lab[1:] == lab[:-1])
@@ -527,8 +555,9 @@ class RoadsClean(SENode):
         rank = np.zeros(n, np.int64)
         if cls is not None and n:
             lut = {c: i for i, c in enumerate(CLASS_RANK)}
-            names, inv = np.unique(cls.astype(str), return_inverse=True)
-            rank = np.array([lut.get(c.removesuffix("_link"), len(CLASS_RANK)) for c in names], np.int64)[inv.ravel()]
+            memo: dict = {}  # a handful of distinct classes: rank each once
+            rank = np.fromiter((memo[c] if c in memo else memo.setdefault(
+                c, lut.get(str(c).removesuffix("_link"), len(CLASS_RANK))) for c in cls.tolist()), np.int64, n)
         if "major" in lay:
             rank = rank - 100 * lay["major"].astype(np.int64)
         ends = (lay["u"], lay["v"]) if "u" in lay and "v" in lay else None
