@@ -116,6 +116,31 @@ def _fields(buf: bytes, pos: int = 0, end: int | None = None):
         yield tag >> 3, value
 
 
+def _bounds(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """First and last byte of every varint of a byte array that is nothing but varints."""
+    end = np.flatnonzero(raw < 0x80)
+    if not len(end) or end[-1] != len(raw) - 1:
+        raise PbfUnsupported("stream does not end on a varint")
+    start = np.empty_like(end)
+    start[0] = 0
+    start[1:] = end[:-1] + 1
+    return start, end
+
+
+def _values(raw: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """The varints that begin at ``start`` and end at ``end`` (byte offsets), as uint64."""
+    value = (raw[start] & 0x7F).astype(np.uint64)
+    idx = np.flatnonzero(end > start)  # most varints are one byte: go on with the longer ones only
+    for j in range(1, 10):
+        if not len(idx):
+            return value
+        value[idx] |= (raw[start[idx] + j] & 0x7F).astype(np.uint64) << np.uint64(7 * j)
+        idx = idx[end[idx] > start[idx] + j]
+    if len(idx):
+        raise PbfUnsupported("varint too long")
+    return value
+
+
 def _tokens(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Decode a byte array that is nothing but varints.
 
@@ -125,22 +150,8 @@ def _tokens(raw: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     start, end : ndarray of int64 (k,)
         First and last byte of each varint.
     """
-    end = np.flatnonzero(raw < 0x80)
-    if not len(end) or end[-1] != len(raw) - 1:
-        raise PbfUnsupported("stream does not end on a varint")
-    start = np.empty_like(end)
-    start[0] = 0
-    start[1:] = end[:-1] + 1
-    value = (raw[start] & 0x7F).astype(np.uint64)
-    idx = np.flatnonzero(end > start)  # most varints are one byte: go on with the longer ones only
-    for j in range(1, 10):
-        if not len(idx):
-            break
-        value[idx] |= (raw[start[idx] + j] & 0x7F).astype(np.uint64) << np.uint64(7 * j)
-        idx = idx[end[idx] > start[idx] + j]
-    if len(idx):
-        raise PbfUnsupported("varint too long")
-    return value, start, end
+    start, end = _bounds(raw)
+    return _values(raw, start, end), start, end
 
 
 def _packed(buf: bytes, span: tuple[int, int], *, zigzag: bool) -> np.ndarray:
@@ -187,81 +198,102 @@ def _dense(buf: bytes, span, gran: int, lat_off: int, lon_off: int) -> tuple[np.
     return ids, np.stack([fixed(lon, lon_off), fixed(lat, lat_off)], axis=1)
 
 
-def _chain(val: np.ndarray, nxt: np.ndarray) -> np.ndarray:
-    """Tokens where the ways of a group start: the chain ``0, nxt[0], nxt[nxt[0]] ...`` up to the end.
+def _chain(cand: np.ndarray, cand_next: np.ndarray, k: int) -> np.ndarray | None:
+    """Tokens where the ways of a group start: the chain ``0, nxt[0], nxt[nxt[0]] ...`` up to ``k``.
 
-    Every way message starts with the tag of field 3 (``0x1a``) and, inside,
-    with its id (field 1, ``0x08``); of the tokens looking like that, those
-    inside an earlier candidate's message are dropped.  The result is
-    checked to be exactly the chain; if a packed value happened to fool the
-    guess, the chain is walked in Python instead.
+    ``cand`` are the tokens that look like a way's start (the tag of field
+    3, ``0x1a``, whose message begins with the way id, field 1, ``0x08``),
+    ascending, and ``cand_next`` the token after each one's message.  The
+    chain from token 0 is followed among them by pointer doubling (jump
+    tables for 1, 2, 4 ... steps; the set reached in fewer than 2^b steps
+    doubles each round), so false candidates (a packed value that looks
+    like a tag) are simply never reached; the common case, candidates not
+    inside an earlier candidate's message, is checked first.  Returns None
+    when the chain leaves the candidates (a way not starting with its id).
     """
-    k = len(val)
-    cand = np.flatnonzero(val[:-2] == 0x1A)
-    cand = cand[val[cand + 2] == 0x08]
-    reach = nxt[cand]
-    prev = np.maximum.accumulate(np.r_[0, reach[:-1]]) if len(cand) else reach
-    heads = cand[cand >= prev]
-    if len(heads) and heads[0] == 0 and np.array_equal(nxt[heads], np.r_[heads[1:], k]):
+    c = len(cand)
+    if not c or cand[0] != 0:
+        return None
+    # usually the candidates not inside an earlier one's message are the chain: check that first
+    inside = cand < np.maximum.accumulate(np.r_[0, cand_next[:-1]])
+    heads = cand[~inside]
+    if np.array_equal(cand_next[~inside], np.r_[heads[1:], k]):
         return heads
-    chain = nxt.tolist()
-    out = []
-    i = 0
-    while i < k:
-        out.append(i)
-        i = chain[i]
-        if i < 0:
-            raise PbfUnsupported("broken way message")
-    return np.asarray(out, np.int64)
+    idx = np.searchsorted(cand, cand_next)
+    hit = (idx < c) & (cand[np.minimum(idx, c - 1)] == cand_next)
+    jump = np.r_[np.where(cand_next == k, c, np.where(hit, idx, c + 1)), c, c + 1]  # c: the end, c+1: lost
+    reached = np.zeros(c + 2, bool)
+    reached[0] = True
+    for _ in range(int(c + 2).bit_length()):
+        reached[jump[reached]] = True
+        jump = jump[jump]
+    if reached[c + 1] or not reached[c]:  # the walk got lost, or never ends
+        return None
+    return cand[reached[:c]]
 
 
 def _ways(buf: bytes, span, strings: list[bytes], keys: tuple[str, ...], values: dict):
     """Ways of one primitive group that hold ``keys[0]``: ids, wanted tag values, refs.
 
     ``values[key]`` maps each value met so far to its number (extended here).
+    Varints are located all at once but decoded only where needed (field
+    tags, lengths, ids, packed keys / values / refs; not the metadata).
     """
     raw = np.frombuffer(buf, np.uint8, span[1] - span[0], span[0])
-    val, start, end = _tokens(raw)
-    k = len(val)
-    # for every token taken as a field tag, the token where the next field starts
-    wire = (val & np.uint64(7)).astype(np.int64)
-    nxt = np.arange(k) + 2
-    ln = np.zeros(k, np.int64)
-    ln[:-1] = val[1:].astype(np.int64)
-    cend = np.full(k, -1, np.int64)
-    cend[:-1] = end[1:] + 1 + ln[:-1]
-    at = np.full(len(raw) + 1, -1, np.int64)
-    at[start] = np.arange(k)
-    at[len(raw)] = k
-    ok2 = (wire == 2) & (cend >= 0) & (cend <= len(raw))
-    nxt[ok2] = at[cend[ok2]]
-    nxt[(wire != 0) & ~ok2] = -1
+    start, end = _bounds(raw)
+    k = len(start)
+
+    def val(i):
+        return _values(raw, start[i], end[i])
+
+    def step(i):
+        """Taking tokens ``i`` as field tags: their tags and the token where the next field starts."""
+        tag = val(i)
+        wire = (tag & np.uint64(7)).astype(np.int64)
+        out = np.where(wire == 0, i + 2, -1)
+        two = np.flatnonzero((wire == 2) & (i + 1 < k))
+        if len(two):
+            j = i[two] + 1
+            cend = end[j] + 1 + val(j).astype(np.int64)
+            pos = np.searchsorted(start, cend)
+            ok = (cend == len(raw)) | ((pos < k) & (start[np.minimum(pos, k - 1)] == cend))
+            out[two] = np.where(ok, pos, -1)
+        out[out > k] = -1
+        return out, tag
+
     # the group: one chain of ways (field 3, length-delimited)
-    if val[0] != 0x1A:
-        raise PbfUnsupported("primitive group of ways expected")
-    heads = _chain(val, nxt)
-    if np.any(val[heads] != 0x1A):
+    one = end == start
+    cand = np.flatnonzero(one[:-2] & (raw[start[:-2]] == 0x1A) & one[2:] & (raw[start[2:]] == 0x08))
+    heads = _chain(cand, step(cand)[0], k)
+    if heads is None:  # walk it
+        heads, i = [], 0
+        while 0 <= i < k:
+            heads.append(i)
+            i = int(step(np.array([i]))[0][0])
+        if i != k:
+            raise PbfUnsupported("broken way message")
+        heads = np.asarray(heads, np.int64)
+    stop, head_tag = step(heads)
+    if np.any(head_tag != 0x1A):
         raise PbfUnsupported("a primitive group mixes ways with other objects")
-    stop = nxt[heads]
     # the fields of every way, followed side by side
-    fw, ft = [], []
+    fw, ft, fn, fg = [], [], [], []
     cur = heads + 2
     live = np.flatnonzero(cur < stop)
     while len(live):
         c = cur[live]
-        if np.any(c < 0):
+        n, tag = step(c)
+        if np.any(n < 0) or np.any(n > stop[live]):
             raise PbfUnsupported("broken way field")
         fw.append(live)
         ft.append(c)
-        cur[live] = nxt[c]
-        live = live[(cur[live] < stop[live]) & (cur[live] >= 0)]
-        if np.any(cur[fw[-1]] < 0):
-            raise PbfUnsupported("broken way field")
-    fw, ft = np.concatenate(fw), np.concatenate(ft)
-    if np.any(stop[fw] < nxt[ft]):
-        raise PbfUnsupported("way field runs past its way")
-    fnum = (val[ft] >> np.uint64(3)).astype(np.int64)
-    fwire = wire[ft]
+        fn.append(n)
+        fg.append(tag)
+        cur[live] = n
+        live = live[n < stop[live]]
+    fw, ft, fnext, ftag = np.concatenate(fw), np.concatenate(ft), np.concatenate(fn), np.concatenate(fg)
+    fnum = (ftag >> np.uint64(3)).astype(np.int64)
+    fwire = (ftag & np.uint64(7)).astype(np.int64)
     nw = len(heads)
 
     def packed(num, zigzag=False):
@@ -269,8 +301,8 @@ def _ways(buf: bytes, span, strings: list[bytes], keys: tuple[str, ...], values:
         if np.any(fwire[sel] != 2):
             raise PbfUnsupported(f"way field {num} is not packed")
         t, w = ft[sel], fw[sel]
-        idx, owner = _ranges(t + 2, nxt[t])
-        v = val[idx]
+        idx, owner = _ranges(t + 2, fnext[sel])
+        v = val(idx)
         if zigzag:
             v = (v >> np.uint64(1)).astype(np.int64) ^ -(v & np.uint64(1)).astype(np.int64)
         else:
@@ -279,7 +311,7 @@ def _ways(buf: bytes, span, strings: list[bytes], keys: tuple[str, ...], values:
 
     sel = (fnum == 1) & (fwire == 0)
     way_id = np.zeros(nw, np.int64)
-    way_id[fw[sel]] = val[ft[sel] + 1].view(np.int64)
+    way_id[fw[sel]] = val(ft[sel] + 1).view(np.int64)
     tkey, tw = packed(2)
     tval, tw2 = packed(3)
     if len(tkey) != len(tval) or np.any(tw != tw2):
@@ -322,6 +354,62 @@ def _ways(buf: bytes, span, strings: list[bytes], keys: tuple[str, ...], values:
     return way_id[kept], tags, count, refs
 
 
+def _unpack(data: bytes, blob: tuple[int, int]) -> bytes:
+    """The payload of a Blob message: raw or zlib-inflated."""
+    raw = None
+    for f, v in _fields(data, *blob):
+        if f == 1:
+            raw = data[v[0]:v[1]]
+        elif f == 3:
+            try:
+                raw = zlib.decompress(data[v[0]:v[1]])
+            except zlib.error as exc:
+                raise PbfUnsupported(str(exc)) from None
+        elif f in (4, 5, 6, 7):
+            raise PbfUnsupported("compression other than zlib")
+    if raw is None:
+        raise PbfUnsupported("empty blob")
+    return raw
+
+
+def _data_block(data: bytes, blob: tuple[int, int], keys: tuple[str, ...]):
+    """Dense nodes and ways of one OSMData blob.
+
+    Returns
+    -------
+    nodes : list of (ids, xy)
+    ways : list of (way_id, tag codes, ref counts, refs, tag values)
+        Tag codes index the block's own value lists (``-1``: none).
+    """
+    raw = _unpack(data, blob)
+    strings, groups = [], []
+    gran, lat_off, lon_off = 100, 0, 0
+    for f, v in _fields(raw):
+        if f == 1:
+            strings = _strings(raw, v)
+        elif f == 2:
+            groups.append(v)
+        elif f == 17:
+            gran = v
+        elif f == 19:
+            lat_off = v if v < 1 << 63 else v - (1 << 64)
+        elif f == 20:
+            lon_off = v if v < 1 << 63 else v - (1 << 64)
+    nodes, ways = [], []
+    for g in groups:
+        for f, v in _fields(raw, *g):
+            if f == 2:
+                nodes.append(_dense(raw, v, gran, lat_off, lon_off))
+            elif f == 3:
+                local = {k: {} for k in keys}
+                wid, wt, cnt, rf = _ways(raw, g, strings, keys, local)
+                ways.append((wid, wt, cnt, rf, {k: list(local[k]) for k in keys}))
+            elif f == 1:
+                raise PbfUnsupported("non-dense nodes")
+            break  # the first field tells the group's kind; relations, changesets: not needed
+    return nodes, ways
+
+
 def read_pbf_ways(path: str | Path, keys: tuple[str, ...]) -> PbfWays:
     """Read the ways carrying ``keys[0]`` and every dense node of a PBF file.
 
@@ -344,10 +432,7 @@ def read_pbf_ways(path: str | Path, keys: tuple[str, ...]) -> PbfWays:
     """
     data = Path(path).read_bytes()
     pos, n = 0, len(data)
-    ids, xys = [], []
-    way_ids, counts, refs = [], [], []
-    tags: dict = {k: [] for k in keys}
-    values: dict = {k: {} for k in keys}
+    blocks = []
     seen_header = False
     while pos < n:
         if pos + 4 > n:
@@ -365,21 +450,10 @@ def read_pbf_ways(path: str | Path, keys: tuple[str, ...]) -> PbfWays:
         pos += hlen
         if btype is None or size is None or pos + size > n or size > 64 * 1024 * 1024:
             raise PbfUnsupported("bad blob")
-        raw = None
-        for f, v in _fields(data, pos, pos + size):
-            if f == 1:
-                raw = data[v[0]:v[1]]
-            elif f == 3:
-                try:
-                    raw = zlib.decompress(data[v[0]:v[1]])
-                except zlib.error as exc:
-                    raise PbfUnsupported(str(exc)) from None
-            elif f in (4, 5, 6, 7):
-                raise PbfUnsupported("compression other than zlib")
+        blob = (pos, pos + size)
         pos += size
-        if raw is None:
-            raise PbfUnsupported("empty blob")
         if btype == b"OSMHeader":
+            raw = _unpack(data, blob)
             seen_header = True
             for f, v in _fields(raw):
                 if f == 4 and bytes(raw[v[0]:v[1]]).decode("utf-8", "replace") not in _KNOWN_FEATURES:
@@ -387,39 +461,27 @@ def read_pbf_ways(path: str | Path, keys: tuple[str, ...]) -> PbfWays:
             continue
         if btype != b"OSMData" or not seen_header:
             raise PbfUnsupported("not an OSM data blob")
-        strings, groups = [], []
-        gran, lat_off, lon_off = 100, 0, 0
-        for f, v in _fields(raw):
-            if f == 1:
-                strings = _strings(raw, v)
-            elif f == 2:
-                groups.append(v)
-            elif f == 17:
-                gran = v
-            elif f == 19:
-                lat_off = v if v < 1 << 63 else v - (1 << 64)
-            elif f == 20:
-                lon_off = v if v < 1 << 63 else v - (1 << 64)
-        for g in groups:
-            for f, v in _fields(raw, *g):
-                if f == 2:
-                    i, xy = _dense(raw, v, gran, lat_off, lon_off)
-                    ids.append(i)
-                    xys.append(xy)
-                    break
-                if f == 3:
-                    wid, wt, cnt, rf = _ways(raw, g, strings, keys, values)
-                    way_ids.append(wid)
-                    counts.append(cnt)
-                    refs.append(rf)
-                    for k in keys:
-                        tags[k].append(wt[k])
-                    break
-                if f == 1:
-                    raise PbfUnsupported("non-dense nodes")
-                break  # relations, changesets: not needed
+        blocks.append(blob)
     if not seen_header:
         raise PbfUnsupported("no OSM header")
+    # (threads do not help here: blocks of ~8000 ways keep numpy under Python's lock)
+    decoded = [_data_block(data, blob, keys) for blob in blocks]
+    ids, xys = [], []
+    way_ids, counts, refs = [], [], []
+    tags: dict = {k: [] for k in keys}
+    values: dict = {k: {} for k in keys}
+    for nodes, ways in decoded:
+        for i, xy in nodes:
+            ids.append(i)
+            xys.append(xy)
+        for wid, wt, cnt, rf, local in ways:
+            way_ids.append(wid)
+            counts.append(cnt)
+            refs.append(rf)
+            for k in keys:  # block-local value numbers -> file-wide ones
+                known = values[k]
+                glob = np.array([known.setdefault(s, len(known)) for s in local[k]] + [-1], np.int32)
+                tags[k].append(glob[wt[k]])
 
     def cat(parts, dtype, shape=(0,)):
         return np.concatenate(parts) if parts else np.empty(shape, dtype)

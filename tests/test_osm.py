@@ -127,6 +127,9 @@ def test_path_from_the_plan():
 def _osm_module():
     import importlib
 
+    from sengine.builtin import load
+
+    load()
     return importlib.import_module("sengine_nodes.osm")
 
 
@@ -379,3 +382,50 @@ def test_osm_node_ids_on_request(helsinki):
            if n.id in want}
     xy = from_lonlat(roads.meta["crs"])(np.array([loc[i] for i in ids[:200]]))
     assert np.allclose(xy, roads.meta["nodes"][:200], atol=1e-6)
+
+
+def _pbf_module():
+    import importlib
+
+    _osm_module()
+    return importlib.import_module("sengine_nodes._pbf")
+
+
+def test_pbf_way_chain_ignores_false_candidates():
+    P = _pbf_module()
+    # ways start at tokens 0, 10, 20 (end 30); a packed value at token 5 looks like a way whose
+    # message would run to token 25, hiding the next two real starts from a plain scan
+    heads = P._chain(np.array([0, 5, 10, 20]), np.array([10, 25, 20, 30]), 30)
+    assert heads.tolist() == [0, 10, 20]
+    assert P._chain(np.array([0, 10]), np.array([10, 17]), 30) is None  # the chain leaves the candidates
+
+
+def _varint(v):
+    out = bytearray()
+    while True:
+        b, v = v & 0x7F, v >> 7
+        out.append(b | (0x80 if v else 0))
+        if not v:
+            return bytes(out)
+
+
+def _field(num, payload):
+    return _varint(num << 3 | 2) + _varint(len(payload)) + payload
+
+
+def test_pbf_ways_in_any_field_order():
+    """Ways whose id is not their first field are walked field by field."""
+    P = _pbf_module()
+    zig = lambda v: _varint((v << 1) ^ (v >> 63))  # noqa: E731
+    ways = b""
+    for wid, refs, (k, v) in [(7, [100, 101, 105], (1, 2)), (300, [5, 3], (1, 3)), (9, [1, 2], (4, 2))]:
+        deltas = np.diff(np.r_[0, refs]).tolist()
+        body = (_field(2, _varint(k)) + _field(3, _varint(v)) + _varint(1 << 3) + _varint(wid)
+                + _field(8, b"".join(zig(d) for d in deltas)))
+        ways += _field(3, body)
+    strings = [b"", b"highway", b"residential", b"primary", b"name"]
+    values = {"highway": {}}
+    wid, tags, count, refs = P._ways(ways, (0, len(ways)), strings, ("highway",), values)
+    assert wid.tolist() == [7, 300] and count.tolist() == [3, 2]
+    assert refs.tolist() == [100, 101, 105, 5, 3]
+    assert [list(values["highway"])[i] for i in tags["highway"]] == ["residential", "primary"]
