@@ -45,6 +45,7 @@ from sengine.geometry import (
     planar_faces,
     planarize,
     segments_from_lines,
+    threaded,
 )
 
 __all__ = ["find_blocks", "BlockFaces", "traced_faces", "face_half_widths", "shrink_faces", "street_graph", "BlocksCircuits"]
@@ -286,7 +287,7 @@ def _ring_between(outer, inner, gap=None):
         out[idx] = shapely.polygons(rings[o], indices=owner[o])
     rest = ~direct & ~same
     if rest.any():
-        out[rest] = shapely.difference(outer[rest], inner[rest])
+        out[rest] = threaded(shapely.difference, outer[rest], inner[rest], min_size=64)  # big, holed faces
     return out
 
 

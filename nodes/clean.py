@@ -39,7 +39,7 @@ import numpy as np
 import shapely
 
 from sengine import Layer, Param, Port, SENode, register
-from sengine.geometry import planar_faces
+from sengine.geometry import planar_faces, strtree_query
 
 from .blocks import find_blocks
 
@@ -96,7 +96,7 @@ class Pieces:
         return len(self.line)
 
 
-def split_at_junctions(key: np.ndarray, line: np.ndarray) -> Pieces:
+def split_at_junctions(key: np.ndarray, line: np.ndarray, *, ends_only: bool = False) -> Pieces:
     """Cut polylines at every point shared with another line (or revisited) and at their ends.
 
     Parameters
@@ -105,6 +105,9 @@ def split_at_junctions(key: np.ndarray, line: np.ndarray) -> Pieces:
         Identity of each point: equal keys are the same node.
     line : ndarray of int (n,)
         Line of each point, non-decreasing; points of a line are in order.
+    ends_only : bool
+        The caller knows that no inner point is shared (its keys are
+        unique): lines are not cut, and no node numbers are made.
 
     Returns
     -------
@@ -130,6 +133,9 @@ def split_at_junctions(key: np.ndarray, line: np.ndarray) -> Pieces:
         return Pieces(z, z, z, z, z)
     first = np.r_[True, ln[1:] != ln[:-1]]
     last = np.r_[ln[1:] != ln[:-1], True]
+    if ends_only:
+        lab = np.cumsum(first) - 1
+        return Pieces(idx, lab, ln[first], idx[first], idx[last])
     ukey, inv = np.unique(k, return_inverse=True)
     inv = inv.ravel()
     used = np.bincount(inv)[inv]
@@ -205,7 +211,7 @@ def crossing_points(xy: np.ndarray, line: np.ndarray, level: np.ndarray, key: np
         segs[have] = given[have]
     if not have.all():
         segs[~have] = shapely.linestrings(np.stack([p[~have], q[~have]], axis=1))
-    i, j = shapely.STRtree(segs).query(segs)  # bounding boxes only
+    i, j = strtree_query(shapely.STRtree(segs), segs)  # bounding boxes only
     sel = i < j
     i, j = i[sel], j[sel]
     ka, kb, kc, kd = key[a[i]], key[a[i] + 1], key[a[j]], key[a[j] + 1]
@@ -292,11 +298,13 @@ def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | No
         last = np.r_[part_line[1:] != part_line[:-1], True]
         key[first] = eu[part_line[first]]
         key[last] = ev[part_line[last]]
+        known = True
     else:
         key = point_keys(xy)
+        known = False
     r = np.zeros(len(geoms), np.int64) if rank is None else np.asarray(rank, np.int64)
     # merge duplicates first: twin ways would otherwise be cut at slightly different crossing points
-    pieces = split_at_junctions(key, part_line)
+    pieces = split_at_junctions(key, part_line, ends_only=known)
     keep, ndup = _duplicates(pieces, xy, key, r[src[pieces.line]], dup_tol)
     pieces = _take_pieces(pieces, keep)
     npts = np.bincount(pidx, minlength=nparts)
@@ -542,7 +550,7 @@ class RoadsClean(SENode):
         tunnel = roads.get("tunnel")
         if tunnel is not None and self.p.tunnels == "drop":
             keep &= ~tunnel.astype(bool)
-        lay = roads.take(np.flatnonzero(keep))
+        lay = roads if keep.all() else roads.take(np.flatnonzero(keep))
         n = len(lay)
         level = np.asarray(lay.get("layer", np.zeros(n, np.int64)), np.int64)
         struct = np.zeros(n, bool)
@@ -555,9 +563,11 @@ class RoadsClean(SENode):
         rank = np.zeros(n, np.int64)
         if cls is not None and n:
             lut = {c: i for i, c in enumerate(CLASS_RANK)}
-            memo: dict = {}  # a handful of distinct classes: rank each once
-            rank = np.fromiter((memo[c] if c in memo else memo.setdefault(
-                c, lut.get(str(c).removesuffix("_link"), len(CLASS_RANK))) for c in cls.tolist()), np.int64, n)
+            # a handful of distinct class objects (importers share them): rank each object once
+            obj, first, inv = np.unique(np.fromiter(map(id, cls), np.int64, n), return_index=True,
+                                        return_inverse=True)
+            ranks = [lut.get(str(cls[i]).removesuffix("_link"), len(CLASS_RANK)) for i in first.tolist()]
+            rank = np.asarray(ranks, np.int64)[inv.ravel()]
         if "major" in lay:
             rank = rank - 100 * lay["major"].astype(np.int64)
         ends = (lay["u"], lay["v"]) if "u" in lay and "v" in lay else None

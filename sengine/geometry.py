@@ -55,6 +55,8 @@ __all__ = [
     "frame_boxes",
     "clip_frame_boxes",
     "inset",
+    "threaded",
+    "strtree_query",
     "split_by_line",
     "boundary_segments",
     "segments_on",
@@ -677,6 +679,44 @@ def _cpus() -> int:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
         return os.cpu_count() or 1
+
+
+def threaded(func, *arrays, threads: int | None = None, min_size: int = PARALLEL_MIN, **kwargs):
+    """``func(*arrays, **kwargs)`` for an element-wise shapely function, spread over threads.
+
+    GEOS runs without Python's lock in the heavy shapely functions (buffer,
+    overlays, tree queries), so arrays of at least ``min_size`` elements
+    are cut into contiguous chunks, one per thread (default: the CPUs this
+    process may use, at most 4), and the results concatenated: the same
+    result as one call.
+    """
+    size = len(arrays[0])
+    n = min(_cpus(), 4) if threads is None else int(threads)
+    if n <= 1 or size < max(min_size, 2):
+        return func(*arrays, **kwargs)
+    from concurrent.futures import ThreadPoolExecutor
+
+    bounds = np.linspace(0, size, n + 1).astype(np.int64)
+    with ThreadPoolExecutor(n) as pool:
+        parts = list(pool.map(lambda k: func(*(a[bounds[k]:bounds[k + 1]] for a in arrays), **kwargs), range(n)))
+    return np.concatenate(parts, axis=-1)
+
+
+def strtree_query(tree, geoms, *, threads: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``tree.query(geoms)`` (bounding boxes) with the queries spread over threads; same output."""
+    geoms = np.asarray(geoms, dtype=object)
+    n = min(_cpus(), 4) if threads is None else int(threads)
+    if n <= 1 or len(geoms) < PARALLEL_MIN:
+        return tree.query(geoms)
+    from concurrent.futures import ThreadPoolExecutor
+
+    bounds = np.linspace(0, len(geoms), n + 1).astype(np.int64)
+    with ThreadPoolExecutor(n) as pool:
+        parts = list(pool.map(lambda k: tree.query(geoms[bounds[k]:bounds[k + 1]]), range(n)))
+    for k, part in enumerate(parts):
+        part[0] += bounds[k]
+    out = np.concatenate(parts, axis=1)
+    return out[0], out[1]
 
 
 def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = None):
