@@ -66,6 +66,9 @@ class PbfWays:
         Ids of the file's nodes, ascending.
     node_xy : ndarray of int64 (n, 2)
         Their (lon, lat) in 1e-7 deg (libosmium's ``Location.x / y``).
+    strings : frozenset of str
+        Those of the ``probe`` strings that occur in some block's string
+        table: a tag key absent from every table is on no object of the file.
     """
 
     way_id: np.ndarray
@@ -74,6 +77,7 @@ class PbfWays:
     refs: np.ndarray
     node_id: np.ndarray
     node_xy: np.ndarray
+    strings: frozenset = frozenset()
 
 
 # -- protocol buffers ------------------------------------------------------------------
@@ -372,7 +376,7 @@ def _unpack(data: bytes, blob: tuple[int, int]) -> bytes:
     return raw
 
 
-def _data_block(data: bytes, blob: tuple[int, int], keys: tuple[str, ...]):
+def _data_block(data: bytes, blob: tuple[int, int], keys: tuple[str, ...], probe: frozenset = frozenset()):
     """Dense nodes and ways of one OSMData blob.
 
     Returns
@@ -407,10 +411,10 @@ def _data_block(data: bytes, blob: tuple[int, int], keys: tuple[str, ...]):
             elif f == 1:
                 raise PbfUnsupported("non-dense nodes")
             break  # the first field tells the group's kind; relations, changesets: not needed
-    return nodes, ways
+    return nodes, ways, probe.intersection(strings)
 
 
-def read_pbf_ways(path: str | Path, keys: tuple[str, ...]) -> PbfWays:
+def read_pbf_ways(path: str | Path, keys: tuple[str, ...], *, probe=()) -> PbfWays:
     """Read the ways carrying ``keys[0]`` and every dense node of a PBF file.
 
     Parameters
@@ -419,6 +423,8 @@ def read_pbf_ways(path: str | Path, keys: tuple[str, ...]) -> PbfWays:
         An ``.osm.pbf`` file.
     keys : tuple of str
         Tag keys whose values are returned; ways without ``keys[0]`` are skipped.
+    probe : iterable of str
+        Strings to look for in the string tables (see ``PbfWays.strings``).
 
     Returns
     -------
@@ -465,12 +471,15 @@ def read_pbf_ways(path: str | Path, keys: tuple[str, ...]) -> PbfWays:
     if not seen_header:
         raise PbfUnsupported("no OSM header")
     # (threads do not help here: blocks of ~8000 ways keep numpy under Python's lock)
-    decoded = [_data_block(data, blob, keys) for blob in blocks]
+    probe = frozenset(s.encode() for s in probe)
+    decoded = [_data_block(data, blob, keys, probe) for blob in blocks]
     ids, xys = [], []
     way_ids, counts, refs = [], [], []
     tags: dict = {k: [] for k in keys}
     values: dict = {k: {} for k in keys}
-    for nodes, ways in decoded:
+    found: set = set()
+    for nodes, ways, seen in decoded:
+        found |= seen
         for i, xy in nodes:
             ids.append(i)
             xys.append(xy)
@@ -501,4 +510,5 @@ def read_pbf_ways(path: str | Path, keys: tuple[str, ...]) -> PbfWays:
         refs=cat(refs, np.int64),
         node_id=node_id,
         node_xy=node_xy,
+        strings=frozenset(s.decode() for s in found),
     )

@@ -143,6 +143,9 @@ class OsmExtract:
 
 
 _TAG_KEYS = ("name", "layer", "bridge", "tunnel", "oneway")
+#: The tag key each area kind of :func:`read_osm` needs (see ``area`` in :func:`_read_pyosmium`).
+_AREA_KEYS = {"building": "buildings", "natural": "water", "waterway": "water", "landuse": "water",
+              "leisure": "parks"}
 _UNDEFINED = 2147483647  # libosmium's coordinate of a node missing from the file
 
 
@@ -186,13 +189,13 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
     pbf = None
     if path.name.lower().endswith(".pbf"):
         try:
-            pbf = read_pbf_ways(path, ("highway", *_TAG_KEYS, "covered"))
+            pbf = read_pbf_ways(path, ("highway", *_TAG_KEYS, "covered"), probe=_AREA_KEYS.keys())
         except PbfUnsupported as exc:
             log.debug("%s: read with pyosmium (%s)", path.name, exc)
     if pbf is None:
         return _read_pyosmium(path, classes=classes, extras=extras, node_ids=node_ids, where=where)
     out = _pbf_extract(pbf, classes=classes, node_ids=node_ids, path=path, where=where)
-    if extras:
+    if any(_AREA_KEYS[k] in extras for k in pbf.strings):  # no such tag key in the file: no such area
         _read_pyosmium(path, classes=classes, extras=extras, node_ids=False, where=where, ways=False, out=out)
     return out
 

@@ -429,3 +429,27 @@ def test_pbf_ways_in_any_field_order():
     assert wid.tolist() == [7, 300] and count.tolist() == [3, 2]
     assert refs.tolist() == [100, 101, 105, 5, 3]
     assert [list(values["highway"])[i] for i in tags["highway"]] == ["residential", "primary"]
+
+
+def test_pbf_without_area_tags_skips_the_area_pass(tmp_path, monkeypatch):
+    osm = _osm_module()
+    nodes = [(1, 7.40, 43.70), (2, 7.41, 43.70), (3, 7.41, 43.71), (4, 7.40, 43.71)]
+    plain = tmp_path / "streets.osm.pbf"
+    _write_pbf(plain, nodes, [(10, [1, 2, 3], {"highway": "residential"})])
+    housed = tmp_path / "housed.osm.pbf"
+    _write_pbf(housed, nodes, [(10, [1, 2, 3], {"highway": "residential"}),
+                               (11, [1, 2, 3, 4, 1], {"building": "yes", "height": "12"})])
+    assert osm.read_pbf_ways(housed, ("highway",), probe=("building", "leisure")).strings == {"building"}
+    extras = frozenset({"water", "parks", "buildings"})
+    full = osm.read_osm(housed, extras=extras)
+    assert len(full.polygons["buildings"][0]) == 1 and full.polygons["buildings"][1][0]["height"] == 12.0
+
+    def no_second_pass(*args, **kwargs):
+        raise AssertionError("pyosmium pass")
+
+    monkeypatch.setattr(osm, "_read_pyosmium", no_second_pass)
+    ext = osm.read_osm(plain, extras=extras)  # no building/natural/... key in the file: nothing to assemble
+    assert len(ext.way_id) == 1 and not any(geoms for geoms, _ in ext.polygons.values())
+    with pytest.raises(AssertionError, match="pyosmium pass"):
+        osm.read_osm(housed, extras=frozenset({"buildings"}))
+    osm.read_osm(housed, extras=frozenset({"parks"}))  # buildings only: no park to look for
