@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
+from scipy.sparse import csr_matrix
 
 from sengine import Layer, Param, Port, SENode, register
 from sengine.geometry import planar_faces, strtree_query
@@ -361,9 +362,9 @@ def _drop_dead_ends(pieces: Pieces, key: np.ndarray, keep: np.ndarray) -> int:
         u, v = inv[:m], inv[m:]
     nn = int(inv.max()) + 1
     deg = np.bincount(u[keep], minlength=nn) + np.bincount(v[keep], minlength=nn)
-    order = np.argsort(inv, kind="stable")  # node -> incident pieces
-    inc = np.r_[np.arange(m), np.arange(m)][order]
-    inc_start = np.searchsorted(inv[order], np.arange(nn + 1))
+    # node -> incident pieces, as a CSR table (scipy fills it by counting, no sort)
+    table = csr_matrix((np.ones(2 * m, np.int8), (inv, np.r_[np.arange(m), np.arange(m)])), shape=(nn, m))
+    inc, inc_start = table.indices, table.indptr
     dead = np.flatnonzero(keep & ((deg[u] == 1) | (deg[v] == 1)))
     removed = 0
     while len(dead):
@@ -379,6 +380,18 @@ def _drop_dead_ends(pieces: Pieces, key: np.ndarray, keep: np.ndarray) -> int:
     return removed
 
 
+def _sort_by(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """``np.lexsort((c, b, a))``: by ``a``, then ``b``, then ``c`` (stable); one argsort when the three fit one int64."""
+    if not len(a):
+        return np.empty(0, np.int64)
+    lo = [int(x.min()) for x in (a, b, c)]
+    span = [int(x.max()) - m + 1 for x, m in zip((a, b, c), lo, strict=True)]
+    if span[0] * span[1] * span[2] >= 2**62:
+        return np.lexsort((c, b, a))
+    packed = ((a - lo[0]) * span[1] + (b - lo[1])) * span[2] + (c - lo[2])
+    return np.argsort(packed, kind="stable")
+
+
 def _duplicates(pieces: Pieces, xy: np.ndarray, key: np.ndarray, rank: np.ndarray,
                 dup_tol: float) -> tuple[np.ndarray, int]:
     """Keep-mask of pieces: of pieces joining the same two nodes within ``dup_tol`` (Hausdorff, m), the lowest rank."""
@@ -387,7 +400,7 @@ def _duplicates(pieces: Pieces, xy: np.ndarray, key: np.ndarray, rank: np.ndarra
         return keep, 0
     u, v = key[pieces.first], key[pieces.last]
     a, b = np.minimum(u, v), np.maximum(u, v)
-    order = np.lexsort((rank, b, a))
+    order = _sort_by(a, b, rank)
     same = (a[order][1:] == a[order][:-1]) & (b[order][1:] == b[order][:-1])
     if not same.any():
         return keep, 0
