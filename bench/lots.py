@@ -1,0 +1,178 @@
+"""Benchmark: the lot nodes (skylineEngine §5.5) on real and generated blocks.
+
+Blocks come from
+
+* ``liege``: Liège's street network (about 80,000 segments) through the
+  nodes ``osm.read`` -> ``roads.clean`` -> ``blocks.circuits`` (as in the
+  load-map network), about 3,450 blocks, many large and irregular;
+* ``manhattan`` / ``paris``: ``configs/manhattan.xml`` and
+  ``configs/paris.xml`` when they exist, run up to their ``blocks`` node.
+
+Blocks are made once per case and cached (pickled ``Layer``) in the
+temporary folder.  Each lot node (``lots.manhattan``, ``lots.recursive``,
+``lots.paris``, default parameters) then runs on them in a fresh process, so
+that ``peak_rss_mb`` (the process's peak resident memory, ``resource``) is
+its own; times are the best of ``--repeat`` runs of ``node.run`` (method plus
+lot attributes).  Results go to ``bench/results/lots.json``.
+
+Usage::
+
+    python bench/lots.py [--repeat 3] [--cases liege,manhattan,paris] [--out bench/results/lots.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import pickle
+import platform
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import shapely
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+LIEGE = next((p for p in (ROOT / "configs/data/liege_streets.osm.pbf",
+                          ROOT.parent / "shared/data/liege_streets.osm.pbf") if p.exists()),
+             ROOT / "configs/data/liege_streets.osm.pbf")
+METHODS = ("lots.manhattan", "lots.recursive", "lots.paris")
+
+
+def _peak_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def _cache_path(case: str, source: Path) -> Path:
+    st = source.stat()
+    tag = hashlib.sha1(f"{source.resolve()}:{st.st_size}:{st.st_mtime_ns}".encode()).hexdigest()[:12]
+    return Path(tempfile.gettempdir()) / f"sengine_bench_lots_{case}_{tag}.pkl"
+
+
+def liege_blocks(path: Path):
+    """Blocks of the Liège extract through the load-map nodes."""
+    from sengine import Context
+    from sengine.registry import get
+
+    ctx = Context(seed=1)
+    roads = get("osm.read")("majorRoads", {"path": str(path), "extras": ""}, ctx).run()["roads"]
+    roads = get("roads.clean")("clean", {}, ctx).run(roads=roads)["roads"]
+    return get("blocks.circuits")("blocks", {"node": False}, ctx).run(roads=roads)["blocks"]
+
+
+def config_blocks(path: Path):
+    """The ``blocks`` layer of a configuration, running only the nodes it needs."""
+    from sengine.xmlconfig import load_config
+
+    net = load_config(path)
+    need, todo = set(), ["blocks"]
+    while todo:
+        node = todo.pop()
+        if node in need:
+            continue
+        need.add(node)
+        todo += [c.src for c in net.connections if c.dst == node]
+    net.specs = {k: v for k, v in net.specs.items() if k in need}
+    net.connections = [c for c in net.connections if c.src in need and c.dst in need]
+    return net.run()["blocks"]
+
+
+def sources() -> dict[str, Path]:
+    out = {"liege": LIEGE}
+    for name in ("manhattan", "paris"):
+        out[name] = ROOT / "configs" / f"{name}.xml"
+    return out
+
+
+def blocks_of(case: str):
+    src = sources()[case]
+    cache = _cache_path(case, src)
+    if cache.exists():
+        with cache.open("rb") as f:
+            return pickle.load(f), 0.0
+    t = time.perf_counter()
+    blocks = liege_blocks(src) if case == "liege" else config_blocks(src)
+    dt = time.perf_counter() - t
+    with cache.open("wb") as f:
+        pickle.dump(blocks, f)
+    return blocks, dt
+
+
+def run_method(case: str, method: str, repeat: int) -> dict:
+    from sengine import Context
+    from sengine.builtin import load
+    from sengine.registry import get
+
+    load()
+    blocks, _ = blocks_of(case)
+    best, out, node = float("inf"), None, None
+    for _ in range(repeat):
+        node = get(method)("lots", {}, Context(seed=1))
+        t = time.perf_counter()
+        out = node.run(blocks=blocks)["lots"]
+        best = min(best, time.perf_counter() - t)
+    g = out.geometry
+    barea = shapely.area(blocks.geometry)
+    larea = np.bincount(np.searchsorted(blocks.ids, out["block"]), weights=shapely.area(g), minlength=len(blocks))
+    rel = np.abs(larea - barea) / np.maximum(barea, 1e-12)
+    return {
+        "case": case, "method": method, "blocks": int(len(blocks)), "lots": int(len(out)),
+        "seconds": round(best, 3), "lots_per_s": round(len(out) / best), "peak_rss_mb": round(_peak_mb(), 1),
+        "max_partition_error": float(rel.max()) if len(rel) else 0.0,
+        "no_frontage": int(((out["frontage"] <= 0) & ~out["inner"]).sum()),
+        "invalid": int((~shapely.is_valid(g)).sum()), "report": node.report,
+    }
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--cases", default="liege,manhattan,paris")
+    ap.add_argument("--out", type=Path, default=ROOT / "bench/results/lots.json")
+    ap.add_argument("--run", nargs=2, metavar=("CASE", "METHOD"), help=argparse.SUPPRESS)
+    ap.add_argument("--prepare", metavar="CASE", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.prepare:
+        from sengine.builtin import load
+
+        load()
+        blocks, dt = blocks_of(args.prepare)
+        print(json.dumps({"case": args.prepare, "blocks": int(len(blocks)), "blocks_s": round(dt, 2)}))
+        return 0
+    if args.run:
+        print(json.dumps(run_method(args.run[0], args.run[1], args.repeat)))
+        return 0
+    results = []
+    for case in args.cases.split(","):
+        src = sources().get(case)
+        if src is None or not src.exists():
+            print(f"skip {case}: {src} not found", file=sys.stderr)
+            continue
+        prep = subprocess.run([sys.executable, __file__, "--prepare", case], capture_output=True, text=True)
+        if prep.returncode:
+            print(f"skip {case}: {prep.stderr.strip().splitlines()[-1:]}", file=sys.stderr)
+            continue
+        print(prep.stdout.strip(), file=sys.stderr)
+        for method in METHODS:
+            proc = subprocess.run([sys.executable, __file__, "--run", case, method, "--repeat", str(args.repeat)],
+                                  capture_output=True, text=True, check=True)
+            res = json.loads(proc.stdout.strip().splitlines()[-1])
+            print(json.dumps({k: v for k, v in res.items() if k != "report"}), file=sys.stderr)
+            results.append(res)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    doc = {"benchmark": "lots", "python": platform.python_version(), "shapely": shapely.__version__,
+           "geos": shapely.geos_version_string, "numpy": np.__version__, "machine": platform.machine(),
+           "results": results}
+    args.out.write_text(json.dumps(doc, indent=1))
+    print(f"wrote {args.out}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
