@@ -172,10 +172,12 @@ def traced_faces(meta: dict, rows: int, *, decimals: int | None) -> BlockFaces |
     """The faces a road layer already carries, when they are what :func:`find_blocks` would give.
 
     ``roads.clean`` traces the faces of its plane segment graph once (to find
-    slivers) and hands them on in ``meta["graph"]``; they are taken over when
-    that graph belongs to exactly these ``rows`` and merging nodes to
-    ``decimals`` would merge none (the graph is then the one the lines
-    give, only numbered differently).
+    slivers) and hands them on in ``meta["graph"]``, its nodes numbered as
+    the lines entry numbers them after merging to ``graph["decimals"]``
+    (set only when that merges no two nodes).  They are taken over when the
+    graph belongs to exactly these ``rows`` and was numbered for these
+    ``decimals``: then they are the faces, in the order, that
+    ``find_blocks(lines, node=False, decimals=decimals)`` gives.
 
     Returns
     -------
@@ -185,11 +187,9 @@ def traced_faces(meta: dict, rows: int, *, decimals: int | None) -> BlockFaces |
     g = meta.get("graph")
     if not isinstance(g, dict) or g.get("rows") != rows or not isinstance(g.get("blocks"), BlockFaces):
         return None
+    if g.get("decimals") is None or g.get("decimals") != decimals:
+        return None
     bf = g["blocks"]
-    if decimals is not None and len(bf.xy):
-        key = np.ascontiguousarray(np.round(bf.xy, decimals), np.float64) + 0.0
-        if len(np.unique(key.view(np.complex128))) != len(key):
-            return None
     return replace(bf, src=np.asarray(g["row"], np.int64)[bf.src], counts=dict(bf.counts))
 
 

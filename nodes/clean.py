@@ -40,9 +40,9 @@ import shapely
 from scipy.sparse import csr_matrix
 
 from sengine import Layer, Param, Port, SENode, register
-from sengine.geometry import planar_faces, strtree_query
+from sengine.geometry import merge_points, planar_faces, strtree_query
 
-from .blocks import find_blocks
+from .blocks import BlocksCircuits, find_blocks
 
 __all__ = [
     "Pieces",
@@ -595,21 +595,30 @@ class RoadsClean(SENode):
             geoms[rest] = shapely.linestrings(xy[pieces.vertex[sel]],
                                               indices=np.searchsorted(rest, pieces.piece[sel]))
         nodes, su, sv, pu, pv, row = segment_graph(pieces, xy, key)
-        # the faces are traced once, here: blocks.circuits takes them over (meta["graph"]["blocks"])
-        faces = find_blocks((nodes, su, sv), node=False, decimals=None) if self.p.find_slivers and len(pieces) else None
+        graph = {"rows": len(pieces), "xy": nodes, "u": su, "v": sv, "row": row, "decimals": None}
+        faces = None
+        if self.p.find_slivers and len(pieces):
+            # the faces are traced once, here, and blocks.circuits takes them over: numbered as its
+            # lines entry numbers nodes (merged to its default decimals), they come out in the same order
+            decimals = BlocksCircuits.params["decimals"].default
+            mxy, inv = merge_points(nodes, decimals)
+            if len(mxy) == len(nodes):  # no two nodes merge: only the numbering changes
+                graph.update(xy=mxy, u=inv[su], v=inv[sv], decimals=decimals)
+            faces = find_blocks((graph["xy"], graph["u"], graph["v"]), node=False, decimals=None)
+            graph["blocks"] = faces
         out = lay.take(pieces.line)
         out = Layer(np.asarray(geoms, dtype=object), np.arange(len(pieces), dtype=np.int64), out.ids.copy(),
                     {**out.attrs, "u": pu, "v": pv},
                     {**meta, "planar": True, "nodes": nodes,
                      # the plane straight-segment graph, valid for exactly these rows (see find_blocks):
-                     # segment k joins nodes u[k], v[k] and lies on row[k]; its traced faces when found
-                     "graph": {"rows": len(pieces), "xy": nodes, "u": su, "v": sv, "row": row,
-                               **({"blocks": faces} if faces is not None else {})}})
+                     # segment k joins nodes u[k], v[k] (indices into graph xy) and lies on row[k];
+                     # its traced faces when found; xy numbered as find_blocks(lines, decimals) would
+                     "graph": graph})
         counts["tunnels_dropped"] = int(n0 - n)
         slivers = Layer.empty(meta=meta, kind=object)
         counts["slivers_merged"] = counts["islands"] = counts["medians"] = 0
         if faces is not None:
-            polys, kind, nfaces = find_slivers(nodes, su, sv, sliver_width=self.p.sliver_width,
+            polys, kind, nfaces = find_slivers(graph["xy"], graph["u"], graph["v"], sliver_width=self.p.sliver_width,
                                                island_area=self.p.island_area, faces=faces)
             slivers = Layer.from_geoms(polys, meta=meta, kind=kind)
             counts["faces"] = nfaces
