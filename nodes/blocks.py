@@ -16,6 +16,10 @@ permutation.  Dead ends (edges with the same face on both sides) are
 dropped before the final trace; a component floating inside a block
 becomes a hole of it.
 
+When the roads come from ``roads.clean``, which traces these faces on
+its plane segment graph anyway, the node takes them over from
+``meta["graph"]`` (:func:`traced_faces`: same faces, same order).
+
 Blocks are then shrunk for the streets and sidewalks (§5.4, last
 paragraph): each face is inset by the length-weighted mean half-width of
 the streets around it, giving the street surface, and by the sidewalk

@@ -20,9 +20,11 @@ quite one.  This module prepares it, on whole numpy arrays:
 5. **Slivers** -- the thin faces between dual carriageways and the tiny
    traffic islands inside junctions are street surface, not blocks: faces
    narrower than ``sliver_width`` or smaller than ``island_area`` are found
-   with the same face tracer the blocks use, counted (``slivers_merged``) and
+   with the face tracer the blocks use, counted (``slivers_merged``) and
    handed on as ``slivers`` (polygons of kind ``median`` / ``island``) to
-   be drawn as street surface.  The graph keeps their edges, so the block
+   be drawn as street surface.  The faces are traced once: the plane
+   segment graph and its faces go on in ``meta["graph"]``, numbered as
+   ``blocks.circuits`` would number them, which takes them over.  The graph keeps their edges, so the block
    faces still partition the city; the blocks node's street and sidewalk
    inset leaves nothing of them (``vanished_by_inset``).
 

@@ -6,12 +6,15 @@ minor-road modules "are collapsed into a single node that simply reads the
 file and passes the resulting network to the next modules" (002 §5.3).  This
 module is that node.
 
-The file is streamed once with pyosmium (``.osm``, ``.osm.bz2``,
-``.osm.pbf``): each ``highway=*`` way is turned into well-known binary by
-libosmium's own geometry factory, so no Python object is made per node.  All
-coordinates are then decoded, projected to the UTM zone of the data with one
-vectorized pyproj call, and split into *street segments* between junctions
-with numpy.  A junction is a point shared by two ways (or visited twice by
+A plain ``.osm.pbf`` (zlib blocks, dense nodes: what osmium, osmosis and
+the usual extract services write) is decoded by numpy (``nodes/_pbf.py``):
+node refs, tags and coordinates of all ways come out as arrays, with no
+Python object per way or node.  Any other file (``.osm``, ``.osm.bz2``, a
+PBF using other features) is streamed once with pyosmium, each
+``highway=*`` way turned into well-known binary by libosmium's geometry
+factory; both give the same extract.  The points are then projected to the
+UTM zone of the data with one vectorized pyproj call (each junction once)
+and split into *street segments* between junctions with numpy.  A junction is a point shared by two ways (or visited twice by
 one way) or a way's end.  Point identity is the OSM location itself
 (libosmium's 1e-7 degree fixed-point integers): two ways share a junction
 exactly when they share a node, except for the data error of two distinct
@@ -21,7 +24,9 @@ its end points into ``meta["nodes"]`` (planar xy) and ``meta["node_keys"]``.
 
 Water (``natural=water``, ``waterway=riverbank``, ``landuse=reservoir``),
 parks (``leisure=park``/``garden``) and buildings (with ``height`` /
-``building:levels``) of the same file are optional extra layers.
+``building:levels``) of the same file are optional extra layers, assembled
+by pyosmium in a second pass (skipped for a PBF whose string tables hold
+none of the tag keys they need).
 
 References
 ----------
