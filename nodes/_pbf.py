@@ -246,6 +246,9 @@ def _ways(buf: bytes, span, strings: list[bytes], keys: tuple[str, ...], values:
     raw = np.frombuffer(buf, np.uint8, span[1] - span[0], span[0])
     start, end = _bounds(raw)
     k = len(start)
+    at = np.full(len(raw) + 1, -1, np.int32)  # byte -> the token starting there
+    at[start] = np.arange(k, dtype=np.int32)
+    at[len(raw)] = k
 
     def val(i):
         return _values(raw, start[i], end[i])
@@ -259,9 +262,8 @@ def _ways(buf: bytes, span, strings: list[bytes], keys: tuple[str, ...], values:
         if len(two):
             j = i[two] + 1
             cend = end[j] + 1 + val(j).astype(np.int64)
-            pos = np.searchsorted(start, cend)
-            ok = (cend == len(raw)) | ((pos < k) & (start[np.minimum(pos, k - 1)] == cend))
-            out[two] = np.where(ok, pos, -1)
+            out[two] = at[np.minimum(cend, len(raw))]
+            out[two[cend > len(raw)]] = -1
         out[out > k] = -1
         return out, tag
 
