@@ -139,8 +139,7 @@ def split_at_junctions(key: np.ndarray, line: np.ndarray, *, ends_only: bool = F
     if ends_only:
         lab = np.cumsum(first) - 1
         return Pieces(idx, lab, ln[first], idx[first], idx[last])
-    ukey, inv = np.unique(k, return_inverse=True)
-    inv = inv.ravel()
+    ukey, inv = _dense(k)
     used = np.bincount(inv)[inv]
     junction = (used >= 2) | first | last
     start = junction & ~last
@@ -155,6 +154,17 @@ def split_at_junctions(key: np.ndarray, line: np.ndarray, *, ends_only: bool = F
     ends = np.r_[lab[1:] != lab[:-1], True]
     vertex = idx[pos]
     return Pieces(vertex, lab, ln[pos[brk]], vertex[brk], vertex[ends], node=inv[pos], node_key=ukey)
+
+
+def _dense(k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(k, return_inverse=True)``; by a presence table, without sorting, for keys in a narrow range."""
+    lo, hi = int(k.min()), int(k.max())
+    if hi - lo > 4 * len(k) + 1024:
+        ukey, inv = np.unique(k, return_inverse=True)
+        return ukey, inv.ravel()
+    present = np.zeros(hi - lo + 1, bool)
+    present[k - lo] = True
+    return np.flatnonzero(present) + lo, (np.cumsum(present) - 1)[k - lo]
 
 
 def point_keys(xy: np.ndarray) -> np.ndarray:
