@@ -117,7 +117,8 @@ class _Contour:
         lap, second = lap[o], second[o]
         self.lap_xy, self.lap_next, self.lap_len = v[lap], nxt[lap], el[lap]
         self.lap_flag = flag[lap]
-        self.lap_g = goff[vi[lap]] + arc[lap] + np.where(second, perim[vi[lap]], 0.0)
+        self.lap_arc = arc[lap] + np.where(second, perim[vi[lap]], 0.0)  # within the polygon
+        self.lap_g = goff[vi[lap]] + self.lap_arc  # to search all polygons at once
         fl = np.where(self.lap_flag, self.lap_len, 0.0)
         self.lap_F = np.cumsum(fl) - fl  # street length before each lap edge (global)
         self.lstart, self.nlap = 2 * vstart, 2 * nv
@@ -132,11 +133,29 @@ class _Contour:
         self.nrm = np.zeros_like(self.pts)
         self.inner = self.pts
 
+    def _search(self, p, s, right=True):
+        """Lap index of the last vertex at or before (``right``) / strictly before arc ``s``, plus one.
+
+        The global search only gives a first guess (the polygon's offset
+        rounds ``s``); the answer is settled on the polygon's own arcs, so it
+        does not depend on which other polygons share the batch.
+        """
+        i = np.searchsorted(self.lap_g, self.goff[p] + s, side="right" if right else "left")
+        lo, hi = self.lstart[p], self.lstart[p] + self.nlap[p]
+        i = np.clip(i, lo, hi)
+        for _ in range(4):  # at most a step or two: rounding is far below edge lengths
+            before = (i > lo) & ((self.lap_arc[np.maximum(i - 1, 0)] > s) if right
+                                 else (self.lap_arc[np.maximum(i - 1, 0)] >= s))
+            after = (i < hi) & ((self.lap_arc[np.minimum(i, len(self.lap_arc) - 1)] <= s) if right
+                                else (self.lap_arc[np.minimum(i, len(self.lap_arc) - 1)] < s))
+            if not (before.any() or after.any()):
+                break
+            i = i - before + after
+        return i
+
     def _index(self, p, s):
-        g = self.goff[p] + s
-        i = np.searchsorted(self.lap_g, g, side="right") - 1
-        i = np.clip(i, self.lstart[p], self.lstart[p] + self.nlap[p] - 1)
-        return i, g - self.lap_g[i]
+        i = np.clip(self._search(p, s) - 1, self.lstart[p], self.lstart[p] + self.nlap[p] - 1)
+        return i, s - self.lap_arc[i]
 
     def _at(self, p, s):
         """Points at arc length ``s`` in [0, 2 perim) of polygons ``p``."""
@@ -166,10 +185,8 @@ class _Contour:
 
     def _ring_vertices(self, p, ja, jb):
         """First lap index and count of the ring vertices strictly between samples ``ja`` and ``jb``."""
-        g0 = self.goff[p] + self.arc(p, ja) + 1e-9
-        g1 = self.goff[p] + self.arc(p, jb) - 1e-9
-        i0 = np.searchsorted(self.lap_g, g0, side="right")
-        i1 = np.searchsorted(self.lap_g, g1, side="left")
+        i0 = self._search(p, self.arc(p, ja) + 1e-9, right=True)
+        i1 = self._search(p, self.arc(p, jb) - 1e-9, right=False)
         return i0, np.maximum(i1 - i0, 0)
 
     def _polygons(self, kinds, idx, sizes):
@@ -443,7 +460,8 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
     rs = RingSet.from_polygons(parts, flag=True)  # every block edge faces a street
     keep = np.bincount(rs.poly, minlength=rs.n) > 0
     rs, own = rs.take(keep), own[keep]
-    key = np.arange(1, rs.n + 1, dtype=np.uint64)
+    # piece key: 1 + the part's rank in its block (then 2 k + side after cuts): batch independent
+    key = (np.arange(rs.n) - np.searchsorted(own, own) + 1).astype(np.uint64)
     out_l, out_o, out_i = [], [], []
     corners = cuts = 0
     for level in range(max_cuts + 1):

@@ -38,6 +38,12 @@ import shapely
 __all__ = ["RingSet", "split", "cut_lengths", "polygon_parts", "ring_segments", "segments_on_boundary"]
 
 
+def _ramp(counts) -> np.ndarray:
+    """0, 1, ..., c - 1 for each count, concatenated."""
+    counts = np.asarray(counts, np.int64)
+    return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+
+
 def _first_of(groups: np.ndarray, n: int) -> np.ndarray:
     """Start index of each group ``0..n-1`` in a sorted ``groups`` array (n + 1 offsets)."""
     return np.r_[0, np.cumsum(np.bincount(groups, minlength=n))].astype(np.int64)
@@ -298,7 +304,7 @@ def cut_lengths(rs: RingSet, point, direction):
         Length of marked edges (m) left and right of the line, i.e. the
         marked length each side's pieces will share.
     """
-    s, _, vp, _ = _signed(rs, point, direction)
+    s, t, vp, _ = _signed(rs, point, direction)
     pos = s >= 0.0
     nx = rs.next_vertex()
     crossing = pos != pos[nx]
@@ -307,6 +313,9 @@ def cut_lengths(rs: RingSet, point, direction):
     with np.errstate(divide="ignore", invalid="ignore"):
         lam = np.where(crossing, s / (s - sn), 1.0)  # share of the edge on its first vertex's side
     w = np.where(rs.flag, ln, 0.0)
+    # an edge lying on the line goes with the side its interior is on (left when it runs along the line)
+    on_line = (s == 0.0) & (sn == 0.0)
+    pos = np.where(on_line, t[nx] > t, pos)
     first_left = np.where(pos, lam, 1.0 - lam) * w
     left = np.bincount(vp, weights=first_left, minlength=rs.n)
     right = np.bincount(vp, weights=w, minlength=rs.n) - left
@@ -379,7 +388,20 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
     partner[order] = order[np.where(rank % 2 == 0, np.arange(C) + 1, np.arange(C) - 1)]
     cross_at = np.full(len(rs.xy), -1, np.int64)
     cross_at[ce] = np.arange(C)
-    out = [_side(rs, left, pos, cross_at, cxy, leaving, partner, chord_flag) for left in (True, False)]
+    # a chord running along marked edges that lie on the line keeps their mark
+    chord = np.full(C, bool(chord_flag))
+    on_line = np.flatnonzero((s == 0.0) & (s[nx] == 0.0) & rs.flag)
+    if len(on_line):
+        lo_i = order[rank % 2 == 0]  # first crossing of each chord
+        hi_i = partner[lo_i]
+        mid = 0.5 * (ct[lo_i] + ct[hi_i])
+        ta, tb = t[on_line], t[nx[on_line]]
+        e_lo, e_hi, e_p = np.minimum(ta, tb), np.maximum(ta, tb), vp[on_line]
+        for k in range(len(on_line)):  # rare: cuts along marked edges
+            hit = (cp[lo_i] == e_p[k]) & (mid > e_lo[k]) & (mid < e_hi[k])
+            chord[lo_i[hit]] = True
+            chord[hi_i[hit]] = True
+    out = [_side(rs, left, pos, cross_at, cxy, leaving, partner, chord) for left in (True, False)]
     pieces = RingSet.concat([o[0] for o in out])
     parent = np.concatenate([o[1] for o in out])
     side = np.concatenate([np.full(len(o[1]), 1 if left else 0, np.int8) for o, left in zip(out, (True, False))])
@@ -402,7 +424,10 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
 
 
 def _side(rs, left, pos, cross_at, cxy, leaving, partner, chord_flag):
-    """Pieces of every polygon on one side of its line: (RingSet, parent, bad)."""
+    """Pieces of every polygon on one side of its line: (RingSet, parent, bad).
+
+    ``chord_flag`` is the mark of the chord leaving each crossing.
+    """
     R = len(rs.poly)
     on = pos if left else ~pos
     has_c = cross_at >= 0
@@ -421,7 +446,7 @@ def _side(rs, left, pos, cross_at, cxy, leaving, partner, chord_flag):
     exits = leaving[cidx] == left  # the boundary leaves this side here
     nflag = np.empty(M, bool)
     nflag[vnode] = rs.flag[on]
-    nflag[cnode] = np.where(exits, chord_flag, rs.flag[has_c])
+    nflag[cnode] = np.where(exits, chord_flag[cidx], rs.flag[has_c])
     nring = np.repeat(rs.ring, cnt)
     node_of_c = np.empty(len(partner), np.int64)
     node_of_c[cidx] = cnode
@@ -438,13 +463,15 @@ def _side(rs, left, pos, cross_at, cxy, leaving, partner, chord_flag):
     run = np.where(crossed, run_off[nring] + (ce_cum - 1) % np.maximum(n_entry[nring], 1), -1)
     nruns = int(n_entry.sum())
     entry_nodes = np.flatnonzero(is_entry)
-    run_entry_k = np.empty(nruns, np.int64)
+    run_entry_k = np.zeros(max(nruns, 1), np.int64)
     run_entry_k[run[entry_nodes]] = k[entry_nodes]
     pos_in = (k - run_entry_k[np.maximum(run, 0)]) % np.maximum(rlen[nring], 1)  # crossed nodes only
     next_run = np.empty(nruns, np.int64)
     next_run[run[cnode[exits]]] = run[node_of_c[partner[cidx[exits]]]]
     runs_of = np.bincount(rs.poly, weights=n_entry, minlength=rs.n).astype(np.int64)
     rep, rank = _cycles(next_run, int(runs_of.max()) if rs.n else 0)
+    if nruns == 0:  # nothing crossed: keep the indexing below valid
+        rep, rank = np.zeros(1, np.int64), np.zeros(1, np.int64)
     # cycle key: crossed nodes by their cycle's first run, uncrossed rings after all of them
     cyc = np.where(crossed, rep[np.maximum(run, 0)], nruns + nring)
     par_node = rs.poly[nring]
@@ -592,7 +619,7 @@ def ring_segments(polys):
     return c[a], c[a + 1], ci[a].astype(np.int64), ring[a]
 
 
-def segments_on_boundary(geoms, owner, polys, *, tol: float = 1e-6):
+def segments_on_boundary(geoms, owner, polys, *, tol: float = 1e-6, chunk: int = 12):
     """Boundary segments of each geometry and whether each lies on its owner's boundary.
 
     A segment lies on the owner's boundary when its midpoint is within
@@ -608,6 +635,9 @@ def segments_on_boundary(geoms, owner, polys, *, tol: float = 1e-6):
     owner : array_like of int (k,)
         Index into ``polys`` of each geometry's owner.
     polys : array_like of shapely.Polygon
+    chunk : int
+        Geometries with more segments are queried in runs of this many
+        consecutive segments (their envelope would meet too many).
 
     Returns
     -------
@@ -626,19 +656,42 @@ def segments_on_boundary(geoms, owner, polys, *, tol: float = 1e-6):
     lo = np.minimum(b0, b1) - tol
     hi = np.maximum(b0, b1) + tol
     tree = shapely.STRtree(shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]))
-    gi, bi = tree.query(geoms)
-    same = bown[bi] == owner[gi]
-    gi, bi = gi[same], bi[same]
+    # query groups of consecutive segments: small geometries by their own envelope,
+    # long boundaries (courtyards, whole blocks) in runs of `chunk` segments
     sstart = _first_of(idx, len(geoms))
-    cnt = np.diff(sstart)[gi]
+    nseg = np.diff(sstart)
+    small = nseg <= chunk
+    gs = np.flatnonzero(small)
+    qi, bi = tree.query(geoms[gs])
+    g_first, g_cnt = sstart[gs[qi]], nseg[gs[qi]]
+    same = bown[bi] == owner[gs[qi]]
+    firsts, cnts, bis = [g_first[same]], [g_cnt[same]], [bi[same]]
+    big = np.flatnonzero(~small)
+    if len(big):
+        nch = -(-nseg[big] // chunk)
+        cg = np.repeat(big, nch)  # geometry of each chunk
+        c0 = sstart[cg] + _ramp(nch) * chunk
+        cc = np.minimum(chunk, sstart[cg] + nseg[cg] - c0)
+        # envelope of each chunk: reduce over [start, end) pairs, a padding row after the last end
+        lo_s = np.r_[np.minimum(p0, p1), np.zeros((1, 2))]
+        hi_s = np.r_[np.maximum(p0, p1), np.zeros((1, 2))]
+        bounds = np.ravel(np.c_[c0, c0 + cc])
+        bl = np.minimum.reduceat(lo_s, bounds)[::2]
+        bh = np.maximum.reduceat(hi_s, bounds)[::2]
+        ci, bi = tree.query(shapely.box(bl[:, 0], bl[:, 1], bh[:, 0], bh[:, 1]))
+        same = bown[bi] == owner[cg[ci]]
+        firsts.append(c0[ci[same]])
+        cnts.append(cc[ci[same]])
+        bis.append(bi[same])
+    first, cnt, bi = np.concatenate(firsts), np.concatenate(cnts), np.concatenate(bis)
     step = 1 << 22  # pairs per batch, to bound memory
     ends = np.cumsum(cnt)
     j0 = 0
-    while j0 < len(gi):
+    while j0 < len(first):
         j1 = int(np.searchsorted(ends, (ends[j0 - 1] if j0 else 0) + step, side="right"))
         j1 = max(j1, j0 + 1)
         c = cnt[j0:j1]
-        ps = np.repeat(sstart[gi[j0:j1]], c) + (np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c))
+        ps = np.repeat(first[j0:j1], c) + _ramp(c)
         pb = np.repeat(bi[j0:j1], c)
         e = b1[pb] - b0[pb]
         w = 0.5 * (p0[ps] + p1[ps]) - b0[pb]

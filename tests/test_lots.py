@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -189,3 +190,69 @@ def test_filter_and_stats():
     lots = get("lots.manhattan")("l", {}).run(blocks=Layer.from_geoms([shapely.box(0, 0, 270, 80)]))["lots"]
     st_ = get("stats.shape")("s", {}).run(input=lots)["output"]
     assert np.allclose(st_["depth"], 40.0) and np.allclose(st_["frontage"], lots["frontage"])
+
+
+@pytest.mark.parametrize("name", METHODS)
+def test_lots_of_a_block_do_not_depend_on_its_batch(name):
+    polys = [shapely.box(0, 0, 150, 100), shapely.Polygon([(0, 0), (120, 0), (120, 90), (60, 20), (0, 90)]),
+             shapely.affinity.rotate(shapely.box(0, 0, 270, 80), 29)]
+    ids = np.array([4, 9, 17])
+
+    def lots_of(sel):
+        blocks = Layer.from_geoms([polys[i] for i in sel], ids=ids[sel])
+        out = get(name)("lots", {}, Context(seed=3)).run(blocks=blocks)["lots"]
+        return shapely.to_wkb(out.geometry[out["block"] == 9]).tolist()
+
+    assert lots_of([0, 1, 2]) == lots_of([1]) == lots_of([2, 1])
+
+
+@pytest.fixture(scope="module")
+def monaco_blocks():
+    """Blocks of the Monaco extract through the load-map nodes (53 irregular blocks)."""
+    ctx = Context(seed=1)
+    data = Path(__file__).resolve().parent.parent / "configs" / "data" / "monaco.osm.pbf"
+    roads = get("osm.read")("majorRoads", {"path": str(data), "extras": "",
+                                           "minor": "unclassified,residential,living_street,pedestrian,road"},
+                            ctx).run()["roads"]
+    roads = get("roads.clean")("clean", {"sliver_width": 6}, ctx).run(roads=roads)["roads"]
+    blocks = get("blocks.circuits")("blocks", {"node": False, "sidewalk": 2, "min_area": 50}, ctx).run(roads=roads)
+    blocks = blocks["blocks"]
+    origin = shapely.bounds(blocks.geometry)[:, :2].min(axis=0)  # local frame for the snap-rounding measures
+    return Layer.from_geoms(shapely.transform(blocks.geometry, lambda xy: xy - origin), ids=blocks.ids,
+                            district=np.zeros(len(blocks), int))
+
+
+@pytest.mark.parametrize("name", METHODS)
+def test_real_blocks(monaco_blocks, name):
+    node = get(name)("lots", {}, Context(seed=2))
+    lots = node.run(blocks=monaco_blocks)["lots"]
+    check_lots(monaco_blocks, lots, name)
+    assert node.report.get("kept_whole", 0) == 0 and node.report["no_frontage"] == 0
+    assert len(lots) > 3 * len(monaco_blocks)
+
+
+def test_recursive_degenerate_cuts():
+    # symmetric shapes: exact-middle cuts run through vertices and along edges
+    polys = [shapely.Polygon([(0, 0), (40, 20), (0, 40), (-40, 20)]), shapely.box(0, 0, 64, 64),
+             shapely.Polygon([(0, 0), (60, 0), (60, 60), (30, 30), (0, 60)])]
+    blocks = Layer.from_geoms(polys)
+    node = get("lots.recursive")("lots", {"jitter": 0.0, "max_area": 100.0, "min_frontage": 1.0})
+    lots = node.run(blocks=blocks)["lots"]
+    check_lots(blocks, lots, "lots.recursive")
+    assert (shapely.area(lots.geometry) <= 100 + 1e-9).mean() > 0.9
+
+
+def test_paris_thin_concave_and_holed_blocks():
+    polys = [shapely.box(0, 0, 300, 12),  # thinner than two lot depths
+             shapely.Polygon([(0, 0), (200, 0), (200, 40), (40, 40), (40, 200), (0, 200)]),  # L: concave corner
+             shapely.box(0, 0, 200, 200).difference(shapely.box(80, 80, 120, 120))]  # a hole in the courtyard
+    blocks = Layer.from_geoms(polys)
+    node = get("lots.paris")("lots", {})
+    lots = node.run(blocks=blocks)["lots"]
+    check_lots(blocks, lots, "lots.paris")
+    assert node.report["paris_fallback"] == 0
+    court = lots.geometry[lots["inner"] & (lots["block"] == 2)]
+    assert len(court) == 1 and len(court[0].interiors) == 1
+    # perimeter lots about one segment wide all around each block
+    per_block = np.bincount(lots["block"][~lots["inner"]], minlength=3)
+    assert (per_block >= 0.6 * shapely.length(blocks.geometry) / 20.0 - 2).all()
