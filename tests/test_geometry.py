@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from sengine.geometry import (
     boundary_segments,
     frame_boxes,
+    inset,
     merge_points,
     obb_frame,
     planar_faces,
@@ -18,6 +19,9 @@ from sengine.geometry import (
     segments_from_lines,
     signed_area,
     split_by_line,
+    strtree_query,
+    threaded,
+    trace_faces,
 )
 
 SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -131,3 +135,40 @@ def test_split_by_line_halves_partition():
     assert left[0].intersection(right[0]).area < 1e-9
     p0, p1, idx, ring = boundary_segments([poly])
     assert len(p0) == 5 and (idx == 0).all()
+
+
+def test_threads_give_the_one_call_results():
+    rng = np.random.default_rng(5)
+    c = rng.uniform(0, 1000, (3000, 2))
+    polys = shapely.buffer(shapely.points(c), rng.uniform(5, 30, 3000), quad_segs=3)
+    d = rng.uniform(0, 8, 3000)
+    one = shapely.buffer(polys, -d, join_style="mitre", mitre_limit=3.0)
+    assert shapely.equals_exact(inset(polys, d, threads=3), one, 0).all()
+    assert shapely.equals_exact(inset(polys, d, threads=1), one, 0).all()
+    boxes = shapely.box(*(c - 3).T, *(c + 3).T)
+    diff = threaded(shapely.difference, polys, boxes, threads=2, min_size=10)
+    assert shapely.equals_exact(diff, shapely.difference(polys, boxes), 0).all()
+    tree = shapely.STRtree(polys)
+    assert np.array_equal(np.stack(strtree_query(tree, boxes, threads=3)), tree.query(boxes))
+
+
+def test_trace_with_a_filtered_order_is_the_same_trace():
+    rng = np.random.default_rng(2)
+    xy = rng.uniform(0, 100, (60, 2))
+    tri = shapely.delaunay_triangles(shapely.multipoints(xy), only_edges=True)
+    c = shapely.get_coordinates(shapely.get_parts(tri)).reshape(-1, 2, 2)
+    ids = {tuple(p): k for k, p in enumerate(xy.tolist())}
+    u = np.array([ids[tuple(p)] for p in c[:, 0].tolist()])
+    v = np.array([ids[tuple(p)] for p in c[:, 1].tolist()])
+    full = trace_faces(xy, u, v)
+    keep = np.flatnonzero(rng.random(len(u)) < 0.7)
+    d = xy[np.stack([v, u], 1).ravel()] - xy[np.stack([u, v], 1).ravel()]
+    order = np.lexsort((np.arctan2(d[:, 1], d[:, 0]), np.stack([u, v], 1).ravel()))
+    renum = np.full(len(u), -1)
+    renum[keep] = np.arange(len(keep))
+    e = renum[order >> 1]
+    filtered = 2 * e[e >= 0] + (order[e >= 0] & 1)
+    a = trace_faces(xy, u[keep], v[keep])
+    b = trace_faces(xy, u[keep], v[keep], order=filtered)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+    assert len(full[2]) > 0
