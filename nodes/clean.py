@@ -42,7 +42,7 @@ import shapely
 from scipy.sparse import csr_matrix
 
 from sengine import Layer, Param, Port, SENode, register
-from sengine.geometry import merge_points, planar_faces, strtree_query
+from sengine.geometry import argsort_int, merge_points, planar_faces, strtree_query
 
 from .blocks import BlocksCircuits, find_blocks
 
@@ -401,7 +401,7 @@ def _sort_by(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     if span[0] * span[1] * span[2] >= 2**62:
         return np.lexsort((c, b, a))
     packed = ((a - lo[0]) * span[1] + (b - lo[1])) * span[2] + (c - lo[2])
-    return np.argsort(packed, kind="stable")
+    return argsort_int(packed)
 
 
 def _duplicates(pieces: Pieces, xy: np.ndarray, key: np.ndarray, rank: np.ndarray,

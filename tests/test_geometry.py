@@ -172,3 +172,12 @@ def test_trace_with_a_filtered_order_is_the_same_trace():
     b = trace_faces(xy, u[keep], v[keep], order=filtered)
     assert all(np.array_equal(x, y) for x, y in zip(a, b))
     assert len(full[2]) > 0
+
+
+def test_argsort_int_is_a_stable_argsort():
+    from sengine.geometry import argsort_int
+
+    rng = np.random.default_rng(0)
+    for span in (3, 1000, 70_000, 2**31, 2**47, 2**60):
+        k = rng.integers(-span, span, 20_000)
+        assert np.array_equal(argsort_int(k), np.argsort(k, kind="stable"))
