@@ -531,10 +531,11 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
     brk = np.flatnonzero(np.r_[True, pieces.piece[1:] != pieces.piece[:-1]])
     u, v = vnode[brk], vnode[np.r_[brk[1:], len(vnode)] - 1]
     c = code[row]
-    return Layer.from_geoms(
-        geoms,
-        meta={"crs": crs, "origin": origin, "nodes": nodes, "node_keys": ukeys, "source": "osm", **meta_ids},
-        **{
+    n = len(geoms)
+    # the Layer directly: from_geoms would copy the 80k-element geometry array through a list
+    return Layer(
+        geoms, np.arange(n, dtype=np.int64), np.full(n, -1, np.int64),
+        {
             "class": names[c],
             "major": is_major[c],
             "width": widths[c],
@@ -547,6 +548,7 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
             "u": u,
             "v": v,
         },
+        {"crs": crs, "origin": origin, "nodes": nodes, "node_keys": ukeys, "source": "osm", **meta_ids},
     )
 
 
