@@ -700,6 +700,12 @@ PARALLEL_MIN = 1000
 
 
 def _cpus() -> int:
+    """CPUs for GEOS threads: those this process may use; one inside a worker process (the
+    executor already spreads work over processes there, threads would oversubscribe)."""
+    import multiprocessing
+
+    if multiprocessing.parent_process() is not None:
+        return 1
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
@@ -753,8 +759,8 @@ def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = No
 
     GEOS buffers without holding Python's lock, so an array of at least
     :data:`PARALLEL_MIN` polygons is dealt out over ``threads`` threads
-    (default: the CPUs this process may use, at most 4); each polygon's
-    result is the same as on one thread.
+    (default: the CPUs this process may use, at most 4; one in a worker
+    process); each polygon's result is the same as on one thread.
     """
     polys = np.asarray(polys, dtype=object)
     dist = -np.broadcast_to(np.asarray(distance, np.float64), polys.shape)
