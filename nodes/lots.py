@@ -30,7 +30,7 @@ import shapely
 
 from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import ParameterError
-from sengine.split import segments_on_boundary
+from sengine.split import ring_segments, segments_on_boundary
 
 from .lots_manhattan import manhattan_lots
 from .lots_paris import paris_lots
@@ -64,7 +64,8 @@ def frontage(geoms, owner, blocks) -> np.ndarray:
     return np.bincount(idx[on], weights=ln[on], minlength=len(geoms))
 
 
-def lot_attributes(lots, owner, blocks, *, corner_angle: float = 30.0, edge_angle: float = 15.0) -> dict:
+def lot_attributes(lots, owner, blocks, *, corner_angle: float = 30.0, edge_angle: float = 15.0, on=None,
+                   known=None) -> dict:
     """Street-facing facts of each lot, from its block's boundary.
 
     Parameters
@@ -78,6 +79,11 @@ def lot_attributes(lots, owner, blocks, *, corner_angle: float = 30.0, edge_angl
     edge_angle : float
         Consecutive frontage segments turning by less than this (deg) count as
         one street edge.
+    on, known : ndarray of bool, optional
+        Which boundary segment of each lot lies on its block's boundary, as
+        the method knows it (one per segment of :func:`sengine.split.ring_segments`
+        of ``lots``), and for which lots it knows (default all when ``on`` is
+        given); the others are measured (within ``ON_TOL``).
 
     Returns
     -------
@@ -93,7 +99,19 @@ def lot_attributes(lots, owner, blocks, *, corner_angle: float = 30.0, edge_angl
            "front_angle": np.full(k, np.nan)}
     if k == 0:
         return out
-    p0, p1, idx, ring, on = segments_on_boundary(lots, owner, blocks, tol=ON_TOL)
+    owner = np.asarray(owner, np.int64)
+    if on is None:
+        p0, p1, idx, ring, on = segments_on_boundary(lots, owner, blocks, tol=ON_TOL)
+    else:
+        p0, p1, idx, ring = ring_segments(lots)
+        on = np.asarray(on, bool).copy()
+        if len(on) != len(idx):
+            raise ValueError(f"lot_attributes: {len(on)} segment flags for {len(idx)} segments")
+        unknown = np.flatnonzero(~np.asarray(known, bool)) if known is not None else np.zeros(0, np.int64)
+        if len(unknown):
+            _, _, uidx, _, uon = segments_on_boundary(lots[unknown], owner[unknown], blocks, tol=ON_TOL)
+            mine = np.isin(idx, unknown)
+            on[mine] = uon  # segments of a subset come in the same order
     if len(idx) == 0:
         return out
     d = p1 - p0
@@ -159,6 +177,38 @@ def _check_partition(blocks, lots, owner, report):
     return lots, owner, np.ones(len(lots), bool), 0
 
 
+class _SegmentFlags:
+    """Per-segment 'lies on the block boundary' flags of lots, as far as the method knows them."""
+
+    def __init__(self, lots, on=None, known=None):
+        self.count = shapely.get_num_coordinates(lots) - 1 - shapely.get_num_interior_rings(lots)
+        self.count = np.maximum(self.count, 0)
+        self.on = np.zeros(int(self.count.sum()), bool) if on is None else np.asarray(on, bool)
+        self.known = np.zeros(len(lots), bool) if on is None else np.asarray(known, bool)
+        if len(self.on) != self.count.sum():  # not aligned with the lots: measure them all
+            self.on, self.known = np.zeros(int(self.count.sum()), bool), np.zeros(len(lots), bool)
+
+    def take(self, idx) -> _SegmentFlags:
+        idx = np.asarray(idx, np.int64)
+        start = np.cumsum(self.count) - self.count
+        c = self.count[idx]
+        seg = np.repeat(start[idx], c) + np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+        out = _SegmentFlags.__new__(_SegmentFlags)
+        out.count, out.on, out.known = c, self.on[seg], self.known[idx]
+        return out
+
+    def append(self, lots) -> _SegmentFlags:
+        return self._join(self, _SegmentFlags(lots))
+
+    @staticmethod
+    def _join(a, more) -> _SegmentFlags:
+        self = a
+        out = _SegmentFlags.__new__(_SegmentFlags)
+        out.count = np.r_[self.count, more.count]
+        out.on, out.known = np.r_[self.on, more.on], np.r_[self.known, more.known]
+        return out
+
+
 class _Lots(SENode):
     """Shared body of the lot nodes: attributes, partition check, layer."""
 
@@ -167,7 +217,9 @@ class _Lots(SENode):
     maps_features = True
     method = ""
 
-    def split(self, blocks: Layer, report: dict):  # -> lots, owner, method names, inner flags
+    def split(self, blocks: Layer, report: dict):
+        """-> lots, owner (non-decreasing), method names, inner flags, and the method's
+        knowledge of frontage: segment flags and which lots they cover (or None, None)."""
         raise NotImplementedError
 
     def run(self, *, blocks: Layer) -> dict[str, Layer]:
@@ -182,15 +234,17 @@ class _Lots(SENode):
                                              front_angle=np.empty(0))}
         empty = shapely.is_empty(geoms) | (shapely.area(geoms) <= 0)
         report["skipped_empty"] = int(empty.sum())
-        lots, owner, method, inner = self.split(blocks, report)
-        ok = ~shapely.is_empty(lots) & (shapely.get_type_id(lots) == 3)
-        lots, owner, method, inner = lots[ok], owner[ok], method[ok], inner[ok]
+        lots, owner, method, inner, on, known = self.split(blocks, report)
+        flags = _SegmentFlags(lots, on, known)
+        ok = np.flatnonzero(~shapely.is_empty(lots) & (shapely.get_type_id(lots) == 3))
+        lots, owner, method, inner, flags = lots[ok], owner[ok], method[ok], inner[ok], flags.take(ok)
         lots, owner, keep, nwhole = _check_partition(geoms, lots, owner, report)
         method = np.r_[method[keep], np.full(nwhole, "whole")]
         inner = np.r_[inner[keep], np.zeros(nwhole, bool)]
+        flags = flags.take(np.flatnonzero(keep)).append(lots[len(lots) - nwhole:])
         o = np.lexsort((np.arange(len(owner)), owner))
-        lots, owner, method, inner = lots[o], owner[o], method[o], inner[o]
-        att = lot_attributes(lots, owner, geoms)
+        lots, owner, method, inner, flags = lots[o], owner[o], method[o], inner[o], flags.take(o)
+        att = lot_attributes(lots, owner, geoms, on=flags.on, known=flags.known)
         district = np.asarray(blocks["district"], np.int64)[owner] if "district" in blocks \
             else np.full(len(lots), -1, np.int64)
         report["lots"] = int(len(lots))
@@ -205,7 +259,8 @@ class _Lots(SENode):
 
 def _manhattan(self, geoms, report, *, count, width, min_depth):
     lots, owner = manhattan_lots(geoms, count=count, width=width, min_depth=min_depth)
-    return lots, owner, np.full(len(lots), "manhattan"), np.zeros(len(lots), bool)
+    o = np.argsort(owner, kind="stable")
+    return lots[o], owner[o], np.full(len(lots), "manhattan"), np.zeros(len(lots), bool), None, None
 
 
 def _seeds(self, ids) -> np.ndarray:
@@ -215,17 +270,18 @@ def _seeds(self, ids) -> np.ndarray:
 
 
 def _recursive(self, geoms, ids, report, *, max_area, min_frontage, jitter):
-    lots, owner = recursive_lots(geoms, max_area=max_area, min_frontage=min_frontage, jitter=jitter,
-                                 seeds=_seeds(self, ids), report=report)
+    lots, owner, on = recursive_lots(geoms, max_area=max_area, min_frontage=min_frontage, jitter=jitter,
+                                     seeds=_seeds(self, ids), report=report, street=True)
     over = int((shapely.area(lots) > max_area).sum())
     report["over_max_area"] = report.get("over_max_area", 0) + over
-    return lots, owner, np.full(len(lots), "recursive"), np.zeros(len(lots), bool)
+    return lots, owner, np.full(len(lots), "recursive"), np.zeros(len(lots), bool), on, np.ones(len(lots), bool)
 
 
 def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage):
-    lots, owner, inner = paris_lots(geoms, segment=segment, depth=depth, deviation=deviation,
-                                    seeds=_seeds(self, ids), min_frontage=min_frontage, report=report)
-    return lots, owner, np.full(len(lots), "paris"), inner
+    lots, owner, inner, on, known = paris_lots(geoms, segment=segment, depth=depth, deviation=deviation,
+                                               seeds=_seeds(self, ids), min_frontage=min_frontage, report=report,
+                                               street=True)
+    return lots, owner, np.full(len(lots), "paris"), inner, on, known
 
 
 _P_MANHATTAN = {
@@ -322,7 +378,7 @@ class LotsDistrict(_Lots):
         geoms = blocks.geometry
         district = np.asarray(blocks["district"], np.int64) if "district" in blocks \
             else np.full(len(blocks), -1, np.int64)
-        out_l, out_o, out_m, out_i = [], [], [], []
+        out_l, out_o, out_m, out_i, out_f = [], [], [], [], []
         for dist in np.unique(district):
             sel = np.flatnonzero(district == dist)
             method, v = self._rule_params(int(dist))
@@ -335,10 +391,18 @@ class LotsDistrict(_Lots):
             else:
                 res = _paris(self, geoms[sel], blocks.ids[sel], report, segment=v["segment"], depth=v["depth"],
                              deviation=v["deviation"], min_frontage=min(v["min_frontage"], 2.0))
-            lots, owner, meth, inner = res
+            lots, owner, meth, inner, on, known = res
             out_l.append(lots)
             out_o.append(sel[owner])
             out_m.append(meth)
             out_i.append(inner)
+            out_f.append(_SegmentFlags(lots, on, known))
             report[f"blocks_{method}"] = report.get(f"blocks_{method}", 0) + len(sel)
-        return np.concatenate(out_l), np.concatenate(out_o), np.concatenate(out_m), np.concatenate(out_i)
+        flags = out_f[0]
+        for f in out_f[1:]:
+            flags = _SegmentFlags._join(flags, f)
+        owner = np.concatenate(out_o)
+        o = np.argsort(owner, kind="stable")
+        flags = flags.take(o)
+        return (np.concatenate(out_l)[o], owner[o], np.concatenate(out_m)[o], np.concatenate(out_i)[o],
+                flags.on, flags.known)

@@ -47,6 +47,7 @@ import logging
 import numpy as np
 import shapely
 
+from sengine.geometry import threaded
 from sengine.split import RingSet, polygon_parts, split
 
 from .lots_recursive import hash01
@@ -78,8 +79,37 @@ def _normal(seed, key):
 def _clean(geoms, area):
     """Simple, counter-clockwise polygons (the partition certificate's test)."""
     ok = np.asarray(area) > 0
-    ok[ok] = shapely.is_valid(np.asarray(geoms, dtype=object)[ok])
+    ok[ok] = threaded(shapely.is_valid, np.asarray(geoms, dtype=object)[ok])  # GEOS runs without the GIL
     return ok
+
+
+class _Marks:
+    """One mark per boundary segment of each of a list of polygons (flat, with counts)."""
+
+    def __init__(self, flat, counts):
+        self.flat = np.asarray(flat, bool)
+        self.counts = np.asarray(counts, np.int64)
+
+    def take(self, idx) -> _Marks:
+        idx = np.asarray(idx, np.int64)
+        c = self.counts[idx]
+        return _Marks(self.flat[np.repeat((np.cumsum(self.counts) - self.counts)[idx], c) + _ramp(c)], c)
+
+    @staticmethod
+    def concat(marks) -> _Marks:
+        marks = list(marks)
+        return _Marks(np.concatenate([m.flat for m in marks]) if marks else np.zeros(0, bool),
+                      np.concatenate([m.counts for m in marks]) if marks else np.zeros(0, np.int64))
+
+    @classmethod
+    def unknown(cls, geoms) -> _Marks:
+        geoms = np.asarray(geoms, dtype=object)
+        c = np.maximum(shapely.get_num_coordinates(geoms) - 1 - shapely.get_num_interior_rings(geoms), 0)
+        return cls(np.zeros(int(c.sum()), bool), c)
+
+    @classmethod
+    def of(cls, rs: RingSet) -> _Marks:
+        return cls(rs.flag, np.bincount(rs.vertex_poly(), minlength=rs.n))
 
 
 # -- the contour ------------------------------------------------------------------------------
@@ -189,8 +219,13 @@ class _Contour:
         i1 = self._search(p, self.arc(p, jb) - 1e-9, right=False)
         return i0, np.maximum(i1 - i0, 0)
 
-    def _polygons(self, kinds, idx, sizes):
-        """Polygons from (kind, index) coordinates: kind 0 sample point, 1 inner point, 2 lap vertex."""
+    def _polygons(self, kinds, idx, sizes, seg):
+        """Polygons from (kind, index) coordinates: kind 0 sample point, 1 inner point, 2 lap vertex.
+
+        ``seg`` marks the segment starting at each coordinate as lying on
+        the contour's street edges.  Returns the polygons, their signed
+        areas and their segment marks (a :class:`_Marks`).
+        """
         table_off = np.array([0, len(self.pts), 2 * len(self.pts)])
         table = np.concatenate([self.pts, self.inner, self.lap_xy])
         xy = table[table_off[kinds] + idx]
@@ -200,10 +235,10 @@ class _Contour:
         start = np.cumsum(sizes) - sizes
         ring = np.repeat(np.arange(len(sizes)), sizes)
         q = xy - xy[start][ring]
-        last = np.r_[ring[1:] != ring[:-1], True]
+        last = np.r_[ring[1:] != ring[:-1], True] if len(ring) else np.zeros(0, bool)
         qn = np.r_[q[1:], q[:1]]
         cr = np.where(last, 0.0, q[:, 0] * qn[:, 1] - q[:, 1] * qn[:, 0])
-        return polys, 0.5 * np.bincount(ring, weights=cr, minlength=len(sizes))
+        return polys, 0.5 * np.bincount(ring, weights=cr, minlength=len(sizes)), _Marks(seg[~last], sizes - 1)
 
     def chains(self, p, ja, jb, step):
         """Polygons: contour from sample ``ja`` to ``jb`` then the inner points of jb, jb - step, ..., ja.
@@ -232,8 +267,11 @@ class _Contour:
         rb = row[back]
         kinds[back] = 1
         idx[back] = ms[rb] + np.mod(jb[rb] - q * step[rb], m[rb])
-        polys, area = self._polygons(kinds, idx, size)
-        return polys, area, self.street(p, self.arc(p, ja), self.arc(p, jb))
+        seg = np.zeros(len(row), bool)
+        contour = r <= nvr
+        seg[contour] = self.lap_flag[i0[row[contour]] - 1 + r[contour]]
+        polys, area, marks = self._polygons(kinds, idx, size, seg)
+        return polys, area, self.street(p, self.arc(p, ja), self.arc(p, jb)), marks
 
     def core(self, p, ja, jb, kind):
         """One core ring per polygon from units in ring order: kind 0 a lot's inner chain,
@@ -257,6 +295,9 @@ class _Contour:
         kinds[mer] = np.where(rr == 1, 0, np.where(rr <= nv[rm] + 1, 2, 0))
         idx[mer] = np.where(rr == 1, ms[rm] + np.mod(ja[rm], m[rm]),
                             np.where(rr <= nv[rm] + 1, i0[rm] + rr - 2, ms[rm] + np.mod(jb[rm], m[rm])))
+        seg = np.zeros(len(row), bool)
+        contour = (kind[row] == 2) & (r >= 1) & (r <= nv[row] + 1)
+        seg[contour] = self.lap_flag[i0[row[contour]] + r[contour] - 2]
         # close each polygon's ring with its first coordinate
         P = len(self.m)
         per = np.bincount(p[row], minlength=P)
@@ -266,11 +307,20 @@ class _Contour:
         owner = np.r_[p[row], np.flatnonzero(has)]
         o = np.argsort(owner, kind="stable")
         sizes = np.bincount(owner, minlength=P)
-        polys, area = self._polygons(kinds[order[o]], idx[order[o]], sizes[sizes > 0])
-        return polys, area, np.flatnonzero(has)
+        seg = np.r_[seg, np.zeros(int(has.sum()), bool)]
+        polys, area, marks = self._polygons(kinds[order[o]], idx[order[o]], sizes[sizes > 0], seg[order[o]])
+        return polys, area, np.flatnonzero(has), marks
 
 
 # -- one pass over a set of polygons ------------------------------------------------------------
+
+RISK = 0.5  # an inner segment shorter than this share of its contour segment (or reversed) is risky
+
+
+def cstart_of(C):
+    """Index of each polygon's first candidate."""
+    return np.cumsum(C.nseg) - C.nseg
+
 
 def _runs(flag, cp, ci, nseg):
     """Maximal cyclic runs of flagged candidates, in polygons with an unflagged one.
@@ -310,14 +360,26 @@ def _pass(rs, depth, segment, min_frontage, C):
     ci = _ramp(nseg)
     ja = 3 * ci
     one = np.ones(len(cp), np.int64)
-    q, qa, front = C.chains(cp, ja, ja + 3, one)
+    q, qa, front, qm = C.chains(cp, ja, ja + 3, one)
     merge = front < min_frontage  # too little street: part of the core
     bad = ~_clean(q, qa) & ~merge
     # windows of w consecutive candidates: their union must be simple too,
     # otherwise two of them overlap (winding numbers add up)
+    # (only where the inner line folds or bunches up: elsewhere neighbours cannot meet)
     w = np.minimum(3, nseg - 1)[cp]
-    win, wa, _ = C.chains(cp, ja, ja + 3 * w, one)
-    bad_win = ~_clean(win, wa)
+    di = C.inner[C.mstart[C.sp] + np.mod(C.sj + 1, C.m[C.sp])] - C.inner
+    dp = C.pts[C.mstart[C.sp] + np.mod(C.sj + 1, C.m[C.sp])] - C.pts
+    fold = np.einsum("ij,ij->i", di, dp) < RISK * np.einsum("ij,ij->i", dp, dp)
+    risky = np.bincount((cstart_of(C)[C.sp] + C.sj // 3)[fold],
+                        minlength=len(cp)) > 0
+    near = risky.copy()
+    for k in (1, 2):  # a window starting at i covers i .. i + 2
+        near |= risky[cstart_of(C)[cp] + np.mod(ci + k, nseg[cp])]
+    wsel = np.flatnonzero(near)
+    bad_win = np.zeros(len(cp), bool)
+    if len(wsel):
+        win, wa, _, _ = C.chains(cp[wsel], ja[wsel], ja[wsel] + 3 * w[wsel], one[wsel])
+        bad_win[wsel] = ~_clean(win, wa)
     cstart = np.cumsum(nseg) - nseg
     for k in range(3):
         sel = bad_win & (k < w)
@@ -327,7 +389,7 @@ def _pass(rs, depth, segment, min_frontage, C):
     # not simple grows by one candidate on each side, then joins the core
     for it in range(3):
         run_p, s_i, n_i = _runs(bad, cp, ci, nseg)
-        corner, ca, cfront = C.chains(run_p, 3 * s_i, 3 * (s_i + n_i), 3 * n_i)
+        corner, ca, cfront, _ = C.chains(run_p, 3 * s_i, 3 * (s_i + n_i), 3 * n_i)
         f = ~(_clean(corner, ca) & (cfront >= min_frontage))
         if not f.any():
             break
@@ -340,7 +402,7 @@ def _pass(rs, depth, segment, min_frontage, C):
             merge[members] = True
             bad[members] = False
     run_p, s_i, n_i = _runs(bad, cp, ci, nseg)
-    corner, ca, cfront = C.chains(run_p, 3 * s_i, 3 * (s_i + n_i), 3 * n_i)
+    corner, ca, cfront, cm = C.chains(run_p, 3 * s_i, 3 * (s_i + n_i), 3 * n_i)
     merge_runs = _runs(merge, cp, ci, nseg)
     good = ~bad & ~merge
     # the core, unit after unit in ring order
@@ -351,12 +413,14 @@ def _pass(rs, depth, segment, min_frontage, C):
     ub = np.r_[ja[gi] + 3, 3 * (s_i + n_i), 3 * (ms_ + mn)]
     uk = np.r_[np.zeros(len(gi), np.int64), np.ones(len(run_p), np.int64), np.full(len(mp), 2, np.int64)]
     o = np.lexsort((np.mod(ua, C.m[up]), up))
-    core, core_a, cpoly = C.core(up[o], ua[o], ub[o], uk[o])
+    core, core_a, cpoly, corem = C.core(up[o], ua[o], ub[o], uk[o])
     all_merged = np.bincount(cp, weights=~merge, minlength=P) == 0
     done = np.zeros(P, bool)
     done[cpoly] = _clean(core, core_a)
     core_of = np.full(P, None, dtype=object)
     core_of[cpoly] = core
+    core_mark = np.full(P, -1, np.int64)  # index into corem, -1: unknown marks
+    core_mark[cpoly] = np.arange(len(cpoly))
     done &= np.bincount(run_p, weights=~_clean(corner, ca) | (cfront < min_frontage), minlength=P) == 0
     # holes must lie inside the core
     nring = np.bincount(rs.poly, minlength=P)
@@ -367,12 +431,16 @@ def _pass(rs, depth, segment, min_frontage, C):
             holes = [shapely.Polygon(r) for r in sub[k].interiors]
             if shapely.contains_properly(core_of[hi], holes).all():
                 core_of[hi] = shapely.Polygon(core_of[hi].exterior, [r.coords for r in sub[k].interiors])
+                core_mark[hi] = -1
             else:
                 done[hi] = False
     whole = np.flatnonzero(all_merged)  # no street worth a lot: the polygon is one inner lot
     done[whole] = True
+    whole_m = _Marks.of(rs.take(whole))
     if len(whole):
         core_of[whole] = rs.take(whole).polygons()
+        core_mark[whole] = len(cpoly) + np.arange(len(whole))
+    corem = _Marks.concat([corem, whole_m])
     # lots: good candidates, corner lots, cores (small cores join their longest neighbour)
     gsel = good & done[cp]
     csel = done[run_p]
@@ -395,11 +463,23 @@ def _pass(rs, depth, segment, min_frontage, C):
         lots = lots.copy()
         lots[j[oku]] = u[oku]
         merged[lpoly[j[oku]]] = True
+        replaced = j[oku]
+    else:
+        replaced = np.zeros(0, np.int64)
     kc = np.flatnonzero(done & ~merged)
     lots = np.r_[lots, core_of[kc]]
     lpoly = np.r_[lpoly, kc]
     inner = np.r_[np.zeros(len(lots) - len(kc), bool), np.ones(len(kc), bool)]
-    return lots, lpoly, inner, done, int(csel.sum())
+    # segment marks, where the construction knows them (not for GEOS-made lots)
+    nq, nc = int(gsel.sum()), int(csel.sum())
+    src = _Marks.concat([qm.take(np.flatnonzero(gsel)), cm.take(np.flatnonzero(csel)), corem])
+    pick = np.r_[np.arange(nq + nc), nq + nc + core_mark[kc]]
+    known = np.r_[np.ones(nq + nc, bool), core_mark[kc] >= 0]
+    known[replaced] = False
+    unk = np.flatnonzero(~known)
+    src = _Marks.concat([src, _Marks.unknown(lots[unk])])
+    pick[unk] = src.counts.size - len(unk) + np.arange(len(unk))
+    return lots, lpoly, inner, done, nc, src.take(pick), known
 
 
 def _back_length(C, p, ja, jb, step):
@@ -418,7 +498,7 @@ def _back_length(C, p, ja, jb, step):
 # -- all blocks -------------------------------------------------------------------------------
 
 def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, rngs=None, min_frontage=2.0,
-               max_cuts=8, report=None):
+               max_cuts=8, report=None, street=False):
     """Paris lots (§5.5, Fig. 9 left).
 
     Parameters
@@ -444,11 +524,19 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
         merged from overlapping candidates), ``paris_cut`` (cuts made) and
         ``paris_fallback`` (pieces kept whole).
 
+    street : bool
+        Also return which boundary segment of each lot lies on its block's
+        boundary, where the construction knows it.
+
     Returns
     -------
     lots, owner : ndarray of shapely.Polygon, ndarray of int64 (non-decreasing)
     inner : ndarray of bool
         True for the core lot(s) (courtyards) that need not touch a street.
+    on, known : ndarray of bool, only with ``street``
+        One mark per boundary segment of the lots (order of
+        :func:`sengine.split.ring_segments`), and per lot whether the marks
+        are known (lots made by GEOS unions are not).
     """
     blocks = np.asarray(blocks, dtype=object).ravel()
     n = len(blocks)
@@ -462,7 +550,7 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
     rs, own = rs.take(keep), own[keep]
     # piece key: 1 + the part's rank in its block (then 2 k + side after cuts): batch independent
     key = (np.arange(rs.n) - np.searchsorted(own, own) + 1).astype(np.uint64)
-    out_l, out_o, out_i = [], [], []
+    out_l, out_o, out_i, out_m, out_k = [], [], [], [], []
     corners = cuts = 0
     for level in range(max_cuts + 1):
         if rs.n == 0:
@@ -475,11 +563,13 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
         d = np.minimum(d, 0.3 * width[C.sp])
         C.smooth(np.minimum(2.0 * np.minimum(depth, 0.3 * width), C.perim / 8.0))
         C.inner = C.pts + d[:, None] * C.nrm
-        lots, lpoly, inner, done, nc = _pass(rs, depth, segment, min_frontage, C)
+        lots, lpoly, inner, done, nc, marks, known = _pass(rs, depth, segment, min_frontage, C)
         corners += nc
         out_l.append(lots)
         out_o.append(own[lpoly])
         out_i.append(inner)
+        out_m.append(marks)
+        out_k.append(known)
         fail = np.flatnonzero(~done)
         if len(fail) == 0 or level == max_cuts:
             break
@@ -495,6 +585,8 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
             out_l.append(sub.take(stuck).polygons())
             out_o.append(own[fail[stuck]])
             out_i.append(np.zeros(len(stuck), bool))
+            out_m.append(_Marks.of(sub.take(stuck)))
+            out_k.append(np.ones(len(stuck), bool))
         rs, own, key = pieces, own[fail[parent]], key[fail[parent]] * np.uint64(2) + side.astype(np.uint64)
     fallback = 0
     if rs.n and not done.all():
@@ -504,13 +596,17 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
         out_l.append(sub.polygons())
         out_o.append(own[rest])
         out_i.append(sub.flagged_length() < min_frontage)
+        out_m.append(_Marks.of(sub))
+        out_k.append(np.ones(len(rest), bool))
     lots = np.concatenate(out_l) if out_l else np.empty(0, object)
     owner = np.concatenate(out_o).astype(np.int64) if out_o else np.empty(0, np.int64)
     inner = np.concatenate(out_i).astype(bool) if out_i else np.empty(0, bool)
     o = np.argsort(owner, kind="stable")
     lots, owner, inner = lots[o], owner[o], inner[o]
+    marks = _Marks.concat(out_m).take(o)
+    known = np.concatenate(out_k)[o] if out_k else np.zeros(0, bool)
     if report is not None:
         for k, v in (("paris_inner", int(inner.sum())), ("paris_corner", corners), ("paris_cut", cuts),
                      ("paris_fallback", fallback)):
             report[k] = report.get(k, 0) + v
-    return lots, owner, inner
+    return (lots, owner, inner) + ((marks.flat, known) if street else ())

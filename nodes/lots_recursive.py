@@ -18,7 +18,6 @@ skylineEngine §5.5.
 from __future__ import annotations
 
 import numpy as np
-import shapely
 
 from sengine.split import RingSet, cut_lengths, polygon_parts, split
 
@@ -54,7 +53,7 @@ def _longest(ln: np.ndarray, vp: np.ndarray, n: int) -> np.ndarray:
 
 
 def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, seeds=None, max_levels=24,
-                   report=None):
+                   report=None, street=False):
     """Recursive lots after Parish and Müller [13], keeping street access.
 
     Each piece larger than ``max_area`` is cut perpendicular to its longest
@@ -86,17 +85,23 @@ def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, see
         (pieces over ``max_area`` that no cut could split) and
         ``recursive_failed_cuts`` (cuts dropped because their crossings
         could not be paired exactly; another cut is tried).
+    street : bool
+        Also return which boundary segment of each lot lies on its block's
+        boundary (exact: carried through the cuts).
 
     Returns
     -------
     lots : ndarray of shapely.Polygon
     owner : ndarray of int64
         Index into ``blocks`` of each lot's block, non-decreasing.
+    on : ndarray of bool, only with ``street``
+        One per boundary segment of the lots, in the order of
+        :func:`sengine.split.ring_segments`.
     """
     blocks = np.asarray(blocks, dtype=object).ravel()
     n = len(blocks)
     if n == 0:
-        return np.empty(0, object), np.empty(0, np.int64)
+        return (np.empty(0, object), np.empty(0, np.int64)) + ((np.zeros(0, bool),) if street else ())
     seeds = np.zeros(n, np.uint64) if seeds is None else np.asarray(seeds, np.uint64)
     max_area = np.broadcast_to(np.asarray(max_area, np.float64), (n,))
     min_frontage = np.broadcast_to(np.asarray(min_frontage, np.float64), (n,))
@@ -107,6 +112,10 @@ def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, see
     stuck_count = failed_count = levels = 0
     for _level in range(max_levels):
         todo = rs.areas() > max_area[own]
+        # every part of a cut needs min_frontage: less than twice that in all and no cut can do
+        hopeless = todo & (rs.flagged_length() < 2.0 * min_frontage[own])
+        stuck_count += int(hopeless.sum())
+        todo &= ~hopeless
         done_rs.append(rs.take(~todo))
         done_o.append(own[~todo])
         rs, own, key = rs.take(todo), own[todo], key[todo]
@@ -176,10 +185,11 @@ def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, see
         report["recursive_levels"] = max(report.get("recursive_levels", 0), levels)
         report["recursive_stuck"] = report.get("recursive_stuck", 0) + stuck_count
         report["recursive_failed_cuts"] = report.get("recursive_failed_cuts", 0) + failed_count
-    lots = RingSet.concat(done_rs).polygons()
+    done = RingSet.concat(done_rs)
     owner = np.concatenate(done_o).astype(np.int64)
-    keep = ~shapely.is_empty(lots)
-    lots, owner = lots[keep], owner[keep]
-    o = np.argsort(owner, kind="stable")
-    return lots[o], owner[o]
+    keep = np.flatnonzero(np.bincount(done.poly, minlength=done.n) > 0)  # drop empty pieces
+    o = keep[np.argsort(owner[keep], kind="stable")]
+    done = done.permuted(o)
+    lots = done.polygons()
+    return (lots, owner[o]) + ((done.flag.copy(),) if street else ())
 

@@ -112,7 +112,11 @@ class RingSet:
         return RingSet(self.xy[keep], rmap[self.ring[keep]], self.flag[keep], self.poly[live], self.n)
 
     def polygons(self) -> np.ndarray:
-        """The polygons as a shapely array (n,)."""
+        """The polygons as a shapely array (n,).
+
+        Their boundary segments (:func:`ring_segments`) come in vertex order,
+        so ``flag`` is the mark of each of them.
+        """
         R = len(self.poly)
         if R == 0:
             return np.full(self.n, shapely.Polygon(), dtype=object) if self.n else np.empty(0, object)
@@ -182,6 +186,18 @@ class RingSet:
         vkeep = rkeep[self.ring]
         return RingSet(self.xy[vkeep], rmap[self.ring[vkeep]], self.flag[vkeep], pmap[self.poly[rkeep]],
                        int(mask.sum()))
+
+    def permuted(self, order) -> RingSet:
+        """The polygons in the given order (any permutation or selection of indices)."""
+        order = np.asarray(order, np.int64)
+        rfirst = _first_of(self.poly, self.n)
+        rcnt = np.diff(rfirst)[order]
+        rings = np.repeat(rfirst[:-1][order], rcnt) + _ramp(rcnt)
+        vfirst = _first_of(self.ring, len(self.poly))
+        vcnt = np.diff(vfirst)[rings]
+        verts = np.repeat(vfirst[:-1][rings], vcnt) + _ramp(vcnt)
+        return RingSet(self.xy[verts], np.repeat(np.arange(len(rings)), vcnt), self.flag[verts],
+                       np.repeat(np.arange(len(order)), rcnt), len(order))
 
     @staticmethod
     def concat(sets) -> RingSet:
