@@ -29,8 +29,8 @@ import numpy as np
 import shapely
 
 from sengine import Layer, Param, Port, SENode, register
+from sengine.boundary import ring_segments, segments_on_boundary
 from sengine.errors import ParameterError
-from sengine.split import ring_segments, segments_on_boundary
 
 from .lots_manhattan import manhattan_lots
 from .lots_paris import paris_lots
@@ -81,7 +81,7 @@ def lot_attributes(lots, owner, blocks, *, corner_angle: float = 30.0, edge_angl
         one street edge.
     on, known : ndarray of bool, optional
         Which boundary segment of each lot lies on its block's boundary, as
-        the method knows it (one per segment of :func:`sengine.split.ring_segments`
+        the method knows it (one per segment of :func:`sengine.boundary.ring_segments`
         of ``lots``), and for which lots it knows (default all when ``on`` is
         given); the others are measured (within ``ON_TOL``).
 

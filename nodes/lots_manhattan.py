@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from sengine.boundary import polygon_parts
 from sengine.geometry import clip_frame_boxes, obb_frame
-from sengine.split import polygon_parts
 
 __all__ = ["manhattan_lots"]
 

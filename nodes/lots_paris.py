@@ -9,11 +9,12 @@ remaining core is an inner lot (courtyard).
 
 How it is computed, for all blocks at once and without polygon overlay:
 
-1. Sample points, inner normals (the contour's direction averaged over about
-   one lot depth, so that lots fan out around corners and curves instead of
+1. Sample points, inner normals (the contour's direction averaged over two
+   lot depths, so that lots fan out around corners and curves instead of
    crossing) and displaced points come from numpy interpolation along the
-   exterior rings; depths are clamped to 0.3 of the block's typical width
-   (2 area / perimeter) so that thin blocks keep a courtyard.
+   exterior rings (:mod:`.lots_contour`); depths are clamped to 0.3 of the
+   block's typical width (2 area / perimeter) so that thin blocks keep a
+   courtyard.
 2. Each candidate lot is the polygon "contour segment, then its displaced
    points backwards"; the core is the polygon through all displaced points.
    Their boundaries add up to the block's contour (radial edges and the inner
@@ -22,7 +23,8 @@ How it is computed, for all blocks at once and without polygon overlay:
    pieces add up to the block's and none is negative.  Vectorized
    ``is_valid`` calls check that.
 3. Candidates that are not simple, or overlap a neighbour (tested on windows
-   of three consecutive candidates, whose union must be simple too), are
+   of three consecutive candidates, whose union must be simple too, where
+   the displaced line folds or bunches up), are
    merged run by run into one corner lot closed by a straight back edge;
    a run whose corner lot is not simple either, and candidates with too
    little street frontage, are merged into the core (which then reaches the
@@ -47,24 +49,16 @@ import logging
 import numpy as np
 import shapely
 
+from sengine.boundary import polygon_parts
 from sengine.geometry import threaded
-from sengine.split import RingSet, polygon_parts, split
+from sengine.split import RingSet, split
 
+from .lots_contour import Contour, Marks, ramp
 from .lots_recursive import hash01
 
 __all__ = ["paris_lots"]
 
 log = logging.getLogger(__name__)
-
-
-def _ramp(counts):
-    """0, 1, ..., c - 1 for each count, concatenated."""
-    counts = np.asarray(counts, np.int64)
-    return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-
-
-def _first_of(groups, n):
-    return np.r_[0, np.cumsum(np.bincount(groups, minlength=n))].astype(np.int64)
 
 
 def _normal(seed, key):
@@ -81,235 +75,6 @@ def _clean(geoms, area):
     ok = np.asarray(area) > 0
     ok[ok] = threaded(shapely.is_valid, np.asarray(geoms, dtype=object)[ok])  # GEOS runs without the GIL
     return ok
-
-
-class _Marks:
-    """One mark per boundary segment of each of a list of polygons (flat, with counts)."""
-
-    def __init__(self, flat, counts):
-        self.flat = np.asarray(flat, bool)
-        self.counts = np.asarray(counts, np.int64)
-
-    def take(self, idx) -> _Marks:
-        idx = np.asarray(idx, np.int64)
-        c = self.counts[idx]
-        return _Marks(self.flat[np.repeat((np.cumsum(self.counts) - self.counts)[idx], c) + _ramp(c)], c)
-
-    @staticmethod
-    def concat(marks) -> _Marks:
-        marks = list(marks)
-        return _Marks(np.concatenate([m.flat for m in marks]) if marks else np.zeros(0, bool),
-                      np.concatenate([m.counts for m in marks]) if marks else np.zeros(0, np.int64))
-
-    @classmethod
-    def unknown(cls, geoms) -> _Marks:
-        geoms = np.asarray(geoms, dtype=object)
-        c = np.maximum(shapely.get_num_coordinates(geoms) - 1 - shapely.get_num_interior_rings(geoms), 0)
-        return cls(np.zeros(int(c.sum()), bool), c)
-
-    @classmethod
-    def of(cls, rs: RingSet) -> _Marks:
-        return cls(rs.flag, np.bincount(rs.vertex_poly(), minlength=rs.n))
-
-
-# -- the contour ------------------------------------------------------------------------------
-
-class _Contour:
-    """Samples along the exterior ring of each polygon of a ring set, and polygons made of its chains.
-
-    The ring is kept as two laps (vertices repeated once) so that a stretch
-    of contour crossing the ring's start is one contiguous slice.  Sample
-    ``j`` of polygon ``p`` lies at arc length ``j * perim / m`` (m = 3 nseg).
-    """
-
-    def __init__(self, rs: RingSet, segment: float):
-        P = rs.n
-        first_ring = _first_of(rs.poly, P)[:-1]
-        has = np.bincount(rs.poly, minlength=P) > 0
-        ext = np.zeros(len(rs.poly), bool)
-        ext[first_ring[has]] = True
-        sel = ext[rs.ring]
-        nx = rs.next_vertex()
-        v, vi, flag = rs.xy[sel], rs.poly[rs.ring[sel]], rs.flag[sel]
-        nxt = rs.xy[nx[sel]]
-        el = np.hypot(*(nxt - v).T)
-        nv = np.bincount(vi, minlength=P)
-        perim = np.bincount(vi, weights=el, minlength=P)
-        arc = np.cumsum(el) - el - (np.cumsum(perim) - perim)[vi]
-        self.v, self.vi, self.varc = v, vi, arc
-        # two laps; polygons 1 m apart on one increasing arc coordinate
-        goff = np.cumsum(2 * perim + 1.0) - (2 * perim + 1.0)
-        vstart = np.cumsum(nv) - nv
-        k = np.arange(len(v)) - vstart[vi]
-        lap = np.r_[vstart[vi] + k, vstart[vi] + k]
-        second = np.r_[np.zeros(len(v), bool), np.ones(len(v), bool)]
-        o = np.lexsort((k[lap], second, vi[lap]))
-        lap, second = lap[o], second[o]
-        self.lap_xy, self.lap_next, self.lap_len = v[lap], nxt[lap], el[lap]
-        self.lap_flag = flag[lap]
-        self.lap_arc = arc[lap] + np.where(second, perim[vi[lap]], 0.0)  # within the polygon
-        self.lap_g = goff[vi[lap]] + self.lap_arc  # to search all polygons at once
-        fl = np.where(self.lap_flag, self.lap_len, 0.0)
-        self.lap_F = np.cumsum(fl) - fl  # street length before each lap edge (global)
-        self.lstart, self.nlap = 2 * vstart, 2 * nv
-        self.goff, self.perim = goff, perim
-        self.nseg = np.where(has, np.maximum(3, np.floor(perim / segment + 0.5)), 0).astype(np.int64)
-        self.m = 3 * self.nseg
-        self.mstart = np.cumsum(self.m) - self.m
-        self.sp = np.repeat(np.arange(P), self.m)
-        self.sj = _ramp(self.m)
-        self.s = self.sj * (perim / np.maximum(self.m, 1))[self.sp]
-        self.pts = self._at(self.sp, self.s)
-        self.nrm = np.zeros_like(self.pts)
-        self.inner = self.pts
-
-    def _search(self, p, s, right=True):
-        """Lap index of the last vertex at or before (``right``) / strictly before arc ``s``, plus one.
-
-        The global search only gives a first guess (the polygon's offset
-        rounds ``s``); the answer is settled on the polygon's own arcs, so it
-        does not depend on which other polygons share the batch.
-        """
-        i = np.searchsorted(self.lap_g, self.goff[p] + s, side="right" if right else "left")
-        lo, hi = self.lstart[p], self.lstart[p] + self.nlap[p]
-        i = np.clip(i, lo, hi)
-        for _ in range(4):  # at most a step or two: rounding is far below edge lengths
-            before = (i > lo) & ((self.lap_arc[np.maximum(i - 1, 0)] > s) if right
-                                 else (self.lap_arc[np.maximum(i - 1, 0)] >= s))
-            after = (i < hi) & ((self.lap_arc[np.minimum(i, len(self.lap_arc) - 1)] <= s) if right
-                                else (self.lap_arc[np.minimum(i, len(self.lap_arc) - 1)] < s))
-            if not (before.any() or after.any()):
-                break
-            i = i - before + after
-        return i
-
-    def _index(self, p, s):
-        i = np.clip(self._search(p, s) - 1, self.lstart[p], self.lstart[p] + self.nlap[p] - 1)
-        return i, s - self.lap_arc[i]
-
-    def _at(self, p, s):
-        """Points at arc length ``s`` in [0, 2 perim) of polygons ``p``."""
-        i, r = self._index(p, s)
-        f = np.clip(r / np.where(self.lap_len[i] > 0, self.lap_len[i], 1.0), 0.0, 1.0)
-        return self.lap_xy[i] + f[:, None] * (self.lap_next[i] - self.lap_xy[i])
-
-    def street(self, p, s0, s1):
-        """Street (flagged) length (m) of the contour between arcs ``s0 < s1`` (< 2 perim)."""
-        def F(s):
-            i, r = self._index(p, s)
-            return self.lap_F[i] + np.where(self.lap_flag[i], np.clip(r, 0.0, self.lap_len[i]), 0.0)
-        return F(s1) - F(s0)
-
-    def smooth(self, width):
-        """Inner normals from the contour's direction over ``width`` (m, per polygon) on each side."""
-        delta = np.asarray(width, np.float64)[self.sp]
-        pa = self._at(self.sp, np.mod(self.s - delta, self.perim[self.sp]))
-        pb = self._at(self.sp, self.s + delta)
-        tan = pb - pa
-        tan /= np.maximum(np.hypot(tan[:, 0], tan[:, 1]), 1e-12)[:, None]
-        self.nrm = np.stack([-tan[:, 1], tan[:, 0]], axis=1)  # left of a counter-clockwise ring: inwards
-
-    def arc(self, p, j):
-        """Arc length (m) of sample ``j`` (unwrapped: may exceed m) of polygons ``p``."""
-        return j * (self.perim / np.maximum(self.m, 1))[p]
-
-    def _ring_vertices(self, p, ja, jb):
-        """First lap index and count of the ring vertices strictly between samples ``ja`` and ``jb``."""
-        i0 = self._search(p, self.arc(p, ja) + 1e-9, right=True)
-        i1 = self._search(p, self.arc(p, jb) - 1e-9, right=False)
-        return i0, np.maximum(i1 - i0, 0)
-
-    def _polygons(self, kinds, idx, sizes, seg):
-        """Polygons from (kind, index) coordinates: kind 0 sample point, 1 inner point, 2 lap vertex.
-
-        ``seg`` marks the segment starting at each coordinate as lying on
-        the contour's street edges.  Returns the polygons, their signed
-        areas and their segment marks (a :class:`_Marks`).
-        """
-        table_off = np.array([0, len(self.pts), 2 * len(self.pts)])
-        table = np.concatenate([self.pts, self.inner, self.lap_xy])
-        xy = table[table_off[kinds] + idx]
-        polys = shapely.from_ragged_array(shapely.GeometryType.POLYGON, xy,
-                                          (np.r_[0, np.cumsum(sizes)], np.arange(len(sizes) + 1)))
-        # signed areas of the closed rings, local to each ring's first vertex
-        start = np.cumsum(sizes) - sizes
-        ring = np.repeat(np.arange(len(sizes)), sizes)
-        q = xy - xy[start][ring]
-        last = np.r_[ring[1:] != ring[:-1], True] if len(ring) else np.zeros(0, bool)
-        qn = np.r_[q[1:], q[:1]]
-        cr = np.where(last, 0.0, q[:, 0] * qn[:, 1] - q[:, 1] * qn[:, 0])
-        return polys, 0.5 * np.bincount(ring, weights=cr, minlength=len(sizes)), _Marks(seg[~last], sizes - 1)
-
-    def chains(self, p, ja, jb, step):
-        """Polygons: contour from sample ``ja`` to ``jb`` then the inner points of jb, jb - step, ..., ja.
-
-        ``jb`` is unwrapped (``ja < jb <= ja + m``) and ``step`` divides
-        ``jb - ja``.  Returns the polygons and their street length (m).
-        """
-        p, ja, jb = (np.asarray(x, np.int64) for x in (p, ja, jb))
-        step = np.broadcast_to(np.asarray(step, np.int64), p.shape)
-        m, ms = self.m[p], self.mstart[p]
-        i0, nv = self._ring_vertices(p, ja, jb)
-        nb = (jb - ja) // step + 1
-        size = nv + nb + 3
-        row = np.repeat(np.arange(len(p)), size)
-        r = _ramp(size)
-        nvr = nv[row]
-        kinds = np.zeros(len(row), np.int64)
-        idx = (ms + np.mod(ja, m))[row]  # pts[ja]: first and closing coordinates
-        mid = (r >= 1) & (r <= nvr)
-        kinds[mid] = 2
-        idx[mid] = i0[row[mid]] + r[mid] - 1
-        at_b = r == nvr + 1
-        idx[at_b] = (ms + np.mod(jb, m))[row[at_b]]
-        back = (r >= nvr + 2) & (r < size[row] - 1)
-        q = r[back] - nvr[back] - 2
-        rb = row[back]
-        kinds[back] = 1
-        idx[back] = ms[rb] + np.mod(jb[rb] - q * step[rb], m[rb])
-        seg = np.zeros(len(row), bool)
-        contour = r <= nvr
-        seg[contour] = self.lap_flag[i0[row[contour]] - 1 + r[contour]]
-        polys, area, marks = self._polygons(kinds, idx, size, seg)
-        return polys, area, self.street(p, self.arc(p, ja), self.arc(p, jb)), marks
-
-    def core(self, p, ja, jb, kind):
-        """One core ring per polygon from units in ring order: kind 0 a lot's inner chain,
-        1 a corner lot's back edge, 2 merged contour (radial in, contour, radial out).
-
-        Units must be sorted by polygon and cover each polygon's ring.
-        """
-        p, ja, jb, kind = (np.asarray(x, np.int64) for x in (p, ja, jb, kind))
-        i0, nv = self._ring_vertices(p, ja, jb)
-        cnt = np.where(kind == 0, 3, np.where(kind == 1, 1, 3 + nv))
-        m, ms = self.m[p], self.mstart[p]
-        row = np.repeat(np.arange(len(p)), cnt)
-        r = _ramp(cnt)
-        kinds = np.ones(len(row), np.int64)
-        idx = (ms + np.mod(ja, m))[row]  # inner[ja] starts every unit
-        lot = (kind[row] == 0) & (r > 0)
-        idx[lot] = ms[row[lot]] + np.mod(ja[row[lot]] + r[lot], m[row[lot]])
-        mer = (kind[row] == 2) & (r > 0)
-        rr = r[mer]
-        rm = row[mer]
-        kinds[mer] = np.where(rr == 1, 0, np.where(rr <= nv[rm] + 1, 2, 0))
-        idx[mer] = np.where(rr == 1, ms[rm] + np.mod(ja[rm], m[rm]),
-                            np.where(rr <= nv[rm] + 1, i0[rm] + rr - 2, ms[rm] + np.mod(jb[rm], m[rm])))
-        seg = np.zeros(len(row), bool)
-        contour = (kind[row] == 2) & (r >= 1) & (r <= nv[row] + 1)
-        seg[contour] = self.lap_flag[i0[row[contour]] + r[contour] - 2]
-        # close each polygon's ring with its first coordinate
-        P = len(self.m)
-        per = np.bincount(p[row], minlength=P)
-        has = per > 0
-        start = np.cumsum(per) - per
-        order = np.r_[np.arange(len(row)), start[has]]
-        owner = np.r_[p[row], np.flatnonzero(has)]
-        o = np.argsort(owner, kind="stable")
-        sizes = np.bincount(owner, minlength=P)
-        seg = np.r_[seg, np.zeros(int(has.sum()), bool)]
-        polys, area, marks = self._polygons(kinds[order[o]], idx[order[o]], sizes[sizes > 0], seg[order[o]])
-        return polys, area, np.flatnonzero(has), marks
 
 
 # -- one pass over a set of polygons ------------------------------------------------------------
@@ -357,7 +122,7 @@ def _pass(rs, depth, segment, min_frontage, C):
     P = rs.n
     nseg = C.nseg
     cp = np.repeat(np.arange(P), nseg)
-    ci = _ramp(nseg)
+    ci = ramp(nseg)
     ja = 3 * ci
     one = np.ones(len(cp), np.int64)
     q, qa, front, qm = C.chains(cp, ja, ja + 3, one)
@@ -398,7 +163,7 @@ def _pass(rs, depth, segment, min_frontage, C):
             for at in (base + np.mod(first - 1, nn), base + np.mod(first + cnt, nn)):
                 bad[at] |= ~merge[at]
         else:  # give up: these candidates join the core
-            members = np.repeat(base, cnt) + np.mod(np.repeat(first, cnt) + _ramp(cnt), np.repeat(nn, cnt))
+            members = np.repeat(base, cnt) + np.mod(np.repeat(first, cnt) + ramp(cnt), np.repeat(nn, cnt))
             merge[members] = True
             bad[members] = False
     run_p, s_i, n_i = _runs(bad, cp, ci, nseg)
@@ -436,11 +201,11 @@ def _pass(rs, depth, segment, min_frontage, C):
                 done[hi] = False
     whole = np.flatnonzero(all_merged)  # no street worth a lot: the polygon is one inner lot
     done[whole] = True
-    whole_m = _Marks.of(rs.take(whole))
+    whole_m = Marks.of(rs.take(whole))
     if len(whole):
         core_of[whole] = rs.take(whole).polygons()
         core_mark[whole] = len(cpoly) + np.arange(len(whole))
-    corem = _Marks.concat([corem, whole_m])
+    corem = Marks.concat([corem, whole_m])
     # lots: good candidates, corner lots, cores (small cores join their longest neighbour)
     gsel = good & done[cp]
     csel = done[run_p]
@@ -472,12 +237,12 @@ def _pass(rs, depth, segment, min_frontage, C):
     inner = np.r_[np.zeros(len(lots) - len(kc), bool), np.ones(len(kc), bool)]
     # segment marks, where the construction knows them (not for GEOS-made lots)
     nq, nc = int(gsel.sum()), int(csel.sum())
-    src = _Marks.concat([qm.take(np.flatnonzero(gsel)), cm.take(np.flatnonzero(csel)), corem])
+    src = Marks.concat([qm.take(np.flatnonzero(gsel)), cm.take(np.flatnonzero(csel)), corem])
     pick = np.r_[np.arange(nq + nc), nq + nc + core_mark[kc]]
     known = np.r_[np.ones(nq + nc, bool), core_mark[kc] >= 0]
     known[replaced] = False
     unk = np.flatnonzero(~known)
-    src = _Marks.concat([src, _Marks.unknown(lots[unk])])
+    src = Marks.concat([src, Marks.unknown(lots[unk])])
     pick[unk] = src.counts.size - len(unk) + np.arange(len(unk))
     return lots, lpoly, inner, done, nc, src.take(pick), known
 
@@ -488,7 +253,7 @@ def _back_length(C, p, ja, jb, step):
     step = np.broadcast_to(np.asarray(step, np.int64), p.shape)
     nb = (jb - ja) // np.maximum(step, 1)
     row = np.repeat(np.arange(len(p)), nb)
-    r = _ramp(nb)
+    r = ramp(nb)
     m, ms = C.m[p][row], C.mstart[p][row]
     a = C.inner[ms + np.mod(jb[row] - r * step[row], m)]
     b = C.inner[ms + np.mod(jb[row] - (r + 1) * step[row], m)]
@@ -535,7 +300,7 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
         True for the core lot(s) (courtyards) that need not touch a street.
     on, known : ndarray of bool, only with ``street``
         One mark per boundary segment of the lots (order of
-        :func:`sengine.split.ring_segments`), and per lot whether the marks
+        :func:`sengine.boundary.ring_segments`), and per lot whether the marks
         are known (lots made by GEOS unions are not).
     """
     blocks = np.asarray(blocks, dtype=object).ravel()
@@ -555,7 +320,7 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
     for level in range(max_cuts + 1):
         if rs.n == 0:
             break
-        C = _Contour(rs, segment)
+        C = Contour(rs, segment)
         width = 2.0 * rs.areas() / np.maximum(C.perim, 1e-12)
         with np.errstate(over="ignore"):
             z = _normal(seeds[own][C.sp], key[C.sp] * np.uint64(1_000_003) + C.sj.astype(np.uint64))
@@ -585,7 +350,7 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
             out_l.append(sub.take(stuck).polygons())
             out_o.append(own[fail[stuck]])
             out_i.append(np.zeros(len(stuck), bool))
-            out_m.append(_Marks.of(sub.take(stuck)))
+            out_m.append(Marks.of(sub.take(stuck)))
             out_k.append(np.ones(len(stuck), bool))
         rs, own, key = pieces, own[fail[parent]], key[fail[parent]] * np.uint64(2) + side.astype(np.uint64)
     fallback = 0
@@ -596,14 +361,14 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
         out_l.append(sub.polygons())
         out_o.append(own[rest])
         out_i.append(sub.flagged_length() < min_frontage)
-        out_m.append(_Marks.of(sub))
+        out_m.append(Marks.of(sub))
         out_k.append(np.ones(len(rest), bool))
     lots = np.concatenate(out_l) if out_l else np.empty(0, object)
     owner = np.concatenate(out_o).astype(np.int64) if out_o else np.empty(0, np.int64)
     inner = np.concatenate(out_i).astype(bool) if out_i else np.empty(0, bool)
     o = np.argsort(owner, kind="stable")
     lots, owner, inner = lots[o], owner[o], inner[o]
-    marks = _Marks.concat(out_m).take(o)
+    marks = Marks.concat(out_m).take(o)
     known = np.concatenate(out_k)[o] if out_k else np.zeros(0, bool)
     if report is not None:
         for k, v in (("paris_inner", int(inner.sum())), ("paris_corner", corners), ("paris_cut", cuts),

@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sengine.split import RingSet, cut_lengths, polygon_parts, split
+from sengine.boundary import polygon_parts
+from sengine.split import RingSet, cut_lengths, split
 
 __all__ = ["recursive_lots", "mix64", "hash01"]
 
@@ -96,7 +97,7 @@ def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, see
         Index into ``blocks`` of each lot's block, non-decreasing.
     on : ndarray of bool, only with ``street``
         One per boundary segment of the lots, in the order of
-        :func:`sengine.split.ring_segments`.
+        :func:`sengine.boundary.ring_segments`.
     """
     blocks = np.asarray(blocks, dtype=object).ravel()
     n = len(blocks)

@@ -7,8 +7,9 @@ import shapely
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from sengine.boundary import ring_segments, segments_on_boundary
 from sengine.geometry import segments_on, split_by_line
-from sengine.split import RingSet, cut_lengths, ring_segments, segments_on_boundary, split
+from sengine.split import RingSet, cut_lengths, split
 
 SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
