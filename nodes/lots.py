@@ -198,11 +198,10 @@ class _SegmentFlags:
         return out
 
     def append(self, lots) -> _SegmentFlags:
-        return self._join(self, _SegmentFlags(lots))
+        """These flags, then unknown ones for ``lots``."""
+        return self.join(_SegmentFlags(lots))
 
-    @staticmethod
-    def _join(a, more) -> _SegmentFlags:
-        self = a
+    def join(self, more: _SegmentFlags) -> _SegmentFlags:
         out = _SegmentFlags.__new__(_SegmentFlags)
         out.count = np.r_[self.count, more.count]
         out.on, out.known = np.r_[self.on, more.on], np.r_[self.known, more.known]
@@ -400,7 +399,7 @@ class LotsDistrict(_Lots):
             report[f"blocks_{method}"] = report.get(f"blocks_{method}", 0) + len(sel)
         flags = out_f[0]
         for f in out_f[1:]:
-            flags = _SegmentFlags._join(flags, f)
+            flags = flags.join(f)
         owner = np.concatenate(out_o)
         o = np.argsort(owner, kind="stable")
         flags = flags.take(o)

@@ -222,7 +222,7 @@ def _pass(rs, depth, segment, min_frontage, C):
     if len(cand):
         o = np.lexsort((-shared[cand], lpoly[cand]))
         j = cand[o[np.r_[True, lpoly[cand][o][1:] != lpoly[cand][o][:-1]]]]
-        u = shapely.union(lots[j], core_of[lpoly[j]])
+        u = _union(lots[j], core_of[lpoly[j]])
         a_sum = shapely.area(lots[j]) + shapely.area(core_of[lpoly[j]])
         oku = (shapely.get_type_id(u) == 3) & (np.abs(shapely.area(u) - a_sum) <= 1e-6 * a_sum)
         lots = lots.copy()
@@ -245,6 +245,20 @@ def _pass(rs, depth, segment, min_frontage, C):
     src = Marks.concat([src, Marks.unknown(lots[unk])])
     pick[unk] = src.counts.size - len(unk) + np.arange(len(unk))
     return lots, lpoly, inner, done, nc, src.take(pick), known
+
+
+def _union(a, b):
+    """Element-wise union; a pair GEOS cannot unite gives None (that lot and core stay apart)."""
+    try:
+        return shapely.union(a, b)
+    except shapely.errors.GEOSException:
+        out = np.empty(len(a), dtype=object)
+        for i in range(len(a)):
+            try:
+                out[i] = shapely.union(a[i], b[i])
+            except shapely.errors.GEOSException:
+                out[i] = None
+        return out
 
 
 def _back_length(C, p, ja, jb, step):

@@ -126,7 +126,7 @@ def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, see
         k = rs.n
         vp = rs.vertex_poly()
         e = rs.xy[rs.next_vertex()] - rs.xy
-        ln = np.hypot(e[:, 0], e[:, 1])
+        ln = rs.edge_lengths()
         unit = e / np.maximum(ln, 1e-300)[:, None]
         best = _longest(ln, vp, k)
         d_edge = np.tile([1.0, 0.0], (k, 1))

@@ -132,10 +132,6 @@ class RingSet:
         return shapely.from_ragged_array(shapely.GeometryType.POLYGON, self.xy[src], (roff, poff))
 
     # -- structure --------------------------------------------------------------------
-    def vertex_poly(self) -> np.ndarray:
-        """Polygon of each vertex (N,)."""
-        return self.poly[self.ring]
-
     def next_vertex(self) -> np.ndarray:
         """Index of the next vertex of each vertex's ring (N,)."""
         return self._next
@@ -166,8 +162,20 @@ class RingSet:
 
     def edge_lengths(self) -> np.ndarray:
         """Length of the edge from each vertex to the next (m)."""
+        return self._lengths
+
+    @cached_property
+    def _lengths(self) -> np.ndarray:
         d = self.xy[self.next_vertex()] - self.xy
         return np.hypot(d[:, 0], d[:, 1])
+
+    def vertex_poly(self) -> np.ndarray:
+        """Polygon of each vertex (N,)."""
+        return self._vpoly
+
+    @cached_property
+    def _vpoly(self) -> np.ndarray:
+        return self.poly[self.ring]
 
     def flagged_length(self) -> np.ndarray:
         """Total length of each polygon's marked edges (m)."""
@@ -177,7 +185,11 @@ class RingSet:
     def take(self, sel) -> RingSet:
         """The polygons ``sel`` (boolean mask or increasing indices), renumbered."""
         sel = np.asarray(sel)
-        mask = sel if sel.dtype == bool else np.isin(np.arange(self.n), sel)
+        if sel.dtype == bool:
+            mask = sel
+        else:
+            mask = np.zeros(self.n, bool)
+            mask[sel] = True
         if mask.all():
             return self
         pmap = np.cumsum(mask) - 1
