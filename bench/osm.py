@@ -6,9 +6,11 @@ two ways, each in a fresh process so that peak memory is its own:
 * ``sengine``: the load-map network's nodes ``osm.read`` -> ``roads.clean``
   -> ``blocks.circuits`` with the parameters of ``networks/loadmap.xml``
   ("file to blocks", which includes the sidewalk inset and the street and
-  sidewalk polygons); and, apart, ``osm.read`` -> ``roads.clean`` -> the
-  circuit finder ``find_blocks`` on the plane segment graph ("file to
-  faces", the same product as the library route).
+  sidewalk polygons); and "file to faces", the same product as the library
+  route: ``roads.clean`` traces the faces of its plane segment graph
+  (``meta["graph"]["blocks"]``, which ``blocks.circuits`` takes over), so
+  that is ``osm.read`` -> ``roads.clean`` (plus ``find_blocks`` on the
+  graph when clean handed no faces on).
 * ``library``: what one writes with the libraries alone -- pyosmium with
   node locations (a Python list of coordinates per way), one pyproj call,
   ``shapely.node`` and ``shapely.polygonize`` -- with the same class filter
@@ -16,7 +18,9 @@ two ways, each in a fresh process so that peak memory is its own:
 
 Both give faces between street centre lines; they must agree within 1 % in
 count and in area.  Results go to ``bench/results/osm.json``: seconds (best
-of ``--repeat``), peak resident memory, ways per second, face counts.
+of ``--repeat``, wall clock) and the CPU seconds of that run (the process's
+own time, steadier on a shared machine), peak resident memory, ways per
+second, face counts.
 
 Usage::
 
@@ -52,30 +56,34 @@ def route_sengine(path: str) -> dict:
 
     get("osm.read"), get("roads.clean"), get("blocks.circuits")  # load the node library before timing
     base = _peak_mb()
-    t0 = time.perf_counter()
+    c0, t0 = time.process_time(), time.perf_counter()
     read = get("osm.read")("majorRoads", {"path": path, "extras": ""}, Context())
     roads = read.run()["roads"]
     t1 = time.perf_counter()
     clean = get("roads.clean")("clean", {}, Context())
     cleaned = clean.run(roads=roads)["roads"]
     t2 = time.perf_counter()
-    # the circuits alone, on the plane segment graph roads.clean hands on (what polygonize gives)
-    from sengine_nodes.blocks import find_blocks
-
+    # the circuits alone (what polygonize gives): roads.clean traced them on its plane segment graph
     g = cleaned.meta["graph"]
-    bf = find_blocks((g["xy"], g["u"], g["v"]), node=False, decimals=None)
+    bf = g.get("blocks")
+    if bf is None:
+        from sengine_nodes.blocks import find_blocks
+
+        bf = find_blocks((g["xy"], g["u"], g["v"]), node=False, decimals=None)
     circuits = bf.faces[shapely.area(bf.faces) >= MIN_AREA]
-    t3 = time.perf_counter()
+    c3, t3 = time.process_time(), time.perf_counter()
     del bf
     blocks = get("blocks.circuits")("blocks", {"node": "false", "min_area": str(MIN_AREA)}, Context())
     out = blocks.run(roads=cleaned)
-    t4 = time.perf_counter()
+    c4, t4 = time.process_time(), time.perf_counter()
     faces = out["faces"].geometry
     return {
         "seconds": (t2 - t0) + (t4 - t3),
+        "cpu_seconds": (c3 - c0) + (c4 - c3),
         "seconds_to_faces": t3 - t0,
-        "stages": {"osm.read": t1 - t0, "roads.clean": t2 - t1, "find_blocks (circuits only)": t3 - t2,
-                   "blocks.circuits (node: circuits + sidewalk inset + street polygons)": t4 - t3},
+        "stages": {"osm.read": t1 - t0, "roads.clean (traces the faces too)": t2 - t1,
+                   "faces >= min_area": t3 - t2,
+                   "blocks.circuits (node: faces taken over + sidewalk inset + street polygons)": t4 - t3},
         "circuits": int(len(circuits)),
         "peak_rss_mb": _peak_mb(), "rss_before_mb": base,
         "ways": read.report["ways"], "segments": len(roads),
@@ -102,7 +110,7 @@ def route_library(path: str) -> dict:
 
     keep = _classes()
     base = _peak_mb()
-    t0 = time.perf_counter()
+    c0, t0 = time.process_time(), time.perf_counter()
     lines: list = []
     tunnel = ("yes", "building_passage", "culvert")
 
@@ -130,9 +138,10 @@ def route_library(path: str) -> dict:
     polys = shapely.get_parts(shapely.polygonize(shapely.get_parts(noded)))
     area = shapely.area(polys)
     faces = polys[area >= MIN_AREA]
-    t3 = time.perf_counter()
+    c3, t3 = time.process_time(), time.perf_counter()
     return {
         "seconds": t3 - t0,
+        "cpu_seconds": c3 - c0,
         "stages": {"read+project": t1 - t0, "shapely.node": t2 - t1, "shapely.polygonize": t3 - t2},
         "peak_rss_mb": _peak_mb(), "rss_before_mb": base,
         "ways": len(lines), "faces": int(len(faces)), "faces_area_m2": float(area[area >= MIN_AREA].sum()),
@@ -180,6 +189,8 @@ def main(argv: list[str] | None = None) -> int:
         "library": lib,
         "speedup_file_to_blocks": lib["seconds"] / s["seconds"],
         "speedup_file_to_faces": lib["seconds"] / s["seconds_to_faces"],
+        "ratio_sengine_to_library": s["seconds"] / lib["seconds"],
+        "ratio_sengine_to_library_cpu": s["cpu_seconds"] / lib["cpu_seconds"],
         "faces_diff_pct": 100.0 * (s["faces"] - lib["faces"]) / max(lib["faces"], 1),
         "area_diff_pct": 100.0 * (s["faces_area_m2"] - lib["faces_area_m2"]) / max(lib["faces_area_m2"], 1e-9),
         "machine": {"python": platform.python_version(), "cpu_count": __import__("os").cpu_count(),
@@ -189,7 +200,9 @@ def main(argv: list[str] | None = None) -> int:
     args.out.write_text(json.dumps(result, indent=2) + "\n")
     print(f"{result['file']}: sengine {s['seconds']:.2f} s to blocks, {s['seconds_to_faces']:.2f} s to faces "
           f"({s['faces']} faces, {s['blocks']} blocks), library {lib['seconds']:.2f} s ({lib['faces']} faces); "
-          f"speed-up {result['speedup_file_to_blocks']:.2f}x / {result['speedup_file_to_faces']:.2f}x; "
+          f"speed-up {result['speedup_file_to_blocks']:.2f}x / {result['speedup_file_to_faces']:.2f}x "
+          f"(sengine / library: {result['ratio_sengine_to_library']:.2f} wall, "
+          f"{result['ratio_sengine_to_library_cpu']:.2f} CPU); "
           f"faces {result['faces_diff_pct']:+.2f} %, area {result['area_diff_pct']:+.2f} %")
     return 0
 
