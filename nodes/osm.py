@@ -6,13 +6,10 @@ minor-road modules "are collapsed into a single node that simply reads the
 file and passes the resulting network to the next modules" (002 §5.3).  This
 module is that node.
 
-A plain ``.osm.pbf`` (zlib blocks, dense nodes: what osmium, osmosis and
-the usual extract services write) is decoded by numpy (``nodes/_pbf.py``):
-node refs, tags and coordinates of all ways come out as arrays, with no
-Python object per way or node.  Any other file (``.osm``, ``.osm.bz2``, a
-PBF using other features) is streamed once with pyosmium, each
-``highway=*`` way turned into well-known binary by libosmium's geometry
-factory; both give the same extract.  The points are then projected to the
+The file (``.osm``, ``.osm.bz2``, ``.osm.pbf``) is streamed once with
+pyosmium, each ``highway=*`` way turned into well-known binary by
+libosmium's geometry factory and its tags into flat lists: no object model of
+the whole file is built.  The points are then projected to the
 UTM zone of the data with one vectorized pyproj call (each junction once)
 and split into *street segments* between junctions with numpy.  A junction is a point shared by two ways (or visited twice by
 one way) or a way's end.  Point identity is the OSM location itself
@@ -25,8 +22,7 @@ its end points into ``meta["nodes"]`` (planar xy) and ``meta["node_keys"]``.
 Water (``natural=water``, ``waterway=riverbank``, ``landuse=reservoir``),
 parks (``leisure=park``/``garden``) and buildings (with ``height`` /
 ``building:levels``) of the same file are optional extra layers, assembled
-by pyosmium in a second pass (skipped for a PBF whose string tables hold
-none of the tag keys they need).
+by pyosmium in the same pass.
 
 References
 ----------
@@ -48,7 +44,6 @@ from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import InputDataError
 from sengine.geo import from_lonlat, utm_crs
 
-from ._pbf import PbfUnsupported, PbfWays, read_pbf_ways
 from .clean import split_at_junctions
 
 __all__ = [
@@ -158,10 +153,7 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
              node_ids: bool = False, where: str | None = None) -> OsmExtract:
     """Stream an OSM file and collect its highway ways (and optional areas).
 
-    A plain PBF file (zlib blocks, dense nodes: what osmium, osmosis and the
-    Geofabrik extracts write) is decoded by numpy (``nodes/_pbf.py``); any
-    other file, or a PBF using features that decoder leaves alone, is read
-    with pyosmium.  Both give the same extract.
+    The file is streamed with pyosmium (locations kept in its node index).
 
     Parameters
     ----------
@@ -191,98 +183,7 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
     path = Path(path)
     if not path.is_file():
         raise InputDataError(f"OSM file {str(path)!r} does not exist", where=where)
-    pbf = None
-    if path.name.lower().endswith(".pbf"):
-        try:
-            pbf = read_pbf_ways(path, ("highway", *_TAG_KEYS, "covered"), probe=_AREA_KEYS.keys())
-        except PbfUnsupported as exc:
-            log.debug("%s: read with pyosmium (%s)", path.name, exc)
-    if pbf is None:
-        return _read_pyosmium(path, classes=classes, extras=extras, node_ids=node_ids, where=where)
-    out = _pbf_extract(pbf, classes=classes, node_ids=node_ids, path=path, where=where)
-    if any(_AREA_KEYS[k] in extras for k in pbf.strings):  # no such tag key in the file: no such area
-        _read_pyosmium(path, classes=classes, extras=extras, node_ids=False, where=where, ways=False, out=out)
-    return out
-
-
-def _pbf_extract(pbf: PbfWays, *, classes, node_ids: bool, path: Path, where) -> OsmExtract:
-    """The extract of the highway ways of a decoded PBF file (as pyosmium would give it)."""
-    out = OsmExtract()
-    names, inv = pbf.tags["highway"]
-    ok_name = np.array([classes is None or n in classes for n in names], bool)
-    keep = ok_name[inv]
-    # each node's place; a way with a node missing from the file keeps its longest located run
-    count = np.diff(pbf.ref_start)
-    owner = np.repeat(np.arange(len(count)), count)
-    # look the refs up in sorted order: far fewer cache misses than in file order
-    uref, rinv = np.unique(pbf.refs, return_inverse=True)
-    upos = np.minimum(np.searchsorted(pbf.node_id, uref), max(len(pbf.node_id) - 1, 0))
-    pos = upos[rinv.ravel()]
-    present = (pbf.node_id[pos] == pbf.refs) if len(pbf.node_id) else np.zeros(len(pbf.refs), bool)
-    fixed = pbf.node_xy[pos] if len(pbf.node_id) else np.zeros((len(pbf.refs), 2), np.int64)
-    valid = present & (np.abs(fixed[:, 0]) <= 1_800_000_000) & (np.abs(fixed[:, 1]) <= 900_000_000)
-    bad_way = np.zeros(len(count), bool)
-    bad_way[owner[~valid]] = True
-    take = keep & ~bad_way & (count >= 2)  # a way of fewer than two nodes is no line
-    sel = take[owner]
-    parts_fixed, parts_line, parts_ref = [fixed[sel]], [owner[sel]], [pbf.refs[sel]]
-    for w in np.flatnonzero(keep & bad_way):
-        a, b = pbf.ref_start[w], pbf.ref_start[w + 1]
-        ok = valid[a:b]
-        wrong = np.flatnonzero(present[a:b] & ~ok)
-        if len(wrong):
-            i = a + wrong[0]
-            raise InputDataError(
-                f"OSM file {str(path)!r}: node {pbf.refs[i]} has coordinates ({fixed[i, 0] / 1e7}, "
-                f"{fixed[i, 1] / 1e7}) outside [-180, 180] x [-90, 90]", where=where)
-        out.clipped += 1
-        # longest run of located nodes (the first of equal ones)
-        edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(np.int8), 0]))
-        if not len(edges):
-            continue
-        run_start, run_stop = edges[0::2], edges[1::2]
-        r = int(np.argmax(run_stop - run_start))
-        if run_stop[r] - run_start[r] < 2:
-            continue
-        s = slice(a + run_start[r], a + run_stop[r])
-        parts_fixed.append(fixed[s])
-        parts_line.append(np.full(s.stop - s.start, w))
-        parts_ref.append(pbf.refs[s])
-        take[w] = True
-    line = np.concatenate(parts_line)
-    if len(parts_line) > 1:  # clipped ways back in file order
-        order = np.argsort(line, kind="stable")
-        line = line[order]
-        parts_fixed = [np.concatenate(parts_fixed)[order]]
-        parts_ref = [np.concatenate(parts_ref)[order]]
-    kept = np.flatnonzero(take)
-    renum = np.full(len(count), -1, np.int64)
-    renum[kept] = np.arange(len(kept))
-    out.fixed = parts_fixed[0]
-    out.line = renum[line]
-    if node_ids:
-        out.node_ids = parts_ref[0]
-    out.way_id = pbf.way_id[kept]
-    # highway codes in order of first appearance, as the streaming reader numbers them
-    hw = inv[kept]
-    first = np.full(len(names), len(hw), np.int64)
-    np.minimum.at(first, hw, np.arange(len(hw)))
-    seen = np.flatnonzero(first < len(hw))
-    seen = seen[np.argsort(first[seen])]
-    out.codes = {names[c]: i for i, c in enumerate(seen.tolist())}
-    code_of = np.full(len(names), -1, np.int64)
-    code_of[seen] = np.arange(len(seen))
-    out.code = code_of[hw]
-
-    def column(key):
-        vals, idx = pbf.tags[key]
-        return np.array([*vals, None], dtype=object)[idx[kept]]  # -1: the None at the end
-
-    out.tags = {k: column(k) for k in _TAG_KEYS}
-    tvals, tidx = pbf.tags["tunnel"]
-    tunnel_set = np.array([bool(t) for t in tvals] + [False], bool)[tidx[kept]]  # tunnel, or else covered
-    out.tags["tunnel"] = np.where(tunnel_set, out.tags["tunnel"], column("covered"))
-    return out
+    return _read_pyosmium(path, classes=classes, extras=extras, node_ids=node_ids, where=where)
 
 
 def _read_pyosmium(path: Path, *, classes, extras, node_ids: bool, where, ways: bool = True,

@@ -122,7 +122,7 @@ def test_path_from_the_plan():
         get("osm.read")("majorRoads", {"path": str(OAKLAND), "extras": "trees"}, Context()).run()
 
 
-# -- the numpy PBF decoder gives what pyosmium gives ----------------------------------------
+# -- edge cases of real files ---------------------------------------------------------
 
 def _osm_module():
     import importlib
@@ -131,32 +131,6 @@ def _osm_module():
 
     load()
     return importlib.import_module("sengine_nodes.osm")
-
-
-def _same_extract(a, b):
-    assert np.array_equal(a.fixed, b.fixed) and np.array_equal(a.line, b.line)
-    assert np.array_equal(a.way_id, b.way_id) and a.clipped == b.clipped
-    assert list(np.array(list(a.codes), object)[a.code]) == list(np.array(list(b.codes), object)[b.code])
-    for k in b.tags:
-        assert list(a.tags[k]) == list(b.tags[k]), k
-    assert (a.node_ids is None) == (b.node_ids is None)
-    if a.node_ids is not None:
-        assert np.array_equal(a.node_ids, b.node_ids)
-    for kind in b.polygons:
-        assert a.polygons[kind][0] == b.polygons[kind][0]
-
-
-@pytest.mark.parametrize("path", [HELSINKI, MONACO])
-@pytest.mark.parametrize("classes", [None, frozenset({"primary", "residential", "footway"})])
-def test_pbf_decoder_matches_pyosmium(path, classes):
-    osm = _osm_module()
-    extras = frozenset({"water", "parks", "buildings"})
-    pbf = osm.read_pbf_ways(path, ("highway",))
-    assert len(pbf.way_id) > 2000 and len(pbf.node_id) > 20_000
-    fast = osm.read_osm(path, classes=classes, extras=extras, node_ids=True)
-    slow = osm._read_pyosmium(path, classes=classes, extras=extras, node_ids=True, where=None)
-    _same_extract(fast, slow)
-    assert fast.clipped > 0 or path == MONACO  # Helsinki's extract cuts ways: longest located runs kept
 
 
 def _write_pbf(path, nodes, ways, options=""):
@@ -170,7 +144,8 @@ def _write_pbf(path, nodes, ways, options=""):
     w.close()
 
 
-def test_pbf_decoder_edge_cases(tmp_path):
+def test_ways_with_missing_or_too_few_nodes(tmp_path):
+    """Clipped extracts: a way keeps its longest run of located nodes; one-node ways are no lines."""
     osm = _osm_module()
     nodes = [(i, 7.40 + 0.001 * i, 43.70 + 0.0005 * (i % 3)) for i in range(1, 12)]
     ways = [
@@ -183,25 +158,15 @@ def test_pbf_decoder_edge_cases(tmp_path):
         (106, [1, 11], {"building": "yes"}),
         (107, [], {"highway": "residential"}),
     ]
-    path = tmp_path / "edge.osm.pbf"
-    _write_pbf(path, nodes, ways)
-    for classes in (None, frozenset({"residential"})):
-        fast = osm.read_osm(path, classes=classes, node_ids=True)
-        slow = osm._read_pyosmium(path, classes=classes, extras=frozenset(), node_ids=True, where=None)
-        _same_extract(fast, slow)
-    fast = osm.read_osm(path, node_ids=True)
-    assert list(fast.way_id) == [100, 101, 103, 105] and fast.clipped == 2
-    assert list(fast.node_ids) == [1, 2, 3, 4, 5, 6, 8, 8, 9, 10, 11]
-    assert fast.tags["tunnel"][3] == "yes" and fast.tags["layer"][2] == "2"
-    # raw blocks (no zlib) decode too; non-dense nodes are left to pyosmium
-    raw = tmp_path / "raw.osm.pbf"
-    _write_pbf(raw, nodes, ways, ",pbf_compression=none")
-    _same_extract(osm.read_osm(raw, node_ids=True), fast)
-    sparse = tmp_path / "sparse.osm.pbf"
-    _write_pbf(sparse, nodes, ways, ",pbf_dense_nodes=false")
-    with pytest.raises(osm.PbfUnsupported):
-        osm.read_pbf_ways(sparse, ("highway",))
-    _same_extract(osm.read_osm(sparse, node_ids=True), fast)
+    for options in ("", ",pbf_dense_nodes=false", ",pbf_compression=none"):
+        path = tmp_path / f"edge{len(options)}.osm.pbf"
+        _write_pbf(path, nodes, ways, options)
+        ext = osm.read_osm(path, node_ids=True)
+        assert list(ext.way_id) == [100, 101, 103, 105] and ext.clipped == 2
+        assert list(ext.node_ids) == [1, 2, 3, 4, 5, 6, 8, 8, 9, 10, 11]
+        assert ext.tags["tunnel"][3] == "yes" and ext.tags["layer"][2] == "2"
+        only = osm.read_osm(path, classes=frozenset({"residential"}))
+        assert list(only.way_id) == [100]
 
 
 def test_pbf_node_out_of_range(tmp_path):
@@ -210,10 +175,7 @@ def test_pbf_node_out_of_range(tmp_path):
     osm = _osm_module()
     with pytest.raises(InputDataError, match="outside") as exc:
         osm.read_osm(path)
-    msg = _one_line_naming(exc, path)
-    with pytest.raises(InputDataError) as exc:
-        osm._read_pyosmium(path, classes=None, extras=frozenset(), node_ids=False, where=None)
-    assert str(exc.value) == msg
+    _one_line_naming(exc, path)
 
 
 # -- bad input: one line naming the file ---------------------------------------------
@@ -382,74 +344,3 @@ def test_osm_node_ids_on_request(helsinki):
            if n.id in want}
     xy = from_lonlat(roads.meta["crs"])(np.array([loc[i] for i in ids[:200]]))
     assert np.allclose(xy, roads.meta["nodes"][:200], atol=1e-6)
-
-
-def _pbf_module():
-    import importlib
-
-    _osm_module()
-    return importlib.import_module("sengine_nodes._pbf")
-
-
-def test_pbf_way_chain_ignores_false_candidates():
-    P = _pbf_module()
-    # ways start at tokens 0, 10, 20 (end 30); a packed value at token 5 looks like a way whose
-    # message would run to token 25, hiding the next two real starts from a plain scan
-    heads = P._chain(np.array([0, 5, 10, 20]), np.array([10, 25, 20, 30]), 30)
-    assert heads.tolist() == [0, 10, 20]
-    assert P._chain(np.array([0, 10]), np.array([10, 17]), 30) is None  # the chain leaves the candidates
-
-
-def _varint(v):
-    out = bytearray()
-    while True:
-        b, v = v & 0x7F, v >> 7
-        out.append(b | (0x80 if v else 0))
-        if not v:
-            return bytes(out)
-
-
-def _field(num, payload):
-    return _varint(num << 3 | 2) + _varint(len(payload)) + payload
-
-
-def test_pbf_ways_in_any_field_order():
-    """Ways whose id is not their first field are walked field by field."""
-    P = _pbf_module()
-    zig = lambda v: _varint((v << 1) ^ (v >> 63))  # noqa: E731
-    ways = b""
-    for wid, refs, (k, v) in [(7, [100, 101, 105], (1, 2)), (300, [5, 3], (1, 3)), (9, [1, 2], (4, 2))]:
-        deltas = np.diff(np.r_[0, refs]).tolist()
-        body = (_field(2, _varint(k)) + _field(3, _varint(v)) + _varint(1 << 3) + _varint(wid)
-                + _field(8, b"".join(zig(d) for d in deltas)))
-        ways += _field(3, body)
-    strings = [b"", b"highway", b"residential", b"primary", b"name"]
-    values = {"highway": {}}
-    wid, tags, count, refs = P._ways(ways, (0, len(ways)), strings, ("highway",), values)
-    assert wid.tolist() == [7, 300] and count.tolist() == [3, 2]
-    assert refs.tolist() == [100, 101, 105, 5, 3]
-    assert [list(values["highway"])[i] for i in tags["highway"]] == ["residential", "primary"]
-
-
-def test_pbf_without_area_tags_skips_the_area_pass(tmp_path, monkeypatch):
-    osm = _osm_module()
-    nodes = [(1, 7.40, 43.70), (2, 7.41, 43.70), (3, 7.41, 43.71), (4, 7.40, 43.71)]
-    plain = tmp_path / "streets.osm.pbf"
-    _write_pbf(plain, nodes, [(10, [1, 2, 3], {"highway": "residential"})])
-    housed = tmp_path / "housed.osm.pbf"
-    _write_pbf(housed, nodes, [(10, [1, 2, 3], {"highway": "residential"}),
-                               (11, [1, 2, 3, 4, 1], {"building": "yes", "height": "12"})])
-    assert osm.read_pbf_ways(housed, ("highway",), probe=("building", "leisure")).strings == {"building"}
-    extras = frozenset({"water", "parks", "buildings"})
-    full = osm.read_osm(housed, extras=extras)
-    assert len(full.polygons["buildings"][0]) == 1 and full.polygons["buildings"][1][0]["height"] == 12.0
-
-    def no_second_pass(*args, **kwargs):
-        raise AssertionError("pyosmium pass")
-
-    monkeypatch.setattr(osm, "_read_pyosmium", no_second_pass)
-    ext = osm.read_osm(plain, extras=extras)  # no building/natural/... key in the file: nothing to assemble
-    assert len(ext.way_id) == 1 and not any(geoms for geoms, _ in ext.polygons.values())
-    with pytest.raises(AssertionError, match="pyosmium pass"):
-        osm.read_osm(housed, extras=frozenset({"buildings"}))
-    osm.read_osm(housed, extras=frozenset({"parks"}))  # buildings only: no park to look for
