@@ -29,6 +29,27 @@ def _first_of(groups, n):
     return np.r_[0, np.cumsum(np.bincount(groups, minlength=n))].astype(np.int64)
 
 
+def _scan(x, group):
+    """Running sums of ``x`` within each group (``group`` non-decreasing).
+
+    A Hillis-Steele scan: each sum depends on its own group's values only, to
+    the last bit, so a polygon's arcs do not depend on the polygons before it
+    in the batch (a global ``cumsum`` minus an offset would).
+    """
+    y = np.asarray(x, np.float64).copy()
+    if len(y) == 0:
+        return y
+    start = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+    pos = np.arange(len(y)) - np.repeat(start, np.diff(np.r_[start, len(y)]))
+    k = 1
+    top = int(pos.max())
+    while k <= top:
+        i = np.flatnonzero(pos >= k)
+        y[i] = y[i] + y[i - k]  # the right side is read before the write
+        k *= 2
+    return y
+
+
 class Marks:
     """One mark per boundary segment of each of a list of polygons (flat, with counts)."""
 
@@ -81,7 +102,7 @@ class Contour:
         el = np.hypot(*(nxt - v).T)
         nv = np.bincount(vi, minlength=P)
         perim = np.bincount(vi, weights=el, minlength=P)
-        arc = np.cumsum(el) - el - (np.cumsum(perim) - perim)[vi]
+        arc = _scan(el, vi) - el  # arc length of each vertex from its ring's start
         self.v, self.vi, self.varc = v, vi, arc
         # two laps; polygons 1 m apart on one increasing arc coordinate
         goff = np.cumsum(2 * perim + 1.0) - (2 * perim + 1.0)
@@ -96,7 +117,7 @@ class Contour:
         self.lap_arc = arc[lap] + np.where(second, perim[vi[lap]], 0.0)  # within the polygon
         self.lap_g = goff[vi[lap]] + self.lap_arc  # to search all polygons at once
         fl = np.where(self.lap_flag, self.lap_len, 0.0)
-        self.lap_F = np.cumsum(fl) - fl  # street length before each lap edge (global)
+        self.lap_F = _scan(fl, vi[lap]) - fl  # street length before each lap edge, within its polygon
         self.lstart, self.nlap = 2 * vstart, 2 * nv
         self.goff, self.perim = goff, perim
         self.nseg = np.where(has, np.maximum(3, np.floor(perim / segment + 0.5)), 0).astype(np.int64)

@@ -53,6 +53,67 @@ def _longest(ln: np.ndarray, vp: np.ndarray, n: int) -> np.ndarray:
     return best
 
 
+def _cut_level(rs, own, key, seeds, min_frontage, jitter):
+    """One level: a cut for every piece, the first of four that keeps street access.
+
+    Returns the accepted pieces (RingSet), their parent piece and side, the
+    mask of pieces no cut could split, and the number of failed cuts.
+    """
+    failed_count = 0
+    k = rs.n
+    vp = rs.vertex_poly()
+    e = rs.xy[rs.next_vertex()] - rs.xy
+    ln = rs.edge_lengths()
+    unit = e / np.maximum(ln, 1e-300)[:, None]
+    best = _longest(ln, vp, k)
+    d_edge = np.tile([1.0, 0.0], (k, 1))
+    d_edge[best >= 0] = unit[best[best >= 0]]
+    bestf = _longest(np.where(rs.flag, ln, -1.0), vp, k)
+    has_f = bestf >= 0
+    has_f[has_f] &= rs.flag[bestf[has_f]]
+    d_front = d_edge.copy()
+    d_front[has_f] = unit[bestf[has_f]]
+    u01 = hash01(seeds[own], key)
+    mf = min_frontage[own]
+    accepted = np.zeros(k, bool)
+    new_rs, new_p, new_s = [], [], []
+    left = np.arange(k)  # pieces still without a cut
+    for kind, jit in (("edge", jitter), ("front", jitter), ("rect", jitter), ("front", 0.0)):
+        if len(left) == 0:
+            break
+        sub = rs.take(left)
+        if kind == "edge":
+            d = d_edge[left]
+        elif kind == "front":
+            d = d_front[left]
+        else:
+            d = sub.min_rect_axis()
+        ref, lo, hi = sub.extent_along(d)
+        t = 0.5 + jit * (u01[left] - 0.5)
+        point = ref + (lo + t * (hi - lo))[:, None] * d
+        cut = np.stack([-d[:, 1], d[:, 0]], axis=1)
+        # a cut crossing the boundary twice gives one piece per side, with
+        # the street length on that side: judge it before cutting
+        nc, fl, fr = cut_lengths(sub, point, cut)
+        simple = nc == 2
+        try_ = (simple & (fl >= mf[left]) & (fr >= mf[left])) | (nc > 2)
+        go = np.flatnonzero(try_)
+        pieces, parent, side, failed = split(sub.take(try_), point[go], cut[go])
+        failed_count += int(failed.sum())
+        front = pieces.flagged_length()
+        good = ~failed & (np.bincount(parent, minlength=len(go)) >= 2)
+        np.logical_and.at(good, parent, front >= mf[left[go[parent]]])
+        sel = good[parent]
+        new_rs.append(pieces.take(sel))
+        new_p.append(left[go[parent[sel]]])
+        new_s.append(side[sel])
+        accepted[left[go[good]]] = True
+        left = left[~accepted[left]]
+    par = np.concatenate(new_p) if new_p else np.empty(0, np.int64)
+    side = np.concatenate(new_s) if new_s else np.empty(0, np.int8)
+    return RingSet.concat(new_rs), par, side, ~accepted, failed_count
+
+
 def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, seeds=None, max_levels=24,
                    report=None, street=False):
     """Recursive lots after Parish and Müller [13], keeping street access.
@@ -123,63 +184,12 @@ def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, see
         if rs.n == 0:
             break
         levels += 1
-        k = rs.n
-        vp = rs.vertex_poly()
-        e = rs.xy[rs.next_vertex()] - rs.xy
-        ln = rs.edge_lengths()
-        unit = e / np.maximum(ln, 1e-300)[:, None]
-        best = _longest(ln, vp, k)
-        d_edge = np.tile([1.0, 0.0], (k, 1))
-        d_edge[best >= 0] = unit[best[best >= 0]]
-        bestf = _longest(np.where(rs.flag, ln, -1.0), vp, k)
-        has_f = bestf >= 0
-        has_f[has_f] &= rs.flag[bestf[has_f]]
-        d_front = d_edge.copy()
-        d_front[has_f] = unit[bestf[has_f]]
-        u01 = hash01(seeds[own], key)
-        mf = min_frontage[own]
-        accepted = np.zeros(k, bool)
-        new_rs, new_p, new_s = [], [], []
-        left = np.arange(k)  # pieces still without a cut
-        for kind, jit in (("edge", jitter), ("front", jitter), ("rect", jitter), ("front", 0.0)):
-            if len(left) == 0:
-                break
-            sub = rs.take(left)
-            if kind == "edge":
-                d = d_edge[left]
-            elif kind == "front":
-                d = d_front[left]
-            else:
-                d = sub.min_rect_axis()
-            ref, lo, hi = sub.extent_along(d)
-            t = 0.5 + jit * (u01[left] - 0.5)
-            point = ref + (lo + t * (hi - lo))[:, None] * d
-            cut = np.stack([-d[:, 1], d[:, 0]], axis=1)
-            # a cut crossing the boundary twice gives one piece per side, with
-            # the street length on that side: judge it before cutting
-            nc, fl, fr = cut_lengths(sub, point, cut)
-            simple = nc == 2
-            try_ = (simple & (fl >= mf[left]) & (fr >= mf[left])) | (nc > 2)
-            go = np.flatnonzero(try_)
-            pieces, parent, side, failed = split(sub.take(try_), point[go], cut[go])
-            failed_count += int(failed.sum())
-            front = pieces.flagged_length()
-            good = ~failed & (np.bincount(parent, minlength=len(go)) >= 2)
-            np.logical_and.at(good, parent, front >= mf[left[go[parent]]])
-            sel = good[parent]
-            new_rs.append(pieces.take(sel))
-            new_p.append(left[go[parent[sel]]])
-            new_s.append(side[sel])
-            accepted[left[go[good]]] = True
-            left = left[~accepted[left]]
-        stuck = ~accepted
+        pieces, par, side, stuck, nfail = _cut_level(rs, own, key, seeds, min_frontage, jitter)
+        failed_count += nfail
         stuck_count += int(stuck.sum())
         done_rs.append(rs.take(stuck))
         done_o.append(own[stuck])
-        par = np.concatenate(new_p) if new_p else np.empty(0, np.int64)
-        rs = RingSet.concat(new_rs)
-        own = own[par]
-        key = key[par] * np.uint64(2) + np.concatenate(new_s).astype(np.uint64) if new_p else key[par]
+        rs, own, key = pieces, own[par], key[par] * np.uint64(2) + side.astype(np.uint64)
     done_rs.append(rs)
     done_o.append(own)
     if report is not None:

@@ -398,8 +398,18 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
     tp, tq = np.where(leaving, t[a], t[b]), np.where(leaving, t[b], t[a])
     key = (tq - tp) / np.abs(sa - sb)
     cp = vp[a]
-    order = np.lexsort((key, ct, cp))
+    # crossings come grouped by polygon (edges are in vertex order); sort each group along the
+    # line: a swap for the common pair, a lexsort for polygons crossed more than twice
     C = len(ce)
+    order = np.arange(C)
+    ncr = np.bincount(cp, minlength=n)
+    first = np.flatnonzero(np.r_[True, cp[1:] != cp[:-1]]) if C else np.zeros(0, np.int64)
+    two = first[ncr[cp[first]] == 2]
+    swap = (ct[two + 1] < ct[two]) | ((ct[two + 1] == ct[two]) & (key[two + 1] < key[two]))
+    order[two[swap]], order[two[swap] + 1] = two[swap] + 1, two[swap]
+    many = np.flatnonzero(ncr[cp] > 2)
+    if len(many):
+        order[many] = many[np.lexsort((key[many], ct[many], cp[many]))]
     cstart = _first_of(cp[order], n)
     rank = np.arange(C) - cstart[cp[order]]
     ok = (rank % 2 == 0) == leaving[order]
@@ -429,7 +439,11 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
             hit = (cp[lo_i] == e_p[k]) & (mid > e_lo[k]) & (mid < e_hi[k])
             chord[lo_i[hit]] = True
             chord[hi_i[hit]] = True
-    out = [_side(rs, left, pos, cross_at, cxy, leaving, partner, chord) for left in (True, False)]
+    touch = np.zeros(n, bool)
+    touch[vp[np.abs(s) <= touch_tol]] = True
+    # without vertices on the line and without holes every cycle is a piece: no clean-up needed
+    general = touch | (np.bincount(rs.poly, minlength=n) > 1)
+    out = [_side(rs, left, pos, cross_at, cxy, leaving, partner, chord, general) for left in (True, False)]
     pieces = RingSet.concat([o[0] for o in out])
     parent = np.concatenate([o[1] for o in out])
     side = np.concatenate([np.full(len(o[1]), 1 if left else 0, np.int8) for o, left in zip(out, (True, False))])
@@ -438,8 +452,6 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
         bad |= o[2]
     # A cut through vertices or along edges may leave pieces that touch
     # themselves on the line (zero-width bridges): validate those few pieces.
-    touch = np.zeros(n, bool)
-    touch[vp[np.abs(s) <= touch_tol]] = True
     check = np.flatnonzero(touch[parent])
     if len(check):
         bad[parent[check[~shapely.is_valid(pieces.take(check).polygons())]]] = True
@@ -451,10 +463,12 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
     return pieces, parent, side, failed
 
 
-def _side(rs, left, pos, cross_at, cxy, leaving, partner, chord_flag):
+def _side(rs, left, pos, cross_at, cxy, leaving, partner, chord_flag, general):
     """Pieces of every polygon on one side of its line: (RingSet, parent, bad).
 
-    ``chord_flag`` is the mark of the chord leaving each crossing.
+    ``chord_flag`` is the mark of the chord leaving each crossing.  Unless
+    ``general`` (per polygon: vertices on its line, or holes), every cycle
+    is a piece.
     """
     R = len(rs.poly)
     on = pos if left else ~pos
@@ -493,7 +507,7 @@ def _side(rs, left, pos, cross_at, cxy, leaving, partner, chord_flag):
     entry_nodes = np.flatnonzero(is_entry)
     run_entry_k = np.zeros(max(nruns, 1), np.int64)
     run_entry_k[run[entry_nodes]] = k[entry_nodes]
-    pos_in = (k - run_entry_k[np.maximum(run, 0)]) % np.maximum(rlen[nring], 1)  # crossed nodes only
+    pos_in = np.where(crossed, (k - run_entry_k[np.maximum(run, 0)]) % np.maximum(rlen[nring], 1), k)
     next_run = np.empty(nruns, np.int64)
     next_run[run[cnode[exits]]] = run[node_of_c[partner[cidx[exits]]]]
     runs_of = np.bincount(rs.poly, weights=n_entry, minlength=rs.n).astype(np.int64)
@@ -514,8 +528,22 @@ def _side(rs, left, pos, cross_at, cxy, leaving, partner, chord_flag):
     newc = np.r_[True, cyc[1:] != cyc[:-1]]
     ncyc = int(newc.sum())
     # each cycle a ring (and a polygon of its own) until shells and holes are known
-    cs = RingSet(nxy[o], np.cumsum(newc) - 1, nflag[o], np.arange(ncyc), ncyc).cleaned()
-    cpar = par_node[newc][cs.poly]
+    cs = RingSet(nxy[o], np.cumsum(newc) - 1, nflag[o], np.arange(ncyc), ncyc)
+    cpar = par_node[newc]
+    bad = np.zeros(rs.n, bool)
+    gen = general[cpar]
+    if not gen.any():
+        return cs, cpar, bad
+    # cycles of polygons with vertices on the line or holes: clean, drop flat ones, give holes to shells
+    easy = cs.take(~gen)
+    cs, cpar = cs.take(gen), cpar[gen]
+    hard, hpar = _pieces(cs.cleaned(), cpar, bad)
+    return RingSet.concat([easy, hard]), np.r_[par_node[newc][~gen], hpar], bad
+
+
+def _pieces(cs, cyc_par, bad):
+    """Pieces from cleaned cycles (one polygon per cycle): shells with their holes, flat ones dropped."""
+    cpar = cyc_par[cs.poly]
     ar = cs.ring_areas()
     size = np.zeros(len(cpar))
     if len(cpar):
@@ -524,19 +552,20 @@ def _side(rs, left, pos, cross_at, cxy, leaving, partner, chord_flag):
     flat = np.abs(ar) <= 1e-10 * size * size  # collinear leftovers of cuts along edges
     shell_ids = np.flatnonzero((ar > 0) & ~flat)
     hole_ids = np.flatnonzero((ar < 0) & ~flat)
-    bad = np.zeros(rs.n, bool)
+    if len(hole_ids) == 0:
+        out = RingSet(cs.xy, cs.ring, cs.flag, np.arange(len(cpar)), len(cpar))
+        return (out if len(shell_ids) == len(cpar) else out.take(shell_ids)), cpar[shell_ids]
     owner = np.full(len(cpar), -1, np.int64)
     owner[shell_ids] = np.arange(len(shell_ids))
-    if len(hole_ids):
-        owner[hole_ids] = _hole_owner(cs, cpar, shell_ids, hole_ids, bad)
+    owner[hole_ids] = _hole_owner(cs, cpar, shell_ids, hole_ids, bad)
     # pieces: each shell then its holes
     ro = np.lexsort((ar < 0, owner))
     ro = ro[owner[ro] >= 0]
     vstart = _first_of(cs.ring, len(cpar))
     vcnt = np.diff(vstart)[ro]
-    vsel = np.repeat(vstart[ro], vcnt) + (np.arange(int(vcnt.sum())) - np.repeat(np.cumsum(vcnt) - vcnt, vcnt))
+    vsel = np.repeat(vstart[ro], vcnt) + _ramp(vcnt)
     out = RingSet(cs.xy[vsel], np.repeat(np.arange(len(ro)), vcnt), cs.flag[vsel], owner[ro], len(shell_ids))
-    return out, cpar[shell_ids], bad
+    return out, cpar[shell_ids]
 
 
 def _cycles(nxt: np.ndarray, maxlen: int) -> tuple[np.ndarray, np.ndarray]:

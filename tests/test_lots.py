@@ -235,6 +235,11 @@ def test_real_blocks(monaco_blocks, name):
     check_lots(monaco_blocks, lots, name)
     assert node.report.get("kept_whole", 0) == 0 and node.report["no_frontage"] == 0
     assert len(lots) > 3 * len(monaco_blocks)
+    # every other block alone: the same lots to the bit (as when the executor cuts the input in chunks)
+    half = monaco_blocks.take(np.arange(1, len(monaco_blocks), 2))
+    part = get(name)("lots", {}, Context(seed=2)).run(blocks=half)["lots"]
+    mine = np.isin(lots["block"], half.ids)
+    assert shapely.to_wkb(part.geometry).tolist() == shapely.to_wkb(lots.geometry[mine]).tolist()
 
 
 def test_recursive_degenerate_cuts():

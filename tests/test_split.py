@@ -132,3 +132,17 @@ def test_segments_on_boundary_matches_the_geos_test():
     ref = segments_on(p0, p1, shapely.boundary(blocks)[owner[idx]], tol=1e-6)
     assert np.array_equal(on, ref)
     assert np.bincount(idx[on], weights=np.hypot(*(p1 - p0)[on].T), minlength=4).tolist() == [50, 0, 40, 140]
+
+
+@SETTINGS
+@given(cuts())
+def test_pieces_of_a_polygon_do_not_depend_on_its_batch(case):
+    polys, pt, d = case
+    rs = RingSet.from_polygons(polys)
+    pieces, parent, side, failed = split(rs, pt, d)
+    out = shapely.to_wkb(pieces.polygons())
+    for i in range(len(polys)):
+        alone, _, s1, f1 = split(rs.take([i]), pt[i:i + 1], d[i:i + 1])
+        assert f1[0] == failed[i]
+        assert shapely.to_wkb(alone.polygons()).tolist() == out[parent == i].tolist()
+        assert s1.tolist() == side[parent == i].tolist()
