@@ -369,15 +369,17 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
     Returns
     -------
     pieces : RingSet
-        The pieces, grouped by polygon: left pieces first, then right ones.
+        The pieces: all left ones, then all right ones (``parent`` and
+        ``side`` tell whose and which; a polygon's pieces do not depend on
+        the other polygons of the call).
     parent : ndarray of int64
         Polygon each piece comes from.
     side : ndarray of int8
         1 left of the directed line, 0 right of it.
     failed : ndarray of bool (n,)
         Polygons whose crossings could not be paired (nearly tangent cuts)
-        or whose pieces touch themselves; they give no pieces.  A polygon the line misses gives itself as
-        its only piece.
+        or whose pieces touch themselves; they give no pieces.  A polygon
+        the line misses gives itself as its only piece.
     """
     n = rs.n
     point = np.asarray(point, np.float64).reshape(-1, 2)
