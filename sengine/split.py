@@ -362,9 +362,10 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
     chord_flag : bool
         Mark of the new edges along the cut.
     touch_tol : float
-        Polygons with a vertex this close to their line (m) have their
-        pieces checked with GEOS (``is_valid``): a cut through vertices or
-        along edges can leave pieces that touch themselves on the line.
+        Polygons with a vertex this close to their line (m), and polygons
+        with holes, have their pieces checked with GEOS (``is_valid``): a
+        cut through vertices or along edges, or through a hole touching its
+        shell, can leave pieces that touch themselves.
 
     Returns
     -------
@@ -378,7 +379,7 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
         1 left of the directed line, 0 right of it.
     failed : ndarray of bool (n,)
         Polygons whose crossings could not be paired (nearly tangent cuts)
-        or whose pieces touch themselves; they give no pieces.  A polygon
+        or whose pieces would touch themselves; they give no pieces.  A polygon
         the line misses gives itself as its only piece.
     """
     n = rs.n
@@ -453,8 +454,10 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
     for o in out:
         bad |= o[2]
     # A cut through vertices or along edges may leave pieces that touch
-    # themselves on the line (zero-width bridges): validate those few pieces.
-    check = np.flatnonzero(touch[parent])
+    # themselves on the line (zero-width bridges), and cutting open a hole
+    # that touches its shell leaves a ring through that point twice:
+    # validate the pieces of those few polygons (``general``).
+    check = np.flatnonzero(general[parent])
     if len(check):
         bad[parent[check[~shapely.is_valid(pieces.take(check).polygons())]]] = True
     if bad.any():

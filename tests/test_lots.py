@@ -267,3 +267,26 @@ def test_paris_thin_concave_and_holed_blocks():
     # perimeter lots about one segment wide all around each block
     per_block = np.bincount(lots["block"][~lots["inner"]], minlength=3)
     assert (per_block >= 0.6 * shapely.length(blocks.geometry) / 20.0 - 2).all()
+
+
+def test_awkward_blocks():
+    """Slivers, a 5000-vertex circle, holes touching the shell, repeated vertices, far coordinates, wiggles."""
+    polys = [
+        shapely.box(0, 0, 100, 1e-4),
+        shapely.Point(0, 0).buffer(300, quad_segs=1250),
+        shapely.box(0, 0, 100, 100).difference(shapely.Polygon([(0, 0), (10, 20), (20, 10)])),  # hole touching
+        shapely.box(0, 0, 100, 100).difference(shapely.box(40, 40, 60, 60)).difference(shapely.box(10, 10, 20, 20))
+        .difference(shapely.box(70, 20, 90, 80)),
+        shapely.Polygon([(0, 0), (50, 0), (50, 0), (50, 0), (100, 0), (100, 50), (0, 50)]),
+        shapely.affinity.translate(shapely.box(0, 0, 80, 60), 1e7, 1e7),
+        shapely.Polygon([(0, 0), (200, 0), (200, 5), (5, 5), (5, 200), (0, 200)]),
+        shapely.Polygon(np.c_[np.linspace(0, 500, 400), 20 * np.sin(np.linspace(0, 60, 400))].tolist()
+                        + [(500, -100), (0, -100)]),
+    ]
+    blocks = Layer.from_geoms(polys)
+    for name in METHODS:
+        for seed in (4, 5):
+            node = get(name)("lots", {}, Context(seed=seed))
+            lots = node.run(blocks=blocks)["lots"]
+            check_lots(blocks, lots, name)
+            assert node.report.get("kept_whole", 0) == 0
