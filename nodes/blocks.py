@@ -9,7 +9,7 @@ outline and is removed (Fig. 8d).  The remaining circuits partition the
 city area: their union is the area inside the outline and no two overlap.
 
 Instead of walking node by node, the whole walk is vectorized
-(:func:`sengine.geometry.planar_faces`): half-edges are sorted by angle
+(:func:`sengine.planar.planar_faces`): half-edges are sorted by angle
 around their node with one ``numpy.lexsort``, the "next half-edge"
 permutation is one gather, and the circuits are the cycles of that
 permutation.  Dead ends (edges with the same face on both sides) are
@@ -41,16 +41,8 @@ import numpy as np
 import shapely
 
 from sengine import Layer, Param, Port, SENode, register
-from sengine.geometry import (
-    PlanarFaces,
-    frame_boxes,
-    inset,
-    merge_points,
-    planar_faces,
-    planarize,
-    segments_from_lines,
-    threaded,
-)
+from sengine.geometry import frame_boxes, inset, threaded
+from sengine.planar import PlanarFaces, merge_points, planar_faces, planarize, segments_from_lines
 
 __all__ = ["find_blocks", "BlockFaces", "traced_faces", "face_half_widths", "shrink_faces", "street_graph", "BlocksCircuits"]
 
@@ -83,7 +75,7 @@ class BlockFaces:
         Numbers for the node's report (segments, crossings, duplicates,
         bridges, faces, holes, degenerate ...).
     walk_vertex, walk_start, walk_area : ndarray
-        Every closed walk traced, as :class:`sengine.geometry.PlanarFaces`
+        Every closed walk traced, as :class:`sengine.planar.PlanarFaces`
         gives them (node ids into ``xy``).
     """
 
@@ -116,7 +108,7 @@ def find_blocks(streets, *, node: bool = True, decimals: int | None = 6) -> Bloc
     node : bool
         Make the graph plane first: segments that cross, or end on another
         segment's interior, or overlap collinearly, are split there
-        (:func:`sengine.geometry.planarize`, vectorized).  Turn off only for
+        (:func:`sengine.planar.planarize`, vectorized).  Turn off only for
         input known to be plane: crossings without a node give overlapping,
         invalid faces.
     decimals : int or None
@@ -133,7 +125,7 @@ def find_blocks(streets, *, node: bool = True, decimals: int | None = 6) -> Bloc
     Notes
     -----
     The circuit finder is skylineEngine's (§5.4, Fig. 8) written as one
-    permutation: see :func:`sengine.geometry.trace_faces`.  It runs in
+    permutation: see :func:`sengine.planar.trace_faces`.  It runs in
     O(m log m) numpy time (about 0.5 s for Liège's 80,000 segments).
     """
     counts: dict = {}

@@ -42,7 +42,8 @@ import shapely
 from scipy.sparse import csr_matrix
 
 from sengine import Layer, Param, Port, SENode, register
-from sengine.geometry import argsort_int, merge_points, planar_faces, strtree_query
+from sengine.geometry import strtree_query
+from sengine.planar import argsort_int, merge_points, planar_faces
 
 from .blocks import BlocksCircuits, find_blocks
 

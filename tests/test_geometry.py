@@ -1,4 +1,4 @@
-"""sengine.geometry: faces of plane graphs, planarize, OBB frames, splits."""
+"""sengine.planar and sengine.geometry: faces of plane graphs, planarize, OBB frames, splits."""
 
 from __future__ import annotations
 
@@ -12,15 +12,17 @@ from sengine.geometry import (
     boundary_segments,
     frame_boxes,
     inset,
-    merge_points,
     obb_frame,
+    split_by_line,
+    strtree_query,
+    threaded,
+)
+from sengine.planar import (
+    merge_points,
     planar_faces,
     planarize,
     segments_from_lines,
     signed_area,
-    split_by_line,
-    strtree_query,
-    threaded,
     trace_faces,
 )
 
@@ -175,7 +177,7 @@ def test_trace_with_a_filtered_order_is_the_same_trace():
 
 
 def test_argsort_int_is_a_stable_argsort():
-    from sengine.geometry import argsort_int
+    from sengine.planar import argsort_int
 
     rng = np.random.default_rng(0)
     for span in (3, 1000, 70_000, 2**31, 2**47, 2**60):

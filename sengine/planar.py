@@ -1,0 +1,603 @@
+"""Plane graphs of street segments: noding and faces (the minimal circuits of §5.4).
+
+Nothing here knows about cities: these are segment graphs and the faces of
+their planar embedding, vectorized over numpy arrays.
+
+Public API
+----------
+Segment graphs
+    :func:`merge_points` -- unique points (to a rounding) and the index map.
+    :func:`segments_from_lines` -- LineStrings to ``(xy, u, v, src)`` arrays
+    (optionally noded with ``shapely.node``).
+    :func:`planarize` -- split crossing segments of a ``(xy, u, v)`` graph.
+    :func:`argsort_int` -- stable argsort of integer keys by radix passes.
+Faces
+    :func:`trace_faces` -- the half-edge "next" permutation and its cycles.
+    :func:`planar_faces` -- bounded faces of a plane graph as polygons with
+    holes; bridges (dead ends) removed; the outer face(s) returned apart.
+    :func:`signed_area` -- shoelace area of rings given as grouped vertices.
+
+Half-edge convention: input edge ``e`` (from ``u[e]`` to ``v[e]``) gives
+half-edges ``2 e`` (u -> v) and ``2 e + 1`` (v -> u); each half-edge bounds
+the face on its left, so bounded faces are counter-clockwise (positive
+signed area) and the outer face of each connected component is clockwise.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
+
+__all__ = [
+    "argsort_int",
+    "merge_points",
+    "segments_from_lines",
+    "planarize",
+    "trace_faces",
+    "planar_faces",
+    "PlanarFaces",
+    "signed_area",
+]
+
+log = logging.getLogger(__name__)
+
+
+# -- segment graphs ----------------------------------------------------------------
+
+def argsort_int(keys: np.ndarray) -> np.ndarray:
+    """``np.argsort(keys, kind="stable")`` for integer keys, by 16-bit radix passes.
+
+    numpy sorts 16-bit integers with a linear-time radix sort; keys spanning
+    up to 48 bits are sorted digit by digit (least significant first, each
+    pass stable), which beats the merge sort numpy uses for wider integers.
+    """
+    keys = np.asarray(keys)
+    if len(keys) < 4096:
+        return np.argsort(keys, kind="stable")
+    lo = int(keys.min())
+    passes = -(-max(int(keys.max()) - lo, 1).bit_length() // 16)
+    if passes > 3:
+        return np.argsort(keys, kind="stable")
+    k = (keys - lo).astype(np.uint64)
+    order = None
+    for p in range(passes):
+        digit = ((k if order is None else k[order]) >> np.uint64(16 * p)).astype(np.uint16)  # low 16 bits
+        o = np.argsort(digit, kind="stable")
+        order = o if order is None else order[o]
+    return order
+
+
+def merge_points(coords: np.ndarray, decimals: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Unique points of ``coords`` (n, 2) and the index of each row in them.
+
+    Points equal after rounding to ``decimals`` (m) are one point (the first
+    one's exact coordinates are kept); ``None`` compares exactly.
+    """
+    key = np.round(coords, decimals) if decimals is not None else coords
+    key = np.ascontiguousarray(key, dtype=np.float64) + 0.0  # -0.0 == 0.0
+    view = key.view(np.dtype((np.void, 16))).ravel()
+    _, first, inv = np.unique(view, return_index=True, return_inverse=True)
+    return coords[first], inv.ravel()
+
+
+def segments_from_lines(lines, *, node: bool = False, decimals: int | None = 9):
+    """Explode LineStrings into straight segments with shared node ids.
+
+    Parameters
+    ----------
+    lines : array_like of shapely.LineString or MultiLineString
+        Street centre lines (m).
+    node : bool
+        Run ``shapely.node`` first so that every crossing, T-junction and
+        collinear overlap becomes a shared node.  Without it, segments meet
+        only where they share an exact vertex.
+    decimals : int or None
+        Vertices equal after rounding to this many decimals (m) are one node.
+
+    Returns
+    -------
+    xy : ndarray, shape (n, 2)
+        Node coordinates.
+    u, v : ndarray of int64, shape (m,)
+        End node ids of each segment.
+    src : ndarray of int64, shape (m,)
+        Index in ``lines`` of the line each segment comes from (with
+        ``node=True``: the nearest input line to the segment's midpoint).
+    """
+    lines = np.asarray(lines, dtype=object).ravel()
+    empty = (np.empty((0, 2)), np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0, np.int64))
+    if len(lines) == 0:
+        return empty
+    work = lines
+    if node:
+        noded = shapely.node(shapely.multilinestrings(shapely.get_parts(lines)))
+        work = shapely.get_parts(noded)
+    parts, pidx = shapely.get_parts(work, return_index=True)
+    coords, cidx = shapely.get_coordinates(parts, return_index=True)
+    if len(coords) < 2:
+        return empty
+    same = cidx[1:] == cidx[:-1]
+    a = np.flatnonzero(same)
+    xy, inv = merge_points(coords, decimals)
+    u, v = inv[a], inv[a + 1]
+    if node:
+        mid = (coords[a] + coords[a + 1]) / 2.0
+        tree = shapely.STRtree(lines)
+        src = tree.query_nearest(shapely.points(mid), all_matches=False)[1]
+    else:
+        src = pidx[cidx[a]]
+    keep = u != v
+    return xy, u[keep].astype(np.int64), v[keep].astype(np.int64), np.asarray(src)[keep].astype(np.int64)
+
+
+def _segments_intersect(p1, p2, p3, p4) -> np.ndarray:
+    """Whether segments p1p2 and p3p4 share a point (rows of (k, 2) arrays)."""
+
+    def orient(a, b, c):
+        return np.sign((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+    d1, d2 = orient(p3, p4, p1), orient(p3, p4, p2)
+    d3, d4 = orient(p1, p2, p3), orient(p1, p2, p4)
+    hit = (d1 * d2 <= 0) & (d3 * d4 <= 0)
+    col = (d1 == 0) & (d2 == 0) & (d3 == 0) & (d4 == 0)
+    if col.any():  # collinear: the projections must overlap on both axes
+        lo1, hi1 = np.minimum(p1, p2)[col], np.maximum(p1, p2)[col]
+        lo2, hi2 = np.minimum(p3, p4)[col], np.maximum(p3, p4)[col]
+        hit[col] = np.all((lo1 <= hi2) & (lo2 <= hi1), axis=1)
+    return hit
+
+
+def planarize(xy, u, v, *, decimals: int | None = 9):
+    """Split segments that cross or touch without a shared node.
+
+    The graph ``(xy, u, v)`` may come from a source that knows its topology
+    (OSM node ids) but is not plane (bridges, tunnels, missing nodes).
+    Candidate pairs come from one STRtree bounding-box query; the exact
+    test and the split points are computed in numpy, so every segment keeps
+    its source index and untouched segments keep their node ids.
+
+    Parameters
+    ----------
+    xy : array_like (n, 2)
+        Node coordinates (m).
+    u, v : array_like of int (m,)
+        Segment end node ids.
+    decimals : int or None
+        New split points are merged with nodes equal after rounding to this
+        many decimals (m).
+
+    Returns
+    -------
+    xy, u, v, src : as :func:`segments_from_lines`; ``src`` indexes the
+        input segments.
+    crossings : int
+        Number of segment pairs that met away from a shared node.
+    """
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    u = np.asarray(u, np.int64).ravel()
+    v = np.asarray(v, np.int64).ravel()
+    m = len(u)
+    src = np.arange(m, dtype=np.int64)
+    if m == 0:
+        return xy, u, v, src, 0
+    segs = shapely.linestrings(np.stack([xy[u], xy[v]], axis=1))
+    i, j = shapely.STRtree(segs).query(segs)  # bounding boxes only
+    sel = i < j
+    i, j = i[sel], j[sel]
+    shared = (u[i] == u[j]) | (u[i] == v[j]) | (v[i] == u[j]) | (v[i] == v[j])
+    i, j = i[~shared], j[~shared]
+    hit = _segments_intersect(xy[u[i]], xy[v[i]], xy[u[j]], xy[v[j]])
+    i, j = i[hit], j[hit]
+    if len(i) == 0:
+        return xy, u, v, src, 0
+    p, r = xy[u[i]], xy[v[i]] - xy[u[i]]
+    q, s = xy[u[j]], xy[v[j]] - xy[u[j]]
+    den = r[:, 0] * s[:, 1] - r[:, 1] * s[:, 0]
+    qp = q - p
+    col = den == 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (qp[:, 0] * s[:, 1] - qp[:, 1] * s[:, 0]) / den
+        w = (qp[:, 0] * r[:, 1] - qp[:, 1] * r[:, 0]) / den
+    t, w = np.clip(t, 0.0, 1.0), np.clip(w, 0.0, 1.0)
+    pt = p + t[:, None] * r
+    # snap to an exact end point when the crossing is one (T-junctions)
+    for par, a_, b_ in ((w, xy[u[j]], xy[v[j]]), (t, xy[u[i]], xy[v[i]])):
+        pt = np.where((par <= 1e-12)[:, None], a_, pt)
+        pt = np.where((par >= 1 - 1e-12)[:, None], b_, pt)
+    ev_seg = [i[~col], j[~col]]
+    ev_t = [t[~col], w[~col]]
+    ev_xy = [pt[~col], pt[~col]]
+    if col.any():  # collinear overlaps: each end point inside the other segment
+        for a_, b_ in ((i[col], j[col]), (j[col], i[col])):
+            pa, ra = xy[u[a_]], xy[v[a_]] - xy[u[a_]]
+            rr = np.einsum("ij,ij->i", ra, ra)
+            for end in (xy[u[b_]], xy[v[b_]]):
+                tt = np.einsum("ij,ij->i", end - pa, ra) / np.where(rr > 0, rr, 1.0)
+                inside = (tt > 0) & (tt < 1)
+                ev_seg.append(a_[inside])
+                ev_t.append(tt[inside])
+                ev_xy.append(end[inside])
+    bad = np.unique(np.concatenate([i, j]))
+    ev_seg += [bad, bad]
+    ev_t += [np.zeros(len(bad)), np.ones(len(bad))]
+    ev_xy += [xy[u[bad]], xy[v[bad]]]
+    es, et, exy = np.concatenate(ev_seg), np.concatenate(ev_t), np.concatenate(ev_xy)
+    o = np.lexsort((et, es))
+    es, exy = es[o], exy[o]
+    n0 = len(xy)
+    nxy, inv = merge_points(np.concatenate([xy, exy]), decimals)
+    # original nodes keep one id each (they are unique already unless duplicated)
+    k = np.flatnonzero(es[1:] == es[:-1])
+    good = np.ones(m, bool)
+    good[bad] = False
+    nu = np.concatenate([inv[u[good]], inv[n0 + k]])
+    nv = np.concatenate([inv[v[good]], inv[n0 + k + 1]])
+    nsrc = np.concatenate([src[good], es[k]])
+    keep = nu != nv
+    log.info("planarize: %d crossing pairs; %d segments split into %d", len(i), len(bad), len(k))
+    return nxy, nu[keep], nv[keep], nsrc[keep], int(len(i))
+
+
+# -- faces ---------------------------------------------------------------------
+
+def _angular_order(xy: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Half-edges (``2 e``: u -> v, ``2 e + 1``: v -> u) sorted by origin node, then angle."""
+    org = np.stack([u, v], axis=1).ravel()
+    dst = np.stack([v, u], axis=1).ravel()
+    d = xy[dst] - xy[org]
+    by_angle = np.argsort(np.arctan2(d[:, 1], d[:, 0]), kind="stable")
+    return by_angle[argsort_int(org[by_angle])]  # = np.lexsort((angle, org))
+
+
+def trace_faces(xy: np.ndarray, u: np.ndarray, v: np.ndarray, *, order: np.ndarray | None = None):
+    """Cycles of the half-edge "next" permutation of a plane graph.
+
+    Around each node, outgoing half-edges are sorted by angle (one
+    ``numpy.lexsort``); the successor of half-edge ``h`` (a -> b) is the
+    outgoing half-edge of ``b`` that comes clockwise right after the twin
+    (b -> a): the lowest positive turn, skylineEngine §5.4 / Fig. 8.  Faces
+    are the cycles of that permutation (``scipy`` connected components).
+
+    Parameters
+    ----------
+    xy : ndarray (n, 2)
+        Node coordinates.
+    u, v : ndarray of int (m,)
+        Edges; no self-loops, no duplicates (see :func:`planar_faces`).
+    order : ndarray of int64 (2 m,), optional
+        The half-edges already sorted by origin node, then angle (for
+        example a larger graph's order with the removed edges filtered
+        out, which keeps it sorted); sorted here when None.
+
+    Returns
+    -------
+    nxt : ndarray of int64 (2 m,)
+        Successor of each half-edge in its face.
+    face : ndarray of int64 (2 m,)
+        Face label of each half-edge, ``0 .. nfaces-1``.
+    area : ndarray of float (nfaces,)
+        Signed area of each face walk (m2): positive for bounded faces.
+    """
+    m = len(u)
+    h = np.arange(2 * m, dtype=np.int64)
+    org = np.empty(2 * m, np.int64)
+    org[0::2] = u
+    org[1::2] = v
+    dst = np.empty(2 * m, np.int64)
+    dst[0::2] = v
+    dst[1::2] = u
+    if order is None:
+        order = _angular_order(xy, u, v)
+    so = org[order]
+    # start and size of each node's group in sorted order
+    brk = np.flatnonzero(np.r_[True, so[1:] != so[:-1]])
+    size = np.diff(np.r_[brk, 2 * m])
+    grp = np.repeat(np.arange(len(brk)), size)
+    start = brk[grp]
+    cnt = size[grp]
+    prev_pos = start + (h - start - 1) % cnt  # clockwise neighbour in sorted order
+    cw = np.empty(2 * m, np.int64)
+    cw[order] = order[prev_pos]
+    nxt = cw[h ^ 1]
+    graph = csr_matrix((np.ones(2 * m, np.int8), (h, nxt)), shape=(2 * m, 2 * m))
+    nf, face = connected_components(graph, directed=True, connection="weak")
+    face = face.astype(np.int64)
+    cross = xy[org, 0] * xy[dst, 1] - xy[dst, 0] * xy[org, 1]
+    area = np.bincount(face, weights=cross, minlength=nf) / 2.0
+    return nxt, face, area
+
+
+def _cycle_order(nxt: np.ndarray, face: np.ndarray, nf: int) -> tuple[np.ndarray, np.ndarray]:
+    """Half-edges listed face by face in walk order, and each face's start offset.
+
+    List ranking by pointer jumping: O(n log L) numpy gathers, L the longest
+    face.
+    """
+    n = len(nxt)
+    h = np.arange(n, dtype=np.int64)
+    head = np.full(nf, n, np.int64)
+    np.minimum.at(head, face, h)
+    pred = np.empty(n, np.int64)
+    pred[nxt] = h
+    tail = pred[head]
+    succ = nxt.copy()
+    succ[tail] = tail
+    dist = (succ != h).astype(np.int64)
+    while True:
+        ss = succ[succ]
+        if np.array_equal(ss, succ):
+            break
+        dist = dist + dist[succ]
+        succ = ss
+    size = np.bincount(face, minlength=nf)
+    offset = np.r_[0, np.cumsum(size)[:-1]]
+    rank = size[face] - 1 - dist
+    ordered = np.empty(n, np.int64)
+    ordered[offset[face] + rank] = h
+    return ordered, offset
+
+
+def _split_walk(vids: list[int]) -> list[list[int]]:
+    """Split a closed walk that revisits vertices into simple closed walks."""
+    stack: list[int] = []
+    where: dict[int, int] = {}
+    out = []
+    for vid in vids:
+        j = where.get(vid)
+        if j is not None:
+            out.append(stack[j:])
+            for w in stack[j + 1:]:
+                where.pop(w, None)
+            del stack[j + 1:]
+        else:
+            where[vid] = len(stack)
+            stack.append(vid)
+    if len(stack) >= 3:
+        out.append(stack)
+    return [c for c in out if len(c) >= 3]
+
+
+def signed_area(xy: np.ndarray, index: np.ndarray, n: int | None = None) -> np.ndarray:
+    """Shoelace signed area of rings given as grouped, ordered vertices.
+
+    Parameters
+    ----------
+    xy : ndarray (k, 2)
+        Ring vertices, not repeated at the end, grouped contiguously by ring.
+    index : ndarray of int (k,)
+        Ring index of each vertex, non-decreasing.
+    n : int, optional
+        Number of rings (default ``index.max() + 1``).
+
+    Returns
+    -------
+    ndarray (n,)
+        Signed areas (m2), positive for counter-clockwise rings.
+    """
+    index = np.asarray(index)
+    n = int(index.max()) + 1 if n is None else n
+    if len(index) == 0:
+        return np.zeros(n)
+    brk = np.flatnonzero(np.r_[True, index[1:] != index[:-1]])
+    size = np.diff(np.r_[brk, len(index)])
+    start = np.repeat(brk, size)
+    k = np.arange(len(index))
+    nxt = np.where(k + 1 < start + np.repeat(size, size), k + 1, start)
+    cross = xy[:, 0] * xy[nxt, 1] - xy[nxt, 0] * xy[:, 1]
+    return np.bincount(index, weights=cross, minlength=n) / 2.0
+
+
+@dataclass
+class PlanarFaces:
+    """The faces of a plane graph (result of :func:`planar_faces`).
+
+    Attributes
+    ----------
+    polygons : ndarray of shapely.Polygon
+        Bounded faces; a face holding a disconnected component has it as a
+        hole.  Together they partition the area inside the outer rings.
+    edge_faces : ndarray of int64, shape (m, 2)
+        For each input edge, the polygon on its left (u -> v) and on its
+        right; ``-1`` for the outside, for a dropped edge (self-loop,
+        bridge) or a degenerate face.
+    outline : ndarray of shapely.Polygon
+        One polygon per outermost connected component: its outer boundary.
+    bridge : ndarray of bool, shape (m,)
+        Edges removed because the same face lies on both sides (dead ends
+        and connectors between components).
+    counts : dict
+        ``edges``, ``duplicates``, ``self_loops``, ``bridges``, ``faces``,
+        ``holes``, ``degenerate``, ``pinched`` (faces split at a vertex).
+    walk_vertex : ndarray of int64
+        The closed walks traced (cycles of the half-edge permutation of the
+        bridgeless graph, bounded or not), walk after walk: the node id of
+        each half-edge's origin, in walk order from the walk's lowest half-edge.
+    walk_start : ndarray of int64, shape (w + 1,)
+        Walk ``k`` is ``walk_vertex[walk_start[k]:walk_start[k + 1]]``.
+    walk_area : ndarray of float, shape (w,)
+        Signed area of each walk (m2): positive for bounded faces.
+    """
+
+    polygons: np.ndarray
+    edge_faces: np.ndarray
+    outline: np.ndarray
+    bridge: np.ndarray
+    counts: dict = field(default_factory=dict)
+    walk_vertex: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+    walk_start: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
+    walk_area: np.ndarray = field(default_factory=lambda: np.empty(0))
+
+
+def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
+    """Bounded faces of a plane graph as polygons with holes.
+
+    Parameters
+    ----------
+    xy : array_like (n, 2)
+        Node coordinates (m).
+    u, v : array_like of int (m,)
+        Edge end node ids.  The graph must be plane (edges meet only at
+        nodes; see :func:`planarize`).  Self-loops are ignored, duplicate
+        edges (either direction) count once.
+    area_eps : float
+        Faces whose absolute signed area is at most this (m2) are degenerate
+        (collinear overlaps) and dropped.
+
+    Returns
+    -------
+    PlanarFaces
+
+    Notes
+    -----
+    1. Half-edges are traced with :func:`trace_faces`.
+    2. An edge with the same face on both sides is a bridge (a dead end, or
+       a path joining two components); all bridges are removed at once and
+       the faces traced again (a bridgeless graph has no new bridges).
+    3. A walk that passes a vertex twice is split there into simple rings:
+       the positive one is the shell, negative ones are holes touching it.
+    4. The clockwise outer walk of each component becomes a hole of the
+       smallest bounded face containing it, or an outline ring when none
+       does.
+    """
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    u0 = np.asarray(u, np.int64).ravel()
+    v0 = np.asarray(v, np.int64).ravel()
+    m0 = len(u0)
+    n = len(xy)
+    counts = {"edges": m0}
+    loop = u0 == v0
+    a = np.minimum(u0, v0)
+    b = np.maximum(u0, v0)
+    key = a[~loop] * n + b[~loop]
+    uniq, inv = np.unique(key, return_inverse=True)
+    emap = np.full(m0, -1, np.int64)
+    emap[~loop] = inv.ravel()
+    flip = u0 > v0
+    eu, ev = uniq // n, uniq % n
+    counts["self_loops"] = int(loop.sum())
+    counts["duplicates"] = int((~loop).sum() - len(uniq))
+    bridge_u = np.zeros(len(uniq), bool)
+    live = np.arange(len(uniq))
+    empty = PlanarFaces(np.empty(0, object), np.full((m0, 2), -1, np.int64), np.empty(0, object),
+                        np.zeros(m0, bool), {**counts, "bridges": 0, "faces": 0, "holes": 0,
+                                             "degenerate": 0, "pinched": 0})
+    if len(uniq) == 0:
+        return empty
+    order = _angular_order(xy, eu, ev)
+    nxt, face, area = trace_faces(xy, eu, ev, order=order)
+    br = face[0::2] == face[1::2]
+    if br.any():
+        bridge_u[br] = True
+        live = np.flatnonzero(~br)
+        if len(live) == 0:
+            empty.bridge = bridge_u[np.maximum(emap, 0)] & (emap >= 0)
+            empty.counts["bridges"] = int(br.sum())
+            return empty
+        renum = np.full(len(uniq), -1, np.int64)
+        renum[live] = np.arange(len(live))
+        e = renum[order >> 1]
+        nxt, face, area = trace_faces(xy, eu[live], ev[live], order=2 * e[e >= 0] + (order[e >= 0] & 1))
+    counts["bridges"] = int(bridge_u.sum())
+    nf = len(area)
+    lu, lv = eu[live], ev[live]
+    org = np.empty(2 * len(live), np.int64)
+    org[0::2] = lu
+    org[1::2] = lv
+    ordered, offset = _cycle_order(nxt, face, nf)
+    fsize = np.bincount(face, minlength=nf)
+    degenerate = np.abs(area) <= area_eps
+    counts["degenerate"] = int(degenerate.sum())
+    # pinched walks: a vertex repeated within one face
+    pair = face * n + org
+    ps = np.sort(pair)
+    rep = ps[1:][ps[1:] == ps[:-1]] // n
+    pinched = np.zeros(nf, bool)
+    pinched[rep] = True
+    pinched &= ~degenerate
+    counts["pinched"] = int(pinched.sum())
+    # ring units: simple faces directly, pinched faces split in Python
+    simple = ~pinched & ~degenerate
+    ovid = org[ordered]
+    oface = np.repeat(np.arange(nf), fsize)
+    take = simple[oface]
+    unit_vid = [ovid[take]]
+    sf = np.flatnonzero(simple)
+    unit_face = [sf]
+    unit_of_entry = [np.repeat(np.arange(len(sf)), fsize[sf])]
+    nunit = len(sf)
+    extra_v, extra_u, extra_f = [], [], []
+    for f in np.flatnonzero(pinched):
+        walk = ovid[offset[f]:offset[f] + fsize[f]].tolist()
+        for cyc in _split_walk(walk):
+            extra_v.append(np.asarray(cyc, np.int64))
+            extra_u.append(np.full(len(cyc), nunit, np.int64))
+            extra_f.append(f)
+            nunit += 1
+    if extra_v:
+        unit_vid.append(np.concatenate(extra_v))
+        unit_of_entry.append(np.concatenate(extra_u))
+        unit_face.append(np.asarray(extra_f, np.int64))
+    unit_vid = np.concatenate(unit_vid)
+    unit_idx = np.concatenate(unit_of_entry)
+    unit_face = np.concatenate(unit_face)
+    uarea = signed_area(xy[unit_vid], unit_idx, nunit)
+    bounded_face = area > area_eps
+    is_shell = bounded_face[unit_face] & (uarea > area_eps)
+    is_fhole = bounded_face[unit_face] & (uarea < -area_eps)
+    is_outer = (area[unit_face] < -area_eps) & (uarea < -area_eps)
+    # one polygon per shell unit; pinched holes go to their face's largest shell
+    shells = np.flatnonzero(is_shell)
+    poly_of_unit = np.full(nunit, -1, np.int64)
+    poly_of_unit[shells] = np.arange(len(shells))
+    face_poly = np.full(nf, -1, np.int64)
+    sh_face = unit_face[shells]
+    srt = np.argsort(uarea[shells], kind="stable")
+    face_poly[sh_face[srt]] = np.arange(len(shells))[srt]
+    rings_all = shapely.linearrings(xy[unit_vid], indices=unit_idx)
+    shell_polys = shapely.polygons(rings_all[shells])
+    hole_units = np.flatnonzero(is_fhole)
+    hole_poly = face_poly[unit_face[hole_units]]
+    # outer walks: hole of the smallest shell strictly containing a vertex
+    outer_units = np.flatnonzero(is_outer)
+    first_entry = np.r_[0, np.flatnonzero(unit_idx[1:] != unit_idx[:-1]) + 1]
+    pts = shapely.points(xy[unit_vid[first_entry[outer_units]]])
+    host = np.full(len(outer_units), -1, np.int64)
+    if len(shells) and len(outer_units):
+        pi, si = shapely.STRtree(shell_polys).query(pts, predicate="within")
+        if len(pi):
+            o = np.lexsort((np.abs(uarea[shells[si]]), pi))
+            pi, si = pi[o], si[o]
+            firsts = np.r_[True, pi[1:] != pi[:-1]]
+            host[pi[firsts]] = si[firsts]
+    face_host = np.full(nf, -1, np.int64)
+    face_host[unit_face[outer_units]] = host
+    counts["holes"] = int((host >= 0).sum() + len(hole_units))
+    ring_units = np.r_[shells, hole_units, outer_units[host >= 0]]
+    ring_poly = np.r_[np.arange(len(shells)), hole_poly, host[host >= 0]]
+    ring_hole = np.r_[np.zeros(len(shells), bool), np.ones(len(hole_units) + int((host >= 0).sum()), bool)]
+    ok = ring_poly >= 0
+    ring_units, ring_poly, ring_hole = ring_units[ok], ring_poly[ok], ring_hole[ok]
+    o = np.lexsort((ring_hole, ring_poly))
+    polygons = shapely.polygons(rings_all[ring_units[o]], indices=ring_poly[o]) if len(shells) else np.empty(0, object)
+    outline = shapely.polygons(shapely.reverse(rings_all[outer_units[host < 0]]))
+    # per-edge faces
+    hface = np.where(bounded_face[face], face_poly[face], face_host[face])
+    hface = np.where(degenerate[face], -1, hface)
+    ef_live = np.full((len(uniq), 2), -1, np.int64)
+    ef_live[live, 0] = hface[0::2]
+    ef_live[live, 1] = hface[1::2]
+    edge_faces = np.full((m0, 2), -1, np.int64)
+    ok = emap >= 0
+    ef = ef_live[emap[ok]]
+    ef[flip[ok]] = ef[flip[ok]][:, ::-1]
+    edge_faces[ok] = ef
+    bridge = np.zeros(m0, bool)
+    bridge[ok] = bridge_u[emap[ok]]
+    counts["faces"] = int(len(polygons))
+    return PlanarFaces(np.asarray(polygons, dtype=object), edge_faces, np.asarray(outline, dtype=object),
+                       bridge, counts, ovid, np.r_[offset, len(ovid)].astype(np.int64), area)
