@@ -3,7 +3,7 @@
 Each piece larger than ``max_area`` is cut across its longest edge near the
 middle, and the cut is kept only if every part keeps some street frontage.
 The pieces of all blocks are cut together, level by level, as flat vertex
-arrays (:class:`sengine.split.RingSet`): a cut is one vectorized
+arrays (:class:`sengine.ringset.RingSet`): a cut is one vectorized
 :func:`sengine.split.split` call for all pieces of a level, and street
 frontage is an exact per-edge mark carried through the cuts (edges of the
 block are streets, cut edges are not), so no GEOS call runs per piece.
