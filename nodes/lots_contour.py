@@ -1,7 +1,7 @@
 """Contours of polygons for Paris lots (skylineEngine §5.5): samples, normals, chain polygons.
 
 :class:`Contour` samples the exterior ring of each polygon of a
-:class:`sengine.split.RingSet` at equal arc lengths, gives each sample an
+:class:`sengine.ringset.RingSet` at equal arc lengths, gives each sample an
 inner normal averaged over the contour around it, and builds polygons out
 of contour stretches and displaced ("inner") points in one vectorized pass:
 the candidate lots and corner lots (:meth:`Contour.chains`) and the core
