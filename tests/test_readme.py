@@ -9,7 +9,8 @@ import shapely
 
 from conftest import ROOT
 from sengine import Layer
-from sengine.registry import get, load_plugin
+import sengine
+from sengine.registry import get, load_plugin, names
 from sengine.xmlconfig import parse
 
 README = (ROOT / "README.md").read_text()
@@ -38,6 +39,19 @@ def test_readme_config_is_valid(tmp_path):
     path.write_text(xml)
     root = parse(path, "readme.xml")
     assert root.find("city").get("size") == "6000 4000"
+    # without its example plugin the network is complete: types, ports and parameters check out
+    path.write_text(re.sub(r"\s*<plugin [^>]*/>", "", xml))
+    bound = sengine.load(path).validate()
+    assert bound.nodes["lots"].name == "lots.paris" and bound.nodes["lots"].p.depth == 18.0
+    assert ("lots", "lots", "bigLots", "input") in bound.edges
+
+
+def test_readme_lists_every_builtin_node():
+    for name in names():
+        if not get(name).__module__.startswith("sengine_nodes"):
+            continue  # a plugin another test registered
+        assert f"`{name}`" in README, f"node {name} is missing from the README's node reference"
+
 
 
 def test_readme_node_registers_and_runs(tmp_path):
