@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
-import platform
 import resource
 import subprocess
 import sys
@@ -38,6 +37,7 @@ from pathlib import Path
 
 import numpy as np
 import shapely
+from _results import write  # bench/ is on sys.path when run as a script
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -184,12 +184,7 @@ def main(argv=None) -> int:
         res = json.loads(proc.stdout.strip().splitlines()[-1])
         print(json.dumps(res, indent=1), file=sys.stderr)
         results.append(res)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    doc = {"benchmark": "blocks", "python": platform.python_version(), "shapely": shapely.__version__,
-           "geos": shapely.geos_version_string, "numpy": np.__version__, "machine": platform.machine(),
-           "results": results}
-    args.out.write_text(json.dumps(doc, indent=1))
-    print(f"wrote {args.out}", file=sys.stderr)
+    write(args.out, "blocks", results)
     return 0
 
 

@@ -26,7 +26,6 @@ import argparse
 import hashlib
 import json
 import pickle
-import platform
 import resource
 import subprocess
 import sys
@@ -36,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 import shapely
+from _results import write  # bench/ is on sys.path when run as a script
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -165,12 +165,7 @@ def main(argv=None) -> int:
             res = json.loads(proc.stdout.strip().splitlines()[-1])
             print(json.dumps({k: v for k, v in res.items() if k != "report"}), file=sys.stderr)
             results.append(res)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    doc = {"benchmark": "lots", "python": platform.python_version(), "shapely": shapely.__version__,
-           "geos": shapely.geos_version_string, "numpy": np.__version__, "machine": platform.machine(),
-           "results": results}
-    args.out.write_text(json.dumps(doc, indent=1))
-    print(f"wrote {args.out}", file=sys.stderr)
+    write(args.out, "lots", results)
     return 0
 
 
