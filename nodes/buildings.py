@@ -154,7 +154,9 @@ class BuildingsExtrude(SENode):
     hashed from (seed, node id, lot id), kept within the map's range and
     snapped to whole floors of ``floor_height``.  Lots whose inset footprint
     is under ``min_area`` get no building; the count is reported as
-    ``skipped``.  Building ids are the lot ids.
+    ``skipped``.  Lots marked ``inner`` (the courtyards of Paris blocks,
+    §5.5) stay open unless ``courtyards`` is set; their count is reported as
+    ``courtyards``.  Building ids are the lot ids.
     """
 
     name = "buildings.extrude"
@@ -171,14 +173,20 @@ class BuildingsExtrude(SENode):
                               doc="storey height; heights snap to whole floors (at least 2.6 m, paper 003)"),
         "min_area": Param("float", 20.0, min=0.0, unit="m2",
                           doc="footprints smaller than this are not built"),
+        "courtyards": Param("bool", False, doc="also build on inner lots (courtyards with no street frontage)"),
     }
     maps_features = True
 
     def run(self, *, lots: Layer) -> dict[str, Layer]:
         p = self.p
         footprints, keep = inset_footprints(lots.geometry, p.setback, min_area=p.min_area)
+        open_court = np.zeros(len(lots), bool)
+        if not p.courtyards and "inner" in lots.attrs:
+            open_court = lots["inner"].astype(bool) & keep
+            footprints = footprints[~open_court[keep]]
+            keep = keep & ~open_court
         ids = lots.ids[keep]
-        skipped = int(len(lots) - keep.sum())
+        skipped = int(len(lots) - keep.sum() - open_court.sum())
         c = shapely.centroid(lots.geometry[keep]) if len(ids) else np.empty(0, object)
         sampled = sample_height_map(self.context.plan, shapely.get_x(c), shapely.get_y(c)) if len(ids) else None
         if sampled is None:
@@ -197,7 +205,7 @@ class BuildingsExtrude(SENode):
              "roof": np.full(len(ids), "flat"), "lot": ids.astype(np.int64), "district": np.asarray(district)},
             dict(lots.meta),
         )
-        self.report = {"buildings": int(len(ids)), "skipped": skipped}
+        self.report = {"buildings": int(len(ids)), "skipped": skipped, "courtyards": int(open_court.sum())}
         if skipped:
             log.info("%s: %d lots too small for a %.3g m setback and %.3g m2 footprint", self.where, skipped,
                      p.setback, p.min_area)

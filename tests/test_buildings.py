@@ -112,7 +112,7 @@ def test_small_lots_are_skipped_and_counted():
                             ids=[5, 6, 7])
     b, report = run(lots, None, setback=2.0, min_area=20.0)
     assert b.ids.tolist() == [6]
-    assert report == {"buildings": 1, "skipped": 2}
+    assert report == {"buildings": 1, "skipped": 2, "courtyards": 0}
     empty, report = run(lots.take(np.zeros(3, bool)), None)
     assert len(empty) == 0 and report["skipped"] == 0
 
@@ -162,3 +162,19 @@ def test_random_lots_footprints_inside(w, h, angle, notch, setback):
         assert b.geometry[0].area <= lot.area + 1e-9
         # the footprint keeps the setback from the lot boundary
         assert lot.exterior.distance(b.geometry[0]) >= setback * (1 - 1e-6) - 1e-6
+
+
+def test_paris_courtyards_stay_open():
+    """Inner lots (courtyards, no street frontage) get no building unless asked for."""
+    blocks = Layer.from_geoms([shapely.box(0, 0, 120, 90), shapely.box(200, 0, 330, 110)],
+                              district=np.array([-1, -1]))
+    ctx = Context(seed=3, plan=CityPlan(size=(400.0, 200.0)))
+    lots = get("lots.paris")("lots", {"depth": "15"}, ctx).run(blocks=blocks)["lots"]
+    inner = lots["inner"].astype(bool)
+    assert inner.any() and (~inner).any()
+    node = get("buildings.extrude")("b", {}, ctx)
+    built = node.run(lots=lots)["buildings"]
+    assert not np.isin(built["lot"], lots.ids[inner]).any()
+    assert node.report["courtyards"] == int(inner.sum())
+    with_courts = get("buildings.extrude")("b", {"courtyards": "true"}, ctx).run(lots=lots)["buildings"]
+    assert np.isin(lots.ids[inner], with_courts["lot"]).all()
