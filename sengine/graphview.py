@@ -113,7 +113,7 @@ def _png(net: Network, path: Path) -> None:
     draw = ImageDraw.Draw(img)
     for points, label in routes:
         draw.line(points, fill="#666677", width=1)
-        (bx, by), (px, py) = points[-1], points[-2]
+        (bx, by), (_, py) = points[-1], points[-2]
         if py == by:  # arrives from the left
             head = [(bx, by), (bx - 7, by - 4), (bx - 7, by + 4)]
         else:  # arrives from above

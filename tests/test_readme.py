@@ -6,10 +6,10 @@ import re
 
 import numpy as np
 import shapely
-
 from conftest import ROOT
-from sengine import Layer
+
 import sengine
+from sengine import Layer
 from sengine.registry import get, load_plugin, names
 from sengine.xmlconfig import parse
 
