@@ -107,6 +107,26 @@ def inset_footprints(lots: np.ndarray, setback: float, *, min_area: float = 0.0)
     return footprints, keep
 
 
+def existing_heights(points: np.ndarray, existing: Layer) -> np.ndarray:
+    """Height (m) of the tallest tagged existing building containing each point; NaN for none.
+
+    Only heights read from the data count (``height_source`` not
+    ``"default"``), so a lot keeps the height map where the map is all there is.
+    """
+    out = np.full(len(points), np.nan)
+    if existing is None or not len(existing) or "height" not in existing.attrs:
+        return out
+    tagged = np.isfinite(existing["height"])
+    if "height_source" in existing.attrs:
+        tagged &= existing["height_source"].astype(str) != "default"
+    if not tagged.any():
+        return out
+    geoms, heights = existing.geometry[tagged], existing["height"][tagged]
+    point_i, building_i = shapely.STRtree(geoms).query(points, predicate="within")
+    np.fmax.at(out, point_i, heights[building_i])
+    return out
+
+
 def snap_floors(height: np.ndarray, floor_height: float, lo: float | None = None, hi: float | None = None
                 ) -> tuple[np.ndarray, np.ndarray]:
     """Round heights to whole floors, staying within ``[lo, hi]`` where possible.
@@ -149,8 +169,9 @@ def sample_height_map(plan, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, f
 class BuildingsExtrude(SENode):
     """One flat-roofed building per lot: lot inset by a setback, height from the height map.
 
-    Height: the height map at the lot centroid (or ``height`` when the plan
-    has none), times ``1 + variation * (2u - 1)`` with ``u`` a uniform number
+    Height: the tagged height of an existing building (optional input
+    ``existing``, e.g. OSM buildings) containing the lot centroid; else the
+    height map at the lot centroid (or ``height`` when the plan has none), times ``1 + variation * (2u - 1)`` with ``u`` a uniform number
     hashed from (seed, node id, lot id), kept within the map's range and
     snapped to whole floors of ``floor_height``.  Lots whose inset footprint
     is under ``min_area`` get no building; the count is reported as
@@ -160,7 +181,11 @@ class BuildingsExtrude(SENode):
     """
 
     name = "buildings.extrude"
-    inputs = {"lots": Port("lots", "lots to build on")}
+    inputs = {
+        "lots": Port("lots", "lots to build on"),
+        "existing": Port("buildings", "buildings already there (OSM): a lot inside one takes its tagged height",
+                         required=False),
+    }
     outputs = {"buildings": Port("buildings", "footprints with height, floors, roof, lot, district")}
     params = {
         "setback": Param("float", 2.0, min=0.0, max=50.0, unit="m",
@@ -177,7 +202,7 @@ class BuildingsExtrude(SENode):
     }
     maps_features = True
 
-    def run(self, *, lots: Layer) -> dict[str, Layer]:
+    def run(self, *, lots: Layer, existing: Layer | None = None) -> dict[str, Layer]:
         p = self.p
         footprints, keep = inset_footprints(lots.geometry, p.setback, min_area=p.min_area)
         open_court = np.zeros(len(lots), bool)
@@ -197,7 +222,11 @@ class BuildingsExtrude(SENode):
         raw = base * (1.0 + p.variation * (2.0 * u - 1.0))
         if lo is not None:
             raw = np.clip(raw, lo, hi)
+        known = existing_heights(c, existing) if existing is not None and len(ids) else np.full(len(ids), np.nan)
+        surveyed = np.isfinite(known)
         height, floors = snap_floors(raw, p.floor_height, lo, hi)
+        if surveyed.any():  # a surveyed height is kept as it is, whatever the map's range
+            height[surveyed], floors[surveyed] = snap_floors(known[surveyed], p.floor_height)
         district = lots["district"][keep] if "district" in lots.attrs else np.full(len(ids), -1, np.int64)
         out = Layer(
             footprints, ids.copy(), ids.copy(),
@@ -205,7 +234,8 @@ class BuildingsExtrude(SENode):
              "roof": np.full(len(ids), "flat"), "lot": ids.astype(np.int64), "district": np.asarray(district)},
             dict(lots.meta),
         )
-        self.report = {"buildings": int(len(ids)), "skipped": skipped, "courtyards": int(open_court.sum())}
+        self.report = {"buildings": int(len(ids)), "skipped": skipped, "courtyards": int(open_court.sum()),
+                       "surveyed_heights": int(surveyed.sum())}
         if skipped:
             log.info("%s: %d lots too small for a %.3g m setback and %.3g m2 footprint", self.where, skipped,
                      p.setback, p.min_area)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import shapely
 from _city import grid_city, monaco_lots
+from conftest import ROOT
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -112,7 +113,7 @@ def test_small_lots_are_skipped_and_counted():
                             ids=[5, 6, 7])
     b, report = run(lots, None, setback=2.0, min_area=20.0)
     assert b.ids.tolist() == [6]
-    assert report == {"buildings": 1, "skipped": 2, "courtyards": 0}
+    assert report == {"buildings": 1, "skipped": 2, "courtyards": 0, "surveyed_heights": 0}
     empty, report = run(lots.take(np.zeros(3, bool)), None)
     assert len(empty) == 0 and report["skipped"] == 0
 
@@ -178,3 +179,24 @@ def test_paris_courtyards_stay_open():
     assert node.report["courtyards"] == int(inner.sum())
     with_courts = get("buildings.extrude")("b", {"courtyards": "true"}, ctx).run(lots=lots)["buildings"]
     assert np.isin(lots.ids[inner], with_courts["lot"]).all()
+
+
+def test_surveyed_heights_of_existing_buildings_win():
+    """A lot inside a tagged existing building (OSM) takes that height; untagged ones do not count."""
+    lots = Layer.from_geoms([shapely.box(0, 0, 20, 30), shapely.box(30, 0, 50, 30), shapely.box(60, 0, 80, 30)])
+    existing = Layer.from_geoms([shapely.box(-5, -5, 25, 35), shapely.box(25, -5, 55, 35)],
+                                height=np.array([111.0, 60.0]), height_source=np.array(["height", "default"]))
+    ctx = Context(seed=1, plan=CityPlan(size=(100.0, 40.0)))
+    node = get("buildings.extrude")("b", {"height": "12", "variation": "0"}, ctx)
+    built = node.run(lots=lots, existing=existing)["buildings"]
+    assert built["height"].tolist() == pytest.approx([35 * 3.2, 4 * 3.2, 4 * 3.2])  # 111 m -> 35 floors
+    assert node.report["surveyed_heights"] == 1
+
+
+def test_monaco_buildings_take_osm_heights(tmp_path):
+    import sengine
+
+    net = sengine.load(ROOT / "configs" / "monaco.xml")
+    layers, stats = net.run(seed=1)
+    assert stats["report"]["buildings"]["surveyed_heights"] > 100
+    assert layers["buildings"]["buildings"]["height"].max() > 60  # Monaco's towers, not the 10 m default
