@@ -55,7 +55,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("batch", help="run a config once per seed into OUT/seed-N")
     p.add_argument("config", type=Path)
     _run_options(p)
-    p.add_argument("--seeds", default="1-4", help="seeds as a list or range, e.g. 1,2,5 or 1-10")
+    p.add_argument("--seeds", default="1-4", help="seeds as a list or range, e.g. 1,2,5 or 1-10 "
+                   "(--workers N runs N seeds at once)")
     p.add_argument("--map", dest="maps", action="append", default=[], metavar="KIND=PATH")
     _common(p)
 
@@ -117,19 +118,32 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_batch(args: argparse.Namespace) -> int:
+    """One run per seed; with ``--workers N`` the seeds run side by side in N processes."""
     from .xmlconfig import load_config
 
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin)
     net.validate()
-    rows = []
-    for seed in _seeds(args.seeds):
-        result = net.run(seed=seed, out=args.out / f"seed-{seed}", formats=_formats(args.formats),
-                         progress=_progress(args), workers=args.workers)
-        rows.append({"seed": seed, "counts": result.stats["counts"], "areas": result.stats["areas"]})
-        if not args.quiet:
-            print(f"seed {seed}: " + ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items()))
+    seeds = _seeds(args.seeds)
+    formats = _formats(args.formats)
+    if args.workers > 1 and len(seeds) > 1:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=args.workers, mp_context=multiprocessing.get_context("fork")) as pool:
+            stats = list(pool.map(_batch_run, [net] * len(seeds), seeds, [args.out] * len(seeds),
+                                  [formats] * len(seeds)))
+    else:
+        stats = [_batch_run(net, seed, args.out, formats, _progress(args), args.workers) for seed in seeds]
+    rows = [{"seed": seed, "counts": st["counts"], "areas": st["areas"]} for seed, st in zip(seeds, stats)]
+    if not args.quiet:
+        for row in rows:
+            print(f"seed {row['seed']}: " + ", ".join(f"{k} {v:,}" for k, v in row["counts"].items()))
     (args.out / "batch.json").write_text(json.dumps({"config": str(args.config), "runs": rows}, indent=2) + "\n")
     return 0
+
+
+def _batch_run(net, seed: int, out: Path, formats: frozenset[str], progress=None, workers: int = 1) -> dict:
+    return net.run(seed=seed, out=out / f"seed-{seed}", formats=formats, progress=progress, workers=workers).stats
 
 
 def cmd_osm(args: argparse.Namespace) -> int:

@@ -291,6 +291,13 @@ def test_batch_runs_each_seed(fixtures, tmp_path, cli):
     batch = json.loads((tmp_path / "b" / "batch.json").read_text())
     assert [r["seed"] for r in batch["runs"]] == [1, 2, 3]
     assert all((tmp_path / "b" / f"seed-{s}" / "stats.json").exists() for s in (1, 2, 3))
+    # the same seeds two at a time in two processes: the same files
+    res = cli("batch", fixtures / "squares.xml", "-o", tmp_path / "p", "--seeds", "1-3", "--workers", "2")
+    assert res.returncode == 0, res.stderr
+    assert json.loads((tmp_path / "p" / "batch.json").read_text())["runs"] == batch["runs"]
+    for s in (1, 2, 3):
+        a, b = (tmp_path / d / f"seed-{s}" / "write.geojson" for d in ("b", "p"))
+        assert a.read_bytes() == b.read_bytes()
 
 
 def test_installed_package_has_builtins_without_top_level_nodes(tmp_path):
