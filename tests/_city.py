@@ -27,10 +27,8 @@ MONACO_ORIGIN = (43.7384, 7.4246)
 
 
 def data_file(name: str) -> Path | None:
-    for folder in (ROOT / "configs" / "data", Path("/work/shared/data")):
-        if (folder / name).is_file():
-            return folder / name
-    return None
+    path = ROOT / "configs" / "data" / name
+    return path if path.is_file() else None
 
 
 def height_png(path: Path, size=(400, 200)) -> Path:

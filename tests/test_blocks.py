@@ -19,9 +19,7 @@ load()
 B = importlib.import_module("sengine_nodes.blocks")
 
 SETTINGS = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-DATA = Path("/work/shared/data")
-MONACO = next((p for p in (Path(__file__).resolve().parent.parent / "configs/data/monaco.osm.pbf",
-                           DATA / "monaco.osm.pbf") if p.exists()), None)
+MONACO = Path(__file__).resolve().parent.parent / "configs" / "data" / "monaco.osm.pbf"
 
 
 def polygonize_ref(lines):
@@ -195,7 +193,6 @@ def read_highways(path):
     return shapely.linestrings(np.c_[x[keep], y[keep]], indices=np.unique(idx[keep], return_inverse=True)[1])
 
 
-@pytest.mark.skipif(MONACO is None, reason="monaco.osm.pbf not available")
 def test_monaco_blocks_match_polygonize():
     lines = read_highways(MONACO)
     assert len(lines) > 2000
@@ -207,7 +204,6 @@ def test_monaco_blocks_match_polygonize():
     assert_partition_like(bf.faces, ref)
 
 
-@pytest.mark.skipif(MONACO is None, reason="monaco.osm.pbf not available")
 def test_faces_traced_by_clean_are_taken_over():
     from sengine import Context
 
