@@ -16,6 +16,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import SEngineError
+from .plan import MapSpec
 
 log = logging.getLogger("sengine")
 
@@ -154,13 +155,11 @@ def cmd_osm(args: argparse.Namespace) -> int:
         raise SEngineError(f"{args.file}: file not found")
     with tempfile.TemporaryDirectory() as tmp:
         config = Path(tmp) / "osm.xml"
-        config.write_text(
-            '<sengine version="1">\n'
-            f'  <city name="{_xml_attr(args.file.name)}"><map kind="osm" src="{_xml_attr(str(args.file.resolve()))}"/></city>\n'
-            '  <network base="loadmap"/>\n'
-            "</sengine>\n"
-        )
+        config.write_text(f'<sengine version="1">\n  <city name="{_xml_attr(args.file.name)}"/>\n'
+                          '  <network base="loadmap"/>\n</sengine>\n')
         net = load_config(config, sets=args.sets, plugins=args.plugin, seed=args.seed)
+        # errors about the file name the command, not the temporary config
+        net.plan.maps["osm"] = MapSpec("osm", args.file.resolve(), {}, where="sengine osm")
         net.source = str(args.file)
         result = net.run(out=args.out, formats=_formats(args.formats), progress=_progress(args), workers=args.workers)
     if not args.quiet:
