@@ -62,3 +62,11 @@ def test_readme_node_registers_and_runs(tmp_path):
     lots = Layer.from_geoms(shapely.box(np.arange(3) * 50.0, 0, np.arange(3) * 50.0 + 40, 40))
     out = cls("c", {"depth": "10"}).run(lots=lots)["lots"]
     assert np.allclose(shapely.area(out.geometry), 40 * 40 - 20 * 20)
+
+
+def test_readme_python_example_runs(tmp_path, monkeypatch, capsys):
+    code = next(b for b in blocks("python") if "sengine.load" in b)
+    monkeypatch.chdir(ROOT)
+    exec(compile(code.replace('"out/manhattan"', repr(str(tmp_path / "m"))), "README.md", "exec"), {})
+    printed = capsys.readouterr().out
+    assert "'lots': 7" in printed and (tmp_path / "m" / "stats.json").exists()
