@@ -5,7 +5,7 @@ this builds a grid city of the same size (930 blocks, 7,440 lots, each with a
 building), then times ``buildings.extrude`` and each format of ``export.city``.
 Writes ``bench/results/export.json``.
 
-    python bench/export_bench.py [--repeat 3]
+    python bench/export.py [--repeat 3]
 """
 
 from __future__ import annotations
