@@ -74,7 +74,6 @@ class Layer:
         **attrs: Any,
     ) -> Layer:
         """Build a layer from geometries; ids default to ``0..n-1``."""
-        geometry = np.empty(0, dtype=object)
         geoms = list(geoms) if not isinstance(geoms, np.ndarray) else geoms
         geometry = np.empty(len(geoms), dtype=object)
         geometry[:] = list(geoms)
@@ -177,22 +176,12 @@ class Layer:
 
         ``transform`` maps an (n, 2) array of planar coordinates to the output
         frame (for RFC 7946 output: WGS84 lon/lat); identity when omitted.
+        Written by the same code as the GeoJSON exporter
+        (:func:`sengine.io.geojson.feature_collection_text`).
         """
-        geoms = self.geometry
-        if transform is not None and len(geoms):
-            geoms = shapely.transform(geoms, transform)
-        if len(geoms):
-            geoms = shapely.set_precision(geoms, 10.0 ** -precision) if precision else geoms
-        texts = shapely.to_geojson(geoms) if len(geoms) else []
-        features = []
-        cols = {k: v.tolist() for k, v in self.attrs.items()}
-        ids = self.ids.tolist()
-        parents = self.parent.tolist()
-        for i, text in enumerate(texts):
-            props = {"id": ids[i], "parent_id": parents[i]}
-            props.update({k: _jsonable(cols[k][i]) for k in cols})
-            features.append({"type": "Feature", "id": ids[i], "geometry": json.loads(text), "properties": props})
-        return {"type": "FeatureCollection", "features": features}
+        from .io.geojson import feature_collection_text
+
+        return json.loads(feature_collection_text(self, transform or (lambda xy: xy), precision=precision))
 
     @classmethod
     def from_geojson(cls, data: Mapping[str, Any]) -> Layer:
@@ -219,11 +208,3 @@ def _default(dtype: np.dtype) -> Any:
     if dtype.kind in "US":
         return ""
     return None
-
-
-def _jsonable(v: Any) -> Any:
-    if isinstance(v, float) and v != v:
-        return None
-    if isinstance(v, (np.generic,)):
-        return v.item()
-    return v
