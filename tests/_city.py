@@ -26,9 +26,12 @@ ROOT = Path(__file__).resolve().parent.parent
 MONACO_ORIGIN = (43.7384, 7.4246)
 
 
-def data_file(name: str) -> Path | None:
+def data_file(name: str) -> Path:
+    """A committed sample file of ``configs/data`` (a missing one is a failure, not a skip)."""
     path = ROOT / "configs" / "data" / name
-    return path if path.is_file() else None
+    if not path.is_file():
+        raise FileNotFoundError(path)
+    return path
 
 
 def height_png(path: Path, size=(400, 200)) -> Path:
@@ -116,13 +119,11 @@ def grid_city(nx: int = 8, ny: int = 6, *, block=(160.0, 70.0), street=20.0, sid
 
 
 @lru_cache(maxsize=1)
-def monaco_lots() -> Layer | None:
-    """Monaco's building polygons as a lots layer in the local frame (None without the file)."""
+def monaco_lots() -> Layer:
+    """Monaco's building polygons as a lots layer in the local frame."""
     import osmium
 
     path = data_file("monaco.osm.pbf")
-    if path is None:
-        return None
     wkb = osmium.geom.WKBFactory()
     geoms, ids = [], []
     fp = osmium.FileProcessor(str(path)).with_areas().with_filter(osmium.filter.KeyFilter("building"))

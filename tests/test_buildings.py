@@ -120,8 +120,6 @@ def test_small_lots_are_skipped_and_counted():
 
 def test_real_monaco_footprints_as_lots():
     lots = monaco_lots()
-    if lots is None:
-        pytest.skip("monaco.osm.pbf not available")
     b, report = run(lots, None, setback=1.0, min_area=10.0)
     assert report["buildings"] + report["skipped"] == len(lots)
     assert report["buildings"] > 0.8 * len(lots)

@@ -49,8 +49,6 @@ def written(city, tmp_path_factory):
 # -- mesh building ---------------------------------------------------------------
 def test_extrusion_is_closed_and_has_the_right_volume():
     lots = monaco_lots()
-    if lots is None:
-        pytest.skip("monaco.osm.pbf not available")
     g = lots.geometry
     h = np.linspace(3.0, 60.0, len(g))
     v, f, _ = mesh.extrude(g, h)
@@ -69,8 +67,6 @@ def test_extrusion_is_closed_and_has_the_right_volume():
 
 def test_flat_surfaces_cover_the_polygons_facing_up():
     lots = monaco_lots()
-    if lots is None:
-        pytest.skip("monaco.osm.pbf not available")
     v, f, _ = mesh.flat(lots.geometry, 0.5)
     tm = trimesh.Trimesh(v, f, process=False)
     np.testing.assert_allclose(tm.area, lots.area(), rtol=1e-9)
@@ -106,8 +102,6 @@ def test_glb_nodes_bounds_and_heights(city, written):
 
 def test_glb_large_coordinates_keep_precision(tmp_path):
     lots = monaco_lots()
-    if lots is None:
-        pytest.skip("monaco.osm.pbf not available")
     utm = "EPSG:32632"
     ll = shapely.transform(lots.geometry, to_lonlat(lots.meta["crs"]))
     g = shapely.transform(ll, from_lonlat(utm))
@@ -174,8 +168,6 @@ def test_geojson_every_layer(city, written):
 
 def test_geojson_real_polygons_with_holes(tmp_path):
     lots = monaco_lots()
-    if lots is None:
-        pytest.skip("monaco.osm.pbf not available")
     # reversed rings on input must still come out as RFC 7946 wants
     flipped = lots.with_geometry(shapely.orient_polygons(lots.geometry, exterior_cw=True))
     flipped = flipped.with_columns(height=np.where(np.arange(len(lots)) % 5 == 0, np.nan, 10.0))
