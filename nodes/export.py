@@ -24,10 +24,14 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
+from typing import Any
 
 from sengine import Layer, Param, Port, SENode, register
 from sengine.geo import layer_crs, to_lonlat
+from sengine.parallel import run_jobs
 
 __all__ = ["FORMATS", "DEFAULT_FORMATS", "export_layers", "ExportCity"]
 
@@ -38,7 +42,7 @@ DEFAULT_FORMATS = frozenset({"glb", "geojson", "osm", "png"})
 
 
 def export_layers(out: Path, layers: dict[str, Layer | None], formats, *, plan=None, line_width: float = 1.0,
-                  preview_size: int = 1600) -> dict:
+                  preview_size: int = 1600, workers: int = 1) -> dict:
     """Write ``layers`` into folder ``out`` in each of ``formats``.
 
     Parameters
@@ -53,6 +57,9 @@ def export_layers(out: Path, layers: dict[str, Layer | None], formats, *, plan=N
         :data:`DEFAULT_FORMATS`.
     plan : CityPlan, optional
         Its ``origin`` places layers that carry no ``meta["crs"]``.
+    workers : int
+        Processes writing files side by side (:func:`sengine.parallel.run_jobs`);
+        the files are the same for any number.
 
     Returns
     -------
@@ -66,37 +73,47 @@ def export_layers(out: Path, layers: dict[str, Layer | None], formats, *, plan=N
     layers = {k: v for k, v in layers.items() if v is not None}
     crs = {k: layer_crs(v.meta, plan) for k, v in layers.items()}
     any_crs = next(iter(crs.values()), layer_crs({}, plan))
-    report: dict = {}
-    seconds: dict[str, float] = {}
-
-    def timed(fmt, fn, *args, **kw):
-        t = time.perf_counter()
-        report[fmt] = fn(*args, **kw)
-        seconds[fmt] = time.perf_counter() - t
-
-    if "glb" in formats:
-        timed("glb", gltf.write_glb, out / "city.glb", layers, line_width=line_width, crs=any_crs)
-    if "obj" in formats:
-        timed("obj", obj.write_obj, out / "city.obj", layers, line_width=line_width)
-    if "geojson" in formats:
-        def write_all():
-            return {name: geojson.write_geojson(out / f"{name}.geojson", lay, to_lonlat(crs[name]), name=name)
-                    for name, lay in layers.items()}
-        timed("geojson", write_all)
-    if "osm" in formats and "roads" in layers:
-        timed("osm", osmxml.write_osm, out / "streets.osm", layers["roads"], to_lonlat(crs["roads"]))
+    jobs: list[tuple[str, str | None, Callable[[], Any]]] = []  # (format, layer, write)
     if "png" in formats:
         # the plan's extent frames a synthetic city; data in another frame (OSM in UTM) frames itself
         extent = plan.extent if plan is not None else None
         extent = extent if extent is not None and not _outside(layers, extent) else None
-        timed("png", preview.write_preview, out / "preview.png", layers, size=preview_size, extent=extent)
+        jobs.append(("png", None, partial(preview.write_preview, out / "preview.png", layers, size=preview_size,
+                                          extent=extent)))
+    if "glb" in formats:
+        jobs.append(("glb", None, partial(gltf.write_glb, out / "city.glb", layers, line_width=line_width,
+                                          crs=any_crs)))
+    if "obj" in formats:
+        jobs.append(("obj", None, partial(obj.write_obj, out / "city.obj", layers, line_width=line_width)))
+    if "geojson" in formats:  # one job per layer, the largest first
+        for name in sorted(layers, key=lambda k: -len(layers[k])):
+            jobs.append(("geojson", name, partial(geojson.write_geojson, out / f"{name}.geojson", layers[name],
+                                                  to_lonlat(crs[name]), name=name)))
+    if "osm" in formats and "roads" in layers:
+        jobs.append(("osm", None, partial(osmxml.write_osm, out / "streets.osm", layers["roads"],
+                                          to_lonlat(crs["roads"]))))
     if "cityjson" in formats and "buildings" in layers:
-        timed("cityjson", cityjson.write_cityjson, out / "buildings.city.json", layers["buildings"],
-              crs=crs["buildings"])
-    log.info("exported %s in %.3f s (%s)", ", ".join(sorted(seconds)), sum(seconds.values()),
+        jobs.append(("cityjson", None, partial(cityjson.write_cityjson, out / "buildings.city.json",
+                                               layers["buildings"], crs=crs["buildings"])))
+    done = run_jobs([partial(_timed, write) for _, _, write in jobs], workers)
+    report: dict = {fmt: {} for fmt in FORMATS if any(f == fmt for f, _, _ in jobs)}
+    seconds = dict.fromkeys(report, 0.0)
+    for (fmt, name, _), (result, dt) in zip(jobs, done, strict=True):
+        if name is None:
+            report[fmt] = result
+        else:
+            report[fmt][name] = result
+        seconds[fmt] += dt
+    log.info("exported %s in %.3f s of writing with %d worker(s) (%s)", ", ".join(sorted(seconds)),
+             sum(seconds.values()), max(1, min(workers, len(jobs))),
              ", ".join(f"{k} {v:.3f}" for k, v in seconds.items()))
     report["seconds"] = seconds
     return report
+
+
+def _timed(write: Callable[[], Any]) -> tuple[Any, float]:
+    t = time.perf_counter()
+    return write(), time.perf_counter() - t
 
 
 def _outside(layers: dict[str, Layer], extent) -> bool:
@@ -153,7 +170,8 @@ class ExportCity(SENode):
         layers = {"roads": roads, "streets": streets, "sidewalks": sidewalks, "blocks": blocks, "lots": lots,
                   "buildings": buildings, "parks": parks}
         report = export_layers(out, layers, self.context.formats, plan=self.context.plan,
-                               line_width=self.p.line_width, preview_size=self.p.preview_size)
+                               line_width=self.p.line_width, preview_size=self.p.preview_size,
+                               workers=self.context.workers)
         report.pop("seconds", None)  # timings would make stats.json differ between runs
         self.report = _flat_counts(report)
         return {}

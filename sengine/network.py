@@ -24,6 +24,7 @@ import tempfile
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -34,6 +35,7 @@ from . import __version__, registry
 from .errors import NetworkError, SEngineError
 from .layer import Layer
 from .node import Context, SENode
+from .parallel import run_jobs
 from .plan import CityPlan
 
 __all__ = ["NodeSpec", "Connection", "Network", "Result", "StdNetwork", "PatternNetwork", "LoadMapNetwork"]
@@ -276,8 +278,9 @@ class Network:
                            where=where)
 
     # -- running --------------------------------------------------------------
-    def _context(self, seed: int, out: Path | None = None, formats: Iterable[str] = ()) -> Context:
-        return Context(seed=int(seed), plan=self.plan, base_dir=self.base_dir, out=out, formats=frozenset(formats))
+    def _context(self, seed: int, out: Path | None = None, formats: Iterable[str] = (), workers: int = 1) -> Context:
+        return Context(seed=int(seed), plan=self.plan, base_dir=self.base_dir, out=out, formats=frozenset(formats),
+                       workers=workers)
 
     def run(self, seed: int | None = None, out: Any = None, *, formats: Iterable[str] = (),
             progress: ProgressFn | None = None, workers: int = 1) -> Result:
@@ -296,9 +299,9 @@ class Network:
         progress : callable, optional
             Called after each node as ``progress(i, n, node_id, type, count, seconds)``.
         workers : int
-            Worker processes for nodes that map features one by one; their
-            first input is cut into chunks.  The result is the same for any
-            number of workers.
+            Worker processes: nodes that map features one by one get their
+            first input cut into chunks, exporters write their files side by
+            side.  The result is the same for any number of workers.
         """
         seed = self.seed if seed is None else int(seed)
         out_dir = Path(out) if out is not None else None
@@ -319,7 +322,7 @@ class Network:
     def _run(self, seed: int, tmp: Path | None, formats: Iterable[str], progress: ProgressFn | None,
              workers: int) -> Result:
         t_start = time.perf_counter()
-        context = self._context(seed, tmp, formats)
+        context = self._context(seed, tmp, formats, workers)
         bound = self.validate(context)
         incoming: dict[str, list[tuple[str, str, str]]] = {k: [] for k in bound.nodes}
         for s, sp, d, dp in bound.edges:
@@ -402,15 +405,11 @@ def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> di
     layer = kwargs.get(first) if first else None
     if workers <= 1 or not node.maps_features or layer is None or len(layer) < 2 * MIN_CHUNK:
         return node.run(**kwargs) or {}
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
     n_chunks = min(workers * 4, len(layer) // MIN_CHUNK)
     bounds = np.linspace(0, len(layer), n_chunks + 1).astype(int)
-    jobs = [{**kwargs, first: layer.take(np.arange(a, b))} for a, b in zip(bounds[:-1], bounds[1:])]
-    ctx = multiprocessing.get_context("fork")  # workers inherit the registry and plugins
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        parts = list(pool.map(_call_run, [node] * len(jobs), jobs))
+    jobs = [partial(_call_run, node, {**kwargs, first: layer.take(np.arange(a, b))})
+            for a, b in zip(bounds[:-1], bounds[1:])]
+    parts = run_jobs(jobs, workers)  # forked workers inherit the registry and plugins
     reports = [r for _, r in parts if r]
     if reports:
         node.report = _sum_reports(reports)

@@ -181,6 +181,8 @@ class Context:
         Folder the run writes into (a temporary folder until it completes).
     formats : frozenset of str
         Output formats asked for (``--format``).
+    workers : int
+        Processes the run may use (``--workers``); exporters write files side by side.
     """
 
     seed: int = 0
@@ -188,6 +190,7 @@ class Context:
     base_dir: Any = None
     out: Any = None
     formats: frozenset = frozenset()
+    workers: int = 1
 
 
 class SENode:
