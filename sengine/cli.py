@@ -12,15 +12,24 @@ import logging
 import sys
 import tempfile
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 
 from . import __version__
 from .errors import SEngineError
+from .parallel import available_cores, run_jobs
 from .plan import MapSpec
 
 log = logging.getLogger("sengine")
 
 EXIT_USER_ERROR = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line, like every other error (exit status 2)."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -35,14 +44,15 @@ def _run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, help="network seed (overrides the config's)")
     p.add_argument("--set", dest="sets", action="append", default=[], metavar="NODE.PARAM=VALUE",
                    help="set a node parameter (repeatable)")
-    p.add_argument("--workers", type=int, default=1, metavar="N",
-                   help="worker processes for nodes that map features one by one (same result for any N)")
+    p.add_argument("--workers", type=_workers, default=available_cores(), metavar="N",
+                   help="worker processes: chunks of nodes that map features one by one, exporters' files, "
+                   "batch seeds (default: every core, %(default)s here; the result is the same for any N)")
     p.add_argument("--format", dest="formats", default="",
                    help="comma list of outputs: glb,geojson,osm,png,obj,cityjson (default: the exporter's)")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="sengine", description="A procedural city engine after skylineEngine.")
+    parser = _Parser(prog="sengine", description="A procedural city engine after skylineEngine.")
     parser.add_argument("--version", action="version", version=f"sengine {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -96,6 +106,17 @@ def _formats(text: str) -> frozenset[str]:
     return frozenset(f.strip().lower() for f in text.split(",") if f.strip())
 
 
+def _workers(text: str) -> int:
+    """``--workers``: a whole number of processes, at least 1."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"{n} is less than 1")
+    return n
+
+
 def _seeds(text: str) -> list[int]:
     seeds: list[int] = []
     for part in text.split(","):
@@ -126,13 +147,9 @@ def cmd_batch(args: argparse.Namespace) -> int:
     net.validate()
     seeds = _seeds(args.seeds)
     formats = _formats(args.formats)
-    if args.workers > 1 and len(seeds) > 1:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
-        with ProcessPoolExecutor(max_workers=args.workers, mp_context=multiprocessing.get_context("fork")) as pool:
-            stats = list(pool.map(_batch_run, [net] * len(seeds), seeds, [args.out] * len(seeds),
-                                  [formats] * len(seeds)))
+    if args.workers > 1 and len(seeds) > 1:  # seeds side by side, each run in one process
+        jobs = [partial(_batch_run, net, seed, args.out, formats) for seed in seeds]
+        stats = run_jobs(jobs, args.workers)
     else:
         stats = [_batch_run(net, seed, args.out, formats, _progress(args), args.workers) for seed in seeds]
     rows = [{"seed": seed, "counts": st["counts"], "areas": st["areas"]} for seed, st in zip(seeds, stats)]
@@ -228,7 +245,10 @@ COMMANDS = {"run": cmd_run, "batch": cmd_batch, "osm": cmd_osm, "validate": cmd_
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as done:  # --help, --version, or a usage error already printed
+        return int(done.code or 0)
     logging.basicConfig(level=logging.DEBUG if args.debug else logging.WARNING,
                         format="sengine: %(levelname)s: %(message)s")
     try:

@@ -115,6 +115,9 @@ def test_missing_config_file(tmp_path, capsys):
     (["--set", "count"], r"--set 'count' must be NODE.PARAM=VALUE"),
     (["--map", "height"], r"--map 'height' must be KIND=PATH"),
     (["--plugin", "not_a_module_anywhere"], r"--plugin not_a_module_anywhere: plugin module 'not_a_module_anywhere' not found"),
+    (["--workers", "0"], r"^sengine run: error: argument --workers: 0 is less than 1"),
+    (["--workers", "two"], r"argument --workers: 'two' is not a whole number"),
+    (["--no-such-option"], r"^sengine: error: unrecognized arguments: --no-such-option"),
 ])
 def test_bad_command_line_override(argv, pattern, fixtures, tmp_path, capsys):
     out = tmp_path / "OUT"

@@ -286,7 +286,7 @@ def test_graph_command(suffix, fixtures, tmp_path, cli):
 
 
 def test_batch_runs_each_seed(fixtures, tmp_path, cli):
-    res = cli("batch", fixtures / "squares.xml", "-o", tmp_path / "b", "--seeds", "1-3")
+    res = cli("batch", fixtures / "squares.xml", "-o", tmp_path / "b", "--seeds", "1-3", "--workers", "1")
     assert res.returncode == 0, res.stderr
     batch = json.loads((tmp_path / "b" / "batch.json").read_text())
     assert [r["seed"] for r in batch["runs"]] == [1, 2, 3]
