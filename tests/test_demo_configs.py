@@ -37,16 +37,40 @@ def test_manhattan_blocks_and_lots_have_manhattan_sizes(manhattan):
     layers, _, _ = manhattan
     blocks = layers["blocks"]["blocks"]
     grid = np.isin(blocks["district"], [2, 3])  # midtown and uptown: the 1811 grid
-    rect = shapely.oriented_envelope(blocks.geometry[grid])
-    xy = shapely.get_coordinates(rect).reshape(-1, 5, 2)
-    a = np.hypot(*(xy[:, 1] - xy[:, 0]).T)
-    b = np.hypot(*(xy[:, 2] - xy[:, 1]).T)
-    long, short = np.maximum(a, b), np.minimum(a, b)
+    long, short = _obb_sides(blocks.geometry[grid])
     # blocks between street centre lines are 270 m x 80 m; between fronts, streets and sidewalks off
     assert 230 <= np.median(long) <= 270 and 50 <= np.median(short) <= 80
     lots = layers["lots"]["lots"]
     per_block = len(lots) / len(blocks)
     assert 5 <= per_block <= 10  # the paper's 7,471 / 931 = 8
+
+
+def _obb_sides(geoms) -> tuple[np.ndarray, np.ndarray]:
+    """Long and short sides of each geometry's oriented bounding box (m)."""
+    xy = shapely.get_coordinates(shapely.oriented_envelope(geoms)).reshape(-1, 5, 2)
+    a = np.hypot(*(xy[:, 1] - xy[:, 0]).T)
+    b = np.hypot(*(xy[:, 2] - xy[:, 1]).T)
+    return np.maximum(a, b), np.minimum(a, b)
+
+
+def test_manhattan_with_real_25_by_100_ft_lots():
+    """The README's variant ``--set lots.width=7.62``: Manhattan's 25 ft x 100 ft lots, ~60 per grid block.
+
+    The paper's counts (8 lots per 80 m x 270 m block) and 25-ft lots cannot
+    both hold; the default demo keeps the counts, this variant the lot size.
+    """
+    net = sengine.load(CONFIGS / "manhattan.xml")
+    net.set_param("lots", "width", 7.62)
+    layers, stats = net.run(seed=7)
+    lots, blocks = layers["lots"]["lots"], layers["blocks"]["blocks"]
+    grid = np.isin(lots["district"], [2, 3]) & (lots["method"] == "manhattan")
+    depth, width = _obb_sides(lots.geometry[grid])
+    assert np.median(lots["frontage"][grid]) == pytest.approx(7.62, rel=0.1)
+    assert np.median(width) == pytest.approx(7.62, rel=0.1)
+    assert np.median(depth) == pytest.approx(30.48, rel=0.15)
+    per_block = np.bincount(lots["block"][grid]).astype(float)
+    assert 45 <= np.median(per_block[per_block > 0]) <= 80
+    assert stats["counts"]["blocks"] == len(blocks) and stats["counts"]["lots"] == len(lots) > 40_000
 
 
 def test_manhattan_has_its_park_water_and_outputs(manhattan):
