@@ -7,14 +7,20 @@ Runs, each in a fresh process so that its peak memory is its own:
 * ``scale10``: the same maps and rules on a city of 10x the area (both
   sides times sqrt(10)), to see how each stage scales;
 * ``cli``: ``sengine run CONFIG -o OUT`` as a subprocess, wall time from
-  process start to the files written (imports and exports included).
+  process start to the files written (imports and exports included).  Time
+  the command users run with ``--sengine``: the ``sengine`` of a venv made
+  with ``pip install .`` loads compiled bytecode, while ``python -m sengine``
+  from a checkout compiles the project's modules when bytecode is not kept
+  (``PYTHONDONTWRITEBYTECODE``).
 
-Times are the best of ``--repeat`` runs.  Results go to
-``bench/results/manhattan.json``.
+Every run uses ``--workers`` processes (default: every core, as the CLI).
+Times are the best of ``--repeat`` runs (the cli case also gives the median).
+Results go to ``bench/results/manhattan.json``.
 
 Usage::
 
-    python bench/manhattan.py [--repeat 3] [--seed 7] [--out bench/results/manhattan.json]
+    python bench/manhattan.py [--repeat 3] [--seed 7] [--workers N] [--sengine PATH]
+                              [--out bench/results/manhattan.json]
 """
 
 from __future__ import annotations
@@ -22,8 +28,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import platform
 import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -39,7 +47,7 @@ def _peak_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def case(name: str, seed: int, repeat: int) -> dict:
+def case(name: str, seed: int, repeat: int, workers: int) -> dict:
     """Run one case in this process; print its JSON figures."""
     sys.path.insert(0, str(ROOT))
     import sengine
@@ -52,32 +60,32 @@ def case(name: str, seed: int, repeat: int) -> dict:
             net.plan.size = (net.plan.size[0] * k, net.plan.size[1] * k)
         with tempfile.TemporaryDirectory() as tmp:
             t = time.perf_counter()
-            try:
-                _, stats = net.run(seed=seed, out=Path(tmp) / "out")
-            except TypeError:  # an executor without out=
-                _, stats = net.run(seed=seed)
+            _, stats = net.run(seed=seed, out=Path(tmp) / "out", workers=workers)
             wall = time.perf_counter() - t
         if best is None or wall < best["wall_seconds"]:
             best = {"wall_seconds": round(wall, 4), "seconds": stats.get("seconds", {}),
-                    "counts": stats.get("counts", {}), "size_m": list(net.plan.size)}
+                    "counts": stats.get("counts", {}), "size_m": list(net.plan.size), "workers": workers}
     best["peak_rss_mb"] = round(_peak_mb(), 1)
     return best
 
 
-def cli(seed: int, repeat: int) -> dict:
+def cli(seed: int, repeat: int, workers: int, exe: list[str]) -> dict:
+    """``sengine run`` in a fresh process: wall seconds from process start to the files written."""
     times = []
     for _ in range(repeat):
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "out"
             t = time.perf_counter()
-            proc = subprocess.run([sys.executable, "-m", "sengine", "run", str(CONFIG), "-o", str(out),
-                                   "--seed", str(seed)], capture_output=True, text=True, cwd=ROOT)
+            proc = subprocess.run([*exe, "run", str(CONFIG), "-o", str(out), "--seed", str(seed),
+                                   "--workers", str(workers), "--quiet"], capture_output=True, text=True, cwd=ROOT)
             wall = time.perf_counter() - t
             if proc.returncode != 0:
                 return {"error": proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else proc.returncode}
             files = sorted(p.name for p in out.iterdir())
         times.append(wall)
-    return {"wall_seconds": round(min(times), 4), "files": files}
+    return {"wall_seconds": round(min(times), 4), "median_seconds": round(statistics.median(times), 4),
+            "all_seconds": [round(t, 3) for t in times], "workers": workers, "command": " ".join(exe),
+            "files": files}
 
 
 def main() -> None:
@@ -85,22 +93,28 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results" / "manhattan.json")
+    ap.add_argument("--workers", type=int, default=len(os.sched_getaffinity(0)),
+                    help="processes per run (default: every core, as the CLI)")
+    ap.add_argument("--sengine", dest="exe", default=None,
+                    help="the sengine command to time in the cli case, e.g. the one of a venv made with "
+                         "`pip install .` (compiled bytecode, as users run it); default: python -m sengine")
     ap.add_argument("--case", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.case:
-        print(json.dumps(case(args.case, args.seed, args.repeat)))
+        print(json.dumps(case(args.case, args.seed, args.repeat, args.workers)))
         return
     results = {}
     for name in ("api", "scale10"):
         proc = subprocess.run([sys.executable, __file__, "--case", name, "--seed", str(args.seed),
-                               "--repeat", str(args.repeat if name == "api" else 1)],
+                               "--repeat", str(args.repeat if name == "api" else 1), "--workers", str(args.workers)],
                               capture_output=True, text=True, cwd=ROOT)
         if proc.returncode != 0:
             results[name] = {"error": proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else "failed"}
         else:
             results[name] = json.loads(proc.stdout.strip().splitlines()[-1])
         print(name, json.dumps(results[name]))
-    results["cli"] = cli(args.seed, args.repeat)
+    exe = [args.exe] if args.exe else [sys.executable, "-m", "sengine"]
+    results["cli"] = cli(args.seed, args.repeat, args.workers, exe)
     print("cli", json.dumps(results["cli"]))
     api = results.get("api", {})
     if "counts" in api:
