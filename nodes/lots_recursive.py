@@ -143,7 +143,7 @@ def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, see
     max_levels : int
         Recursion depth cap.
     report : dict, optional
-        Receives ``recursive_levels`` (levels run), ``recursive_stuck``
+        Receives ``max_recursive_levels`` (levels run), ``recursive_stuck``
         (pieces over ``max_area`` that no cut could split) and
         ``recursive_failed_cuts`` (cuts dropped because their crossings
         could not be paired exactly; another cut is tried).
@@ -193,7 +193,7 @@ def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, see
     done_rs.append(rs)
     done_o.append(own)
     if report is not None:
-        report["recursive_levels"] = max(report.get("recursive_levels", 0), levels)
+        report["max_recursive_levels"] = max(report.get("max_recursive_levels", 0), levels)
         report["recursive_stuck"] = report.get("recursive_stuck", 0) + stuck_count
         report["recursive_failed_cuts"] = report.get("recursive_failed_cuts", 0) + failed_count
     done = RingSet.concat(done_rs)

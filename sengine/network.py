@@ -389,27 +389,37 @@ class Network:
         return g
 
 
-MIN_CHUNK = 256  # features; below this a worker process costs more than it saves
+MIN_CHUNK = 256  # features; the executor times a first chunk of this size before it forks
+FORK_AFTER = 0.25  # s; the rest of a node's work must take about this long for workers to pay off
 
 
 def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> dict[str, Layer]:
-    """Run one node, in chunks over worker processes when it maps features.
+    """Run one node, in chunks over worker processes when it maps features and that pays off.
 
     The first input is cut into contiguous chunks; other inputs go whole to
-    every chunk.  Outputs are concatenated in chunk order (renumbered when the
-    node numbers its features per call), which gives the single-process result
-    because a mapping node draws its random numbers per feature
-    (``self.rng(feature_id)``) and writes no files.
+    every chunk.  A first chunk runs here and is timed: only when the rest
+    would take more than ``FORK_AFTER`` seconds does it go to the workers
+    (starting them and sending the results back costs some 0.1 s).  Outputs
+    are concatenated in chunk order (renumbered when the node numbers its
+    features per call), which gives the single-process result because a
+    mapping node draws its random numbers per feature (``self.rng(feature_id)``)
+    and writes no files.
     """
     first = next(iter(node.inputs), None)
     layer = kwargs.get(first) if first else None
     if workers <= 1 or not node.maps_features or layer is None or len(layer) < 2 * MIN_CHUNK:
         return node.run(**kwargs) or {}
-    n_chunks = min(workers * 4, len(layer) // MIN_CHUNK)
-    bounds = np.linspace(0, len(layer), n_chunks + 1).astype(int)
-    jobs = [partial(_call_run, node, {**kwargs, first: layer.take(np.arange(a, b))})
-            for a, b in zip(bounds[:-1], bounds[1:])]
-    parts = run_jobs(jobs, workers)  # forked workers inherit the registry and plugins
+    t = time.perf_counter()
+    parts = [_call_run(node, {**kwargs, first: layer.take(np.arange(MIN_CHUNK))})]
+    rest = len(layer) - MIN_CHUNK
+    if (time.perf_counter() - t) * rest / MIN_CHUNK < FORK_AFTER:
+        parts.append(_call_run(node, {**kwargs, first: layer.take(np.arange(MIN_CHUNK, len(layer)))}))
+    else:
+        n_chunks = max(1, min(workers * 4, rest // MIN_CHUNK))
+        bounds = np.linspace(MIN_CHUNK, len(layer), n_chunks + 1).astype(int)
+        jobs = [partial(_call_run, node, {**kwargs, first: layer.take(np.arange(a, b))})
+                for a, b in zip(bounds[:-1], bounds[1:])]
+        parts += run_jobs(jobs, workers)  # forked workers inherit the registry and plugins
     reports = [r for _, r in parts if r]
     if reports:
         node.report = _sum_reports(reports)
@@ -427,14 +437,15 @@ def _call_run(node: SENode, kwargs: dict[str, Layer | None]) -> tuple[dict[str, 
 
 
 def _sum_reports(reports: list[dict]) -> dict:
-    """Merge the reports of a node's chunks: numbers add up, the rest is taken from the first."""
+    """Merge the reports of a node's chunks: numbers add up (``max_*`` ones take the largest), the rest is taken
+    from the first."""
     total: dict = {}
     for rep in reports:
         for key, value in rep.items():
             if isinstance(value, dict):
                 total[key] = _sum_reports([total.get(key, {}), value])
             elif isinstance(value, (int, float)) and not isinstance(value, bool) and key in total:
-                total[key] = total[key] + value
+                total[key] = max(total[key], value) if key.startswith("max_") else total[key] + value
             else:
                 total.setdefault(key, value)
     return total

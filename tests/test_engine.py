@@ -343,8 +343,21 @@ def test_layer_take_concat_and_columns():
         a.with_columns(h=np.zeros(3))
 
 
-def test_workers_give_the_same_result(tmp_path, fixtures):
-    """A feature-mapping node cut into chunks over 2 processes: same bytes as 1 process."""
+def test_chunk_reports_merge():
+    """Counts of a node's chunks add up; ``max_*`` figures take the largest; the rest comes from the first."""
+    from sengine.network import _sum_reports
+
+    merged = _sum_reports([{"lots": 3, "max_levels": 4, "method": "a", "sub": {"n": 1}},
+                           {"lots": 5, "max_levels": 2, "method": "b", "sub": {"n": 2}}])
+    assert merged == {"lots": 8, "max_levels": 4, "method": "a", "sub": {"n": 3}}
+
+
+@pytest.mark.parametrize("fork_after", [0.0, float("inf")], ids=["forked", "timed-then-here"])
+def test_workers_give_the_same_result(tmp_path, fixtures, monkeypatch, fork_after):
+    """A feature-mapping node cut into chunks (over 2 processes, or here after timing one): same bytes as 1 process."""
+    from sengine import network
+
+    monkeypatch.setattr(network, "FORK_AFTER", fork_after)
     files, reports = [], []
     for workers in (1, 2):
         net = sengine.load(fixtures / "squares.xml")
