@@ -6,13 +6,14 @@ minor-road modules "are collapsed into a single node that simply reads the
 file and passes the resulting network to the next modules" (002 §5.3).  This
 module is that node.
 
-The file (``.osm``, ``.osm.bz2``, ``.osm.pbf``) is streamed once with
-pyosmium, each ``highway=*`` way turned into well-known binary by
-libosmium's geometry factory and its tags into flat lists: no object model of
-the whole file is built.  The points are then projected to the
-UTM zone of the data with one vectorized pyproj call (each junction once)
-and split into *street segments* between junctions with numpy.  A junction is a point shared by two ways (or visited twice by
-one way) or a way's end.  Point identity is the OSM location itself
+The file (``.osm``, ``.osm.bz2``, ``.osm.pbf``) is streamed with pyosmium
+(:mod:`.osm_stream`: each ``highway=*`` way turned into well-known binary by
+libosmium's geometry factory and its tags into flat lists, the ways shared
+between two processes on a two-core machine).  The points are then
+projected to the UTM zone of the data with one vectorized pyproj call (each
+junction once) and split into *street segments* between junctions with
+numpy.  A junction is a point shared by two ways (or visited twice by one
+way) or a way's end.  Point identity is the OSM location itself
 (libosmium's 1e-7 degree fixed-point integers): two ways share a junction
 exactly when they share a node, except for the data error of two distinct
 nodes stacked on one spot, which this treats as the junction it was meant to
@@ -33,8 +34,6 @@ Roads Modules".
 from __future__ import annotations
 
 import logging
-import re
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +44,7 @@ from sengine.errors import InputDataError
 from sengine.geo import from_lonlat, utm_crs
 
 from .clean import split_at_junctions
+from .osm_stream import TAG_KEYS, OsmExtract, int_tag, read_osm
 
 __all__ = [
     "MAJOR_CLASSES",
@@ -77,271 +77,10 @@ STREET_WIDTHS = {
 }
 _DEFAULT_WIDTH = 3.0  # footway, path, cycleway, steps ...
 
-_WATER = {("natural", "water"), ("waterway", "riverbank"), ("landuse", "reservoir"), ("landuse", "basin")}
-_PARKS = {("leisure", "park"), ("leisure", "garden")}
-_NUM = re.compile(r"^\s*([0-9]+(?:[.,][0-9]+)?)\s*(m|ft|')?\s*$")
 
 
 def _classes(text: str) -> frozenset[str]:
     return frozenset(c.strip() for c in str(text).split(",") if c.strip())
-
-
-def _int_tag(value: str | None) -> int:
-    try:
-        return int(float(value)) if value else 0
-    except ValueError:
-        return 0
-
-
-def parse_height(value: str | None) -> float:
-    """A height tag in metres (``"12"``, ``"12.5 m"``, ``"40 ft"``); NaN when unreadable."""
-    if not value:
-        return float("nan")
-    m = _NUM.match(value)
-    if not m:
-        return float("nan")
-    h = float(m.group(1).replace(",", "."))
-    return h * 0.3048 if m.group(2) in ("ft", "'") else h
-
-
-@dataclass
-class OsmExtract:
-    """What :func:`read_osm` collects, still in WGS84.
-
-    Attributes
-    ----------
-    fixed : ndarray (n, 2) of int64
-        Every node of every kept highway way, way after way in file order,
-        as (lon, lat) in libosmium's fixed point (1e-7 deg): equal values
-        are the same place.
-    line : ndarray (n,) of int64
-        Index of each point's way (non-decreasing).
-    way_id, code : ndarray (w,) of int64
-        Per kept way: OSM id and the code of its ``highway`` value in ``codes``.
-    codes : dict of str to int
-        ``highway`` value -> code.
-    tags : dict of str to ndarray (w,) of object
-        ``name``, ``layer``, ``bridge``, ``tunnel`` (``tunnel`` or else
-        ``covered``) and ``oneway`` values per way, None when absent.
-    node_ids : ndarray (n,) of int64 or None
-        OSM node id of each point (only when asked for).
-    polygons : dict of str to (list of str, list of dict)
-        ``"water"``, ``"parks"``, ``"buildings"``: hex WKB multipolygons and their attributes.
-    clipped : int
-        Ways whose nodes are partly missing from the file (cut by the extract's bounding box).
-    """
-
-    fixed: np.ndarray = field(default_factory=lambda: np.empty((0, 2), np.int64))
-    line: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
-    way_id: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
-    code: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
-    codes: dict = field(default_factory=dict)
-    tags: dict = field(default_factory=dict)
-    node_ids: np.ndarray | None = None
-    polygons: dict = field(default_factory=lambda: {k: ([], []) for k in ("water", "parks", "buildings")})
-    clipped: int = 0
-
-
-_TAG_KEYS = ("name", "layer", "bridge", "tunnel", "oneway")
-#: The tag key each area kind of :func:`read_osm` needs (see ``area`` in :func:`_read_pyosmium`).
-_AREA_KEYS = {"building": "buildings", "natural": "water", "waterway": "water", "landuse": "water",
-              "leisure": "parks"}
-_UNDEFINED = 2147483647  # libosmium's coordinate of a node missing from the file
-
-
-def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras: frozenset[str] = frozenset(),
-             node_ids: bool = False, where: str | None = None) -> OsmExtract:
-    """Stream an OSM file and collect its highway ways (and optional areas).
-
-    The file is streamed with pyosmium (locations kept in its node index).
-
-    Parameters
-    ----------
-    path : str or Path
-        ``.osm``, ``.osm.bz2``, ``.osm.gz`` or ``.osm.pbf``.
-    classes : frozenset of str, optional
-        ``highway`` values to keep; all when None.
-    extras : frozenset of str
-        Any of ``"water"``, ``"parks"``, ``"buildings"``: also assemble those
-        areas (closed ways and multipolygon relations, with pyosmium; costs
-        a pass over the file).
-    node_ids : bool
-        Also keep the OSM node id of every way node (slower when read with pyosmium).
-    where : str, optional
-        Prefix for error messages.
-
-    Returns
-    -------
-    OsmExtract
-
-    Raises
-    ------
-    InputDataError
-        Missing, truncated, corrupt or non-OSM file; a node outside
-        [-180, 180] x [-90, 90].
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise InputDataError(f"OSM file {str(path)!r} does not exist", where=where)
-    return _read_pyosmium(path, classes=classes, extras=extras, node_ids=node_ids, where=where)
-
-
-def _read_pyosmium(path: Path, *, classes, extras, node_ids: bool, where, ways: bool = True,
-                   out: OsmExtract | None = None) -> OsmExtract:
-    """:func:`read_osm` with pyosmium callbacks (any format); ``ways=False`` reads the areas only."""
-    import osmium
-
-    out = OsmExtract() if out is None else out
-    wkb = osmium.geom.WKBFactory()
-    every = osmium.geom.ALL
-    hex_wkb: list = []
-    way_id: list = []
-    code_l: list = []
-    more: list = []
-    refs: list = []
-    append_line = hex_wkb.append
-    codes = out.codes
-    append_id, append_code, append_more = way_id.append, code_l.append, more.append
-    clipped = [0]
-
-    def way(w):
-        tags = w.tags
-        hw = tags.get("highway")
-        if hw is None:
-            return
-        code = codes.get(hw)
-        if code is None:
-            if classes is not None and hw not in classes:
-                return
-            code = codes[hw] = len(codes)
-        kept = None
-        try:
-            append_line(wkb.create_linestring(w, every))
-        except osmium.InvalidLocationError:
-            kept = _clipped_way(w, path, hex_wkb, where)
-            clipped[0] += 1
-            if kept is None:
-                return
-        except RuntimeError:  # libosmium geometry_error: a way of fewer than two nodes
-            return
-        append_id(w.id)
-        append_code(code)
-        if len(tags) > 1:  # most Liège-like street tables carry highway only
-            append_more((len(code_l) - 1, tags.get("name"), tags.get("layer"), tags.get("bridge"),
-                         tags.get("tunnel") or tags.get("covered"), tags.get("oneway")))
-        if node_ids:
-            refs.append(kept if kept is not None else [n.ref for n in w.nodes])
-
-    def area(a):
-        tags = a.tags
-        kind = None
-        if "building" in tags and tags.get("building") != "no":
-            kind = "buildings"
-        elif any((k, tags.get(k)) in _WATER for k in ("natural", "waterway", "landuse")):
-            kind = "water"
-        elif ("leisure", tags.get("leisure")) in _PARKS:
-            kind = "parks"
-        if kind is None or kind not in extras:
-            return
-        try:
-            geom = wkb.create_multipolygon(a)
-        except (osmium.InvalidLocationError, RuntimeError):
-            return  # broken or clipped ring: skipped like osmium-tool does
-        geoms, attrs = out.polygons[kind]
-        geoms.append(geom)
-        attrs.append({
-            "osm_id": a.orig_id(), "name": tags.get("name", ""),
-            "height": parse_height(tags.get("height")),
-            "levels": _int_tag(tags.get("building:levels")),
-        })
-
-    callbacks = {"way": way} if ways else {}
-    if extras:
-        callbacks["area"] = area
-    handler = osmium.make_simple_handler(**callbacks)
-    try:
-        handler.apply_file(str(path), locations=True)
-    except InputDataError:
-        raise
-    except (RuntimeError, ValueError, osmium.InvalidLocationError) as exc:
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputDataError(f"cannot read OSM file {str(path)!r}: {msg}", where=where) from None
-    if not ways:
-        return out
-    out.clipped = clipped[0]
-    if out.clipped:
-        log.info("%s: %d ways lose nodes outside the extract; kept their parts inside", path.name, out.clipped)
-    lonlat, line = decode_lines(hex_wkb)
-    out.fixed = np.rint(lonlat * 1e7).astype(np.int64)
-    out.line = line
-    out.way_id = np.asarray(way_id, np.int64)
-    out.code = np.asarray(code_l, np.int64)
-    nway = len(code_l)
-    out.tags = {k: np.full(nway, None, dtype=object) for k in _TAG_KEYS}
-    if more:
-        i, *cols = zip(*more, strict=True)
-        i = np.asarray(i, np.int64)
-        for k, col in zip(_TAG_KEYS, cols, strict=True):
-            out.tags[k][i] = col
-    if node_ids:
-        out.node_ids = np.fromiter((r for way in refs for r in way), np.int64)
-    return out
-
-
-def _clipped_way(w, path, hex_wkb, where) -> list[int] | None:
-    """Slow path for a way with missing node locations: keep its longest run of located nodes.
-
-    Returns the OSM ids of the kept nodes, or None when fewer than two are left.
-    """
-    runs, run = [], []
-    for n in w.nodes:
-        loc = n.location
-        if loc.valid():
-            run.append((loc.lon, loc.lat, n.ref))
-            continue
-        if loc.x != _UNDEFINED or loc.y != _UNDEFINED:  # present, but outside the valid range
-            raise InputDataError(
-                f"OSM file {str(path)!r}: node {n.ref} has coordinates ({loc.x / 1e7}, {loc.y / 1e7}) "
-                "outside [-180, 180] x [-90, 90]", where=where)
-        runs.append(run)
-        run = []
-    runs.append(run)
-    best = max(runs, key=len)
-    if len(best) < 2:
-        return None
-    hex_wkb.append(shapely.to_wkb(shapely.linestrings([p[:2] for p in best]), hex=True))
-    return [p[2] for p in best]
-
-
-def decode_lines(hex_wkb: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """Coordinates and line index of a list of hex WKB LineStrings, without a geometry per line.
-
-    libosmium writes little-endian 2D LineStrings (1 byte order, 4 bytes type,
-    4 bytes count, 16 bytes per point); the whole list is decoded by numpy
-    in one go.
-
-    Returns
-    -------
-    xy : ndarray (n, 2) of float64
-    line : ndarray (n,) of int64
-        Index of each point's line, ascending.
-    """
-    if not hex_wkb:
-        return np.empty((0, 2)), np.empty(0, np.int64)
-    nbytes = np.fromiter(map(len, hex_wkb), np.int64, len(hex_wkb)) // 2
-    raw = np.frombuffer(bytes.fromhex("".join(hex_wkb)), np.uint8)
-    header = raw[(np.cumsum(nbytes) - nbytes)[:, None] + np.arange(9)]
-    if not (np.all(header[:, 0] == 1) and np.all(header[:, 1:5].copy().view("<u4").ravel() == 2)):
-        # not the libosmium layout (e.g. our own fallback WKB): let GEOS decode
-        xy, line = shapely.get_coordinates(shapely.from_wkb(hex_wkb), return_index=True)
-        return xy, line.astype(np.int64)
-    npts = header[:, 5:9].copy().view("<u4").ravel().astype(np.int64)
-    first = np.cumsum(nbytes) - nbytes + 9
-    line = np.repeat(np.arange(len(hex_wkb), dtype=np.int64), npts)
-    k = np.arange(line.size) - np.repeat(np.cumsum(npts) - npts, npts)
-    offsets = first[line] + 16 * k
-    xy = raw[offsets[:, None] + np.arange(16)].view("<f8").reshape(-1, 2)
-    return xy, line
 
 
 def project_extract(xy_lonlat: np.ndarray, bounds: tuple | None = None) -> tuple[np.ndarray, str, tuple[float, float]]:
@@ -417,7 +156,7 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
     widths = np.array([STREET_WIDTHS.get(c.removesuffix("_link"), _DEFAULT_WIDTH) for c in names])
     tags = ext.tags
     nway = len(code)
-    col = {k: tags.get(k, np.full(nway, None, dtype=object)) for k in _TAG_KEYS}
+    col = {k: tags.get(k, np.full(nway, None, dtype=object)) for k in TAG_KEYS}
     name = np.where(col["name"] == None, "", col["name"])  # noqa: E711 (elementwise)
     bridge = _flags(col["bridge"], lambda b: b != "no")
     tunnel = _flags(col["tunnel"], lambda b: b != "no")
@@ -425,7 +164,7 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
     lay = np.where(bridge, 1, np.where(tunnel, -1, 0)).astype(np.int64)
     has = np.flatnonzero(col["layer"] != None)  # noqa: E711 (elementwise)
     if len(has):
-        lay[has] = [_int_tag(v) for v in col["layer"][has].tolist()]
+        lay[has] = [int_tag(v) for v in col["layer"][has].tolist()]
     meta_ids = {}
     if ext.node_ids is not None and len(ext.node_ids) == len(key):
         meta_ids = {"node_ids": ext.node_ids[pieces.vertex[uidx]]}

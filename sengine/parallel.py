@@ -11,11 +11,9 @@ and the files the jobs write, are the same.
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import sys
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 __all__ = ["available_cores", "run_jobs"]
@@ -32,6 +30,8 @@ def available_cores() -> int:
 
 
 def _can_fork() -> bool:
+    import multiprocessing
+
     # macOS lists fork but its system libraries are not fork-safe
     return sys.platform != "darwin" and "fork" in multiprocessing.get_all_start_methods()
 
@@ -61,6 +61,9 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
     workers = min(int(workers), len(jobs))
     if workers <= 1 or not _can_fork():
         return [job() for job in jobs]
+    import multiprocessing  # here: the CLI imports this module, and most runs never fork
+    from concurrent.futures import ProcessPoolExecutor
+
     outer, _JOBS = _JOBS, jobs
     try:
         with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork")) as pool:
