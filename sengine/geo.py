@@ -19,7 +19,7 @@ from functools import lru_cache
 import numpy as np
 from pyproj import CRS, Transformer
 
-__all__ = ["local_crs", "utm_crs", "to_lonlat", "from_lonlat", "layer_crs", "WGS84"]
+__all__ = ["local_crs", "utm_crs", "to_lonlat", "from_lonlat", "registered_frame", "layer_crs", "WGS84"]
 
 WGS84 = "EPSG:4326"
 
@@ -76,6 +76,33 @@ def to_lonlat(crs: str) -> Callable[[np.ndarray], np.ndarray]:
 def from_lonlat(crs: str) -> Callable[[np.ndarray], np.ndarray]:
     """A function mapping WGS84 ``(lon, lat)`` ``(n, 2)`` arrays to planar ``crs``."""
     return _apply(_transformer(WGS84, str(crs)))
+
+
+def registered_frame(crs: str, xy: np.ndarray) -> tuple[int, np.ndarray]:
+    """Planar points in a frame that has an EPSG code, for formats that can only name one.
+
+    Parameters
+    ----------
+    crs : str
+        The points' planar frame.
+    xy : ndarray (n, 2)
+        Points (m).
+
+    Returns
+    -------
+    code : int
+        ``crs``'s own EPSG code when it has one (UTM), else that of the UTM
+        zone holding the frame's origin (a synthetic city's local transverse
+        Mercator has none).
+    xy : ndarray (n, 2)
+        The points in that frame (m): ``xy`` itself, or reprojected.
+    """
+    code = CRS.from_user_input(crs).to_epsg()
+    if code:
+        return int(code), xy
+    lon, lat = to_lonlat(crs)(np.zeros((1, 2)))[0]
+    utm = utm_crs(lat, lon)
+    return int(utm.split(":")[1]), _apply(_transformer(str(crs), utm))(xy)
 
 
 def layer_crs(meta: dict | None, plan=None) -> str:

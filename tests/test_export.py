@@ -235,7 +235,7 @@ def test_obj_one_group_per_layer(city, written):
 
 
 def test_cityjson_lod1_solids(city, written):
-    _, layers = city
+    plan, layers = city
     doc = json.loads((written / "buildings.city.json").read_text())
     assert doc["type"] == "CityJSON" and doc["version"] == "2.0"
     objs = doc["CityObjects"]
@@ -253,8 +253,17 @@ def test_cityjson_lod1_solids(city, written):
         tris += [[ring[0], ring[k], ring[k + 1]] for k in range(1, len(ring) - 1)]
     tm = trimesh.Trimesh(verts, np.array(tris), process=True)
     assert tm.is_watertight
-    assert tm.volume == pytest.approx(layers["buildings"].geometry[0].area * layers["buildings"]["height"][0],
-                                      rel=1e-4)
+    # the local frame has no EPSG code: the solids are in the UTM zone of the origin, and land where the
+    # GeoJSON footprints are
+    origin_zone = 32600 + int((plan.origin[1] + 180) // 6) + 1
+    assert doc["metadata"]["referenceSystem"] == f"https://www.opengis.net/def/crs/EPSG/0/{origin_zone}"
+    utm = f"EPSG:{origin_zone}"
+    footprint = shapely.transform(layers["buildings"].geometry[0], lambda xy: from_lonlat(utm)(
+        to_lonlat(local_crs(plan.origin))(xy)))
+    assert tm.volume == pytest.approx(footprint.area * layers["buildings"]["height"][0], rel=1e-4)  # mm vertices
+    floor = verts[shell[0][0]]  # the bottom surface's outer ring
+    assert (floor[:, 2] == 0).all()
+    assert shapely.distance(footprint.exterior, shapely.points(floor[:, :2])).max() < 0.002
 
 
 # -- node behaviour ------------------------------------------------------------------

@@ -3,9 +3,10 @@
 Each building is a ``Building`` city object with one ``Solid`` (``lod`` "1"):
 a floor, a flat roof and one quad per footprint edge, every surface
 counter-clockwise seen from outside.  Vertices are integers with a
-millimetre ``transform``; coordinates stay in the planar frame (z up), whose
-EPSG code goes into ``metadata.referenceSystem`` when it has one (a UTM
-frame); a local transverse Mercator frame has none, so it is left out.
+millimetre ``transform``, in a frame that GIS tools can place: the layer's
+own when it has an EPSG code (UTM, for an OSM city), else the UTM zone of the
+city's origin (a synthetic city's local transverse Mercator has no code); the
+code goes into ``metadata.referenceSystem``.  z is up, in metres.
 Attributes: ``measuredHeight``, ``storeysAboveGround``, ``roofType`` and every
 layer column.  Keys are sorted; the output is deterministic.
 """
@@ -18,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..geo import registered_frame
 from ..layer import Layer
 from .mesh import ring_arrays
 
@@ -35,13 +37,14 @@ def _value(v):
 
 
 def city_model(buildings: Layer, *, crs: str | None = None, scale: float = 0.001) -> dict:
-    """The CityJSON 2.0 document of a buildings layer (needs a ``height`` column)."""
+    """The CityJSON 2.0 document of a buildings layer (needs a ``height`` column) in planar frame ``crs``."""
     rings = ring_arrays(buildings.geometry)
     m = len(rings.xy)
+    code, planar = registered_frame(crs, rings.xy) if crs else (None, rings.xy)
     height = np.nan_to_num(np.asarray(buildings.get("height", np.zeros(len(buildings))), np.float64))
     vpoly = rings.vertex_poly() if m else np.empty(0, np.int64)
     z1 = height[rings.feature[vpoly]] if m else np.empty(0)
-    xyz = np.concatenate([np.column_stack([rings.xy, np.zeros(m)]), np.column_stack([rings.xy, z1])])
+    xyz = np.concatenate([np.column_stack([planar, np.zeros(m)]), np.column_stack([planar, z1])])
     translate = np.floor(xyz.min(axis=0)) if m else np.zeros(3)
     ints = np.rint((xyz - translate) / scale).astype(np.int64)
     rs = rings.ring_start.tolist()
@@ -81,12 +84,8 @@ def city_model(buildings: Layer, *, crs: str | None = None, scale: float = 0.001
     if m:
         lo, hi = xyz.min(axis=0), xyz.max(axis=0)
         meta["geographicalExtent"] = [float(v) for v in np.concatenate([lo, hi])]
-    if crs:
-        from pyproj import CRS
-
-        code = CRS.from_user_input(crs).to_epsg()
-        if code:
-            meta["referenceSystem"] = f"https://www.opengis.net/def/crs/EPSG/0/{code}"
+    if code:
+        meta["referenceSystem"] = f"https://www.opengis.net/def/crs/EPSG/0/{code}"
     return {
         "type": "CityJSON",
         "version": "2.0",
