@@ -1,0 +1,421 @@
+"""Streaming an OpenStreetMap file into flat arrays, with pyosmium.
+
+The file is read by libosmium and handed to Python one way at a time; each
+``highway=*`` way becomes well-known binary through libosmium's geometry
+factory and its tags go into flat lists, so that no object model of the
+whole file is built.  The points of all ways are then decoded in one numpy
+call.
+
+The Python callback per way is the cost of the read (libosmium decodes a
+city extract in a fraction of it), so the ways are shared between two
+processes when the machine has two cores: libosmium's own tag filter
+(``osmium.filter.TagFilter``, in C++) hands the ``residential`` ways to a
+forked child and every other kept class to this process, each reading the
+whole file.  Either way the ways come out ordered by OSM id (file order for
+the usual sorted extracts) with the class codes numbered by first
+appearance: the extract does not depend on the number of processes.
+
+Water, parks and buildings (areas assembled by pyosmium) are read in the
+same pass as this process's ways.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import re
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import shapely
+
+from sengine.errors import InputDataError
+from sengine.parallel import available_cores
+
+__all__ = ["OsmExtract", "read_osm", "decode_lines", "parse_height", "int_tag", "TAG_KEYS"]
+
+_WATER = {("natural", "water"), ("waterway", "riverbank"), ("landuse", "reservoir"), ("landuse", "basin")}
+_PARKS = {("leisure", "park"), ("leisure", "garden")}
+_NUM = re.compile(r"^\s*([0-9]+(?:[.,][0-9]+)?)\s*(m|ft|')?\s*$")
+#: The tags kept per way besides ``highway`` (``tunnel`` holds ``covered`` when untagged).
+TAG_KEYS = ("name", "layer", "bridge", "tunnel", "oneway")
+_UNDEFINED = 2147483647  # libosmium's coordinate of a node missing from the file
+
+#: The ``highway`` value whose ways the second process reads: the commonest in city extracts
+#: (half of Liège's 80,000 kept ways).
+SPLIT_CLASS = "residential"
+#: Files smaller than this (bytes) are read in one process: a fork costs more than it saves.
+PARALLEL_BYTES = 1 << 20
+
+
+def int_tag(value: str | None) -> int:
+    """An integer tag (``"2"``, ``"-1"``, ``"1.5"`` -> 1); 0 when absent or unreadable."""
+    try:
+        return int(float(value)) if value else 0
+    except ValueError:
+        return 0
+
+
+def parse_height(value: str | None) -> float:
+    """A height tag in metres (``"12"``, ``"12.5 m"``, ``"40 ft"``); NaN when unreadable."""
+    if not value:
+        return float("nan")
+    m = _NUM.match(value)
+    if not m:
+        return float("nan")
+    h = float(m.group(1).replace(",", "."))
+    return h * 0.3048 if m.group(2) in ("ft", "'") else h
+
+
+@dataclass
+class OsmExtract:
+    """What :func:`read_osm` collects, still in WGS84.
+
+    Attributes
+    ----------
+    fixed : ndarray (n, 2) of int64
+        Every node of every kept highway way, way after way,
+        as (lon, lat) in libosmium's fixed point (1e-7 deg): equal values
+        are the same place.
+    line : ndarray (n,) of int64
+        Index of each point's way (non-decreasing).
+    way_id, code : ndarray (w,) of int64
+        Per kept way, ascending OSM id: the id and the code of its ``highway`` value in ``codes``.
+    codes : dict of str to int
+        ``highway`` value -> code, numbered by first appearance.
+    tags : dict of str to ndarray (w,) of object
+        ``name``, ``layer``, ``bridge``, ``tunnel`` (``tunnel`` or else
+        ``covered``) and ``oneway`` values per way, None when absent.
+    node_ids : ndarray (n,) of int64 or None
+        OSM node id of each point (only when asked for).
+    polygons : dict of str to (list of str, list of dict)
+        ``"water"``, ``"parks"``, ``"buildings"``: hex WKB multipolygons and their attributes.
+    clipped : int
+        Ways whose nodes are partly missing from the file (cut by the extract's bounding box).
+    """
+
+    fixed: np.ndarray = field(default_factory=lambda: np.empty((0, 2), np.int64))
+    line: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+    way_id: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+    code: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+    codes: dict = field(default_factory=dict)
+    tags: dict = field(default_factory=dict)
+    node_ids: np.ndarray | None = None
+    polygons: dict = field(default_factory=lambda: {k: ([], []) for k in ("water", "parks", "buildings")})
+    clipped: int = 0
+
+
+@dataclass
+class _Ways:
+    """The ways one pass collected, in its file order (small and picklable: it crosses a pipe)."""
+
+    fixed: np.ndarray  # (n, 2) int32, libosmium fixed point
+    size: np.ndarray  # points per way
+    way_id: np.ndarray
+    code: np.ndarray  # into names
+    names: list
+    more: list  # (way index, name, layer, bridge, tunnel, oneway) of ways with more tags than highway
+    node_ids: np.ndarray | None
+    clipped: int
+
+
+def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras: frozenset[str] = frozenset(),
+             node_ids: bool = False, where: str | None = None, workers: int | None = None) -> OsmExtract:
+    """Stream an OSM file and collect its highway ways (and optional areas).
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.osm``, ``.osm.bz2``, ``.osm.gz`` or ``.osm.pbf``.
+    classes : frozenset of str, optional
+        ``highway`` values to keep; all when None.
+    extras : frozenset of str
+        Any of ``"water"``, ``"parks"``, ``"buildings"``: also assemble those
+        areas (closed ways and multipolygon relations, with pyosmium; costs
+        a pass over the relations).
+    node_ids : bool
+        Also keep the OSM node id of every way node (slower).
+    where : str, optional
+        Prefix for error messages.
+    workers : int, optional
+        Processes reading the ways: 1, or 2 to read the :data:`SPLIT_CLASS`
+        ways in a forked child (used only when ``classes`` holds it and
+        another class).  Default: 2 for a file of at least
+        :data:`PARALLEL_BYTES` on a machine with two free cores, outside a
+        worker process.  The result is the same.
+
+    Returns
+    -------
+    OsmExtract
+
+    Raises
+    ------
+    InputDataError
+        Missing, truncated, corrupt or non-OSM file; a node outside
+        [-180, 180] x [-90, 90].
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputDataError(f"OSM file {str(path)!r} does not exist", where=where)
+    out = OsmExtract()
+    split = classes is not None and SPLIT_CLASS in classes and len(classes) > 1
+    if workers is None:
+        workers = _free_cores() if path.stat().st_size >= PARALLEL_BYTES else 1
+    if not split or workers < 2:
+        parts = [_read_pass(path, classes, extras=extras, node_ids=node_ids, where=where, out=out)]
+    else:
+        child = frozenset({SPLIT_CLASS})
+        job = _Forked(lambda: _read_pass(path, child, extras=frozenset(), node_ids=node_ids, where=where))
+        with job:
+            mine = _read_pass(path, classes - child, extras=extras, node_ids=node_ids, where=where, out=out)
+            theirs = job.result()
+        if theirs is None:  # the child failed: read its share here, which raises its error
+            theirs = _read_pass(path, child, extras=frozenset(), node_ids=node_ids, where=where)
+        parts = [mine, theirs]
+    _merge(out, parts, node_ids=node_ids)
+    return out
+
+
+def _free_cores() -> int:
+    """2 when a forked reader would get a core of its own; 1 inside a worker process or without a safe fork."""
+    import multiprocessing  # here: most runs read small files and never fork
+
+    if multiprocessing.parent_process() is not None or sys.platform in ("darwin", "win32"):
+        return 1
+    return min(2, available_cores())
+
+
+class _Forked:
+    """``job()`` run in a forked child process; its (pickled) result comes back through a pipe.
+
+    Use as a context manager: on leaving, the child is reaped even when this
+    process failed first.  ``result()`` is None when the child failed (the
+    caller redoes the work itself, which raises the error where it belongs).
+    """
+
+    def __init__(self, job):
+        read, write = os.pipe()
+        self._pid = os.fork()
+        if self._pid == 0:  # the child: no logging, no cleanup handlers, just the bytes
+            os.close(read)
+            status = 1
+            try:
+                data = pickle.dumps(job(), protocol=pickle.HIGHEST_PROTOCOL)
+                with os.fdopen(write, "wb") as pipe:
+                    pipe.write(data)
+                status = 0
+            finally:
+                os._exit(status)
+        os.close(write)
+        self._pipe = os.fdopen(read, "rb")
+
+    def result(self):
+        data = self._pipe.read()
+        return pickle.loads(data) if self._wait() == 0 and data else None
+
+    def _wait(self) -> int:
+        self._pipe.close()  # a child still writing gets a broken pipe and exits
+        if self._pid is None:
+            return 1
+        _, status = os.waitpid(self._pid, 0)
+        self._pid = None
+        return status
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self._wait()
+
+
+def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: bool, where,
+               out: OsmExtract | None = None) -> _Ways:
+    """One pyosmium pass: the highway ways whose class is in ``select`` (all when None); the areas into ``out``.
+
+    The class filter runs in libosmium (C++), so that other ways never
+    reach Python.
+    """
+    import osmium
+
+    wkb = osmium.geom.WKBFactory()
+    create, every = wkb.create_linestring, osmium.geom.ALL
+    hex_wkb: list = []
+    way_id: list = []
+    code_l: list = []
+    more: list = []
+    refs: list = []
+    codes: dict = {}
+    append_line, append_id, append_code, append_more = hex_wkb.append, way_id.append, code_l.append, more.append
+    clipped = [0]
+
+    def way(w):
+        tags = w.tags
+        hw = tags.get("highway")
+        code = codes.get(hw)
+        if code is None:
+            code = codes[hw] = len(codes)
+        kept = None
+        try:
+            append_line(create(w, every))
+        except osmium.InvalidLocationError:
+            kept = _clipped_way(w, path, hex_wkb, where)
+            clipped[0] += 1
+            if kept is None:
+                return
+        except RuntimeError:  # libosmium geometry_error: a way of fewer than two nodes
+            return
+        append_id(w.id)
+        append_code(code)
+        if len(tags) > 1:  # most Liège-like street tables carry highway only
+            append_more((len(code_l) - 1, tags.get("name"), tags.get("layer"), tags.get("bridge"),
+                         tags.get("tunnel") or tags.get("covered"), tags.get("oneway")))
+        if node_ids:
+            refs.append(kept if kept is not None else [n.ref for n in w.nodes])
+
+    callbacks = {"way": way}
+    if extras and out is not None:
+        callbacks["area"] = _area_callback(wkb, extras, out.polygons)
+    if select is None:
+        ways_filter = osmium.filter.KeyFilter("highway")
+    else:
+        ways_filter = osmium.filter.TagFilter(*(("highway", c) for c in sorted(select)))
+    ways_filter.enable_for(osmium.osm.WAY)  # areas, nodes and relations pass untouched
+    try:
+        osmium.make_simple_handler(**callbacks).apply_file(str(path), locations=True, filters=[ways_filter])
+    except InputDataError:
+        raise
+    except (RuntimeError, ValueError, osmium.InvalidLocationError) as exc:
+        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputDataError(f"cannot read OSM file {str(path)!r}: {msg}", where=where) from None
+    lonlat, line = decode_lines(hex_wkb)
+    return _Ways(np.rint(lonlat * 1e7).astype(np.int32), np.bincount(line, minlength=len(code_l)),
+                 np.asarray(way_id, np.int64), np.asarray(code_l, np.int64), list(codes), more,
+                 np.fromiter((r for way in refs for r in way), np.int64) if node_ids else None, clipped[0])
+
+
+def _area_callback(wkb, extras: frozenset[str], polygons: dict):
+    """pyosmium's area callback filling ``polygons`` (see :attr:`OsmExtract.polygons`)."""
+    import osmium
+
+    def area(a):
+        tags = a.tags
+        kind = None
+        if "building" in tags and tags.get("building") != "no":
+            kind = "buildings"
+        elif any((k, tags.get(k)) in _WATER for k in ("natural", "waterway", "landuse")):
+            kind = "water"
+        elif ("leisure", tags.get("leisure")) in _PARKS:
+            kind = "parks"
+        if kind is None or kind not in extras:
+            return
+        try:
+            geom = wkb.create_multipolygon(a)
+        except (osmium.InvalidLocationError, RuntimeError):
+            return  # broken or clipped ring: skipped like osmium-tool does
+        geoms, attrs = polygons[kind]
+        geoms.append(geom)
+        attrs.append({
+            "osm_id": a.orig_id(), "name": tags.get("name", ""),
+            "height": parse_height(tags.get("height")),
+            "levels": int_tag(tags.get("building:levels")),
+        })
+
+    return area
+
+
+def _merge(out: OsmExtract, parts: list[_Ways], *, node_ids: bool) -> None:
+    """Fill ``out``'s way arrays from the passes: ways by ascending id, codes by first appearance."""
+    names = [c for p in parts for c in p.names]
+    shift = np.cumsum([0] + [len(p.names) for p in parts])[:-1]
+    way_id = np.concatenate([p.way_id for p in parts])
+    code = np.concatenate([p.code + s for p, s in zip(parts, shift, strict=True)])
+    size = np.concatenate([p.size for p in parts])
+    fixed = np.concatenate([p.fixed for p in parts]).astype(np.int64)
+    ids = np.concatenate([p.node_ids for p in parts]) if node_ids else None
+    base = np.cumsum([0] + [len(p.way_id) for p in parts])[:-1]
+    more = [(i + b, *rest) for p, b in zip(parts, base, strict=True) for i, *rest in p.more]
+    out.clipped = sum(p.clipped for p in parts)
+    order = np.argsort(way_id, kind="stable")
+    start = np.cumsum(size) - size
+    rank = np.empty(len(order), np.int64)
+    rank[order] = np.arange(len(order))
+    if np.any(order[1:] < order[:-1]):  # not in id order yet: move each way's points with it
+        size = size[order]
+        pts = np.repeat(start[order] - (np.cumsum(size) - size), size) + np.arange(int(size.sum()))
+        fixed = fixed[pts]
+        ids = ids[pts] if ids is not None else None
+        way_id, code = way_id[order], code[order]
+    # codes by first appearance in id order
+    seen, first = np.unique(code, return_index=True)
+    renum = np.zeros(len(names), np.int64)
+    renum[seen[np.argsort(first)]] = np.arange(len(seen))
+    out.codes = {names[c]: i for i, c in enumerate(seen[np.argsort(first)].tolist())}
+    out.code = renum[code]
+    out.way_id = way_id
+    out.fixed = fixed
+    out.line = np.repeat(np.arange(len(way_id), dtype=np.int64), size)
+    out.node_ids = ids
+    out.tags = {k: np.full(len(way_id), None, dtype=object) for k in TAG_KEYS}
+    if more:
+        i, *cols = zip(*more, strict=True)
+        i = rank[np.asarray(i, np.int64)]
+        for k, col in zip(TAG_KEYS, cols, strict=True):
+            out.tags[k][i] = col
+
+
+def _clipped_way(w, path, hex_wkb, where) -> list[int] | None:
+    """Slow path for a way with missing node locations: keep its longest run of located nodes.
+
+    Returns the OSM ids of the kept nodes, or None when fewer than two are left.
+    """
+    runs, run = [], []
+    for n in w.nodes:
+        loc = n.location
+        if loc.valid():
+            run.append((loc.lon, loc.lat, n.ref))
+            continue
+        if loc.x != _UNDEFINED or loc.y != _UNDEFINED:  # present, but outside the valid range
+            raise InputDataError(
+                f"OSM file {str(path)!r}: node {n.ref} has coordinates ({loc.x / 1e7}, {loc.y / 1e7}) "
+                "outside [-180, 180] x [-90, 90]", where=where)
+        runs.append(run)
+        run = []
+    runs.append(run)
+    best = max(runs, key=len)
+    if len(best) < 2:
+        return None
+    hex_wkb.append(shapely.to_wkb(shapely.linestrings([p[:2] for p in best]), hex=True))
+    return [p[2] for p in best]
+
+
+def decode_lines(hex_wkb: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates and line index of a list of hex WKB LineStrings, without a geometry per line.
+
+    libosmium writes little-endian 2D LineStrings (1 byte order, 4 bytes type,
+    4 bytes count, 16 bytes per point); the whole list is decoded by numpy
+    in one go.
+
+    Returns
+    -------
+    xy : ndarray (n, 2) of float64
+    line : ndarray (n,) of int64
+        Index of each point's line, ascending.
+    """
+    if not hex_wkb:
+        return np.empty((0, 2)), np.empty(0, np.int64)
+    nbytes = np.fromiter(map(len, hex_wkb), np.int64, len(hex_wkb)) // 2
+    raw = np.frombuffer(bytes.fromhex("".join(hex_wkb)), np.uint8)
+    header = raw[(np.cumsum(nbytes) - nbytes)[:, None] + np.arange(9)]
+    if not (np.all(header[:, 0] == 1) and np.all(header[:, 1:5].copy().view("<u4").ravel() == 2)):
+        # not the libosmium layout (e.g. our own fallback WKB): let GEOS decode
+        xy, line = shapely.get_coordinates(shapely.from_wkb(hex_wkb), return_index=True)
+        return xy, line.astype(np.int64)
+    npts = header[:, 5:9].copy().view("<u4").ravel().astype(np.int64)
+    first = np.cumsum(nbytes) - nbytes + 9
+    line = np.repeat(np.arange(len(hex_wkb), dtype=np.int64), npts)
+    k = np.arange(line.size) - np.repeat(np.cumsum(npts) - npts, npts)
+    offsets = first[line] + 16 * k
+    xy = raw[offsets[:, None] + np.arange(16)].view("<f8").reshape(-1, 2)
+    return xy, line
