@@ -42,7 +42,8 @@ import shapely
 
 from sengine import Layer, Param, Port, SENode, register
 from sengine.geometry import frame_boxes, inset, threaded
-from sengine.planar import PlanarFaces, merge_points, planar_faces, planarize, segments_from_lines
+from sengine.planar import PlanarFaces, planar_faces
+from sengine.segments import merge_points, planarize, segments_from_lines
 
 __all__ = ["find_blocks", "BlockFaces", "traced_faces", "face_half_widths", "shrink_faces", "street_graph", "BlocksCircuits"]
 
@@ -108,7 +109,7 @@ def find_blocks(streets, *, node: bool = True, decimals: int | None = 6) -> Bloc
     node : bool
         Make the graph plane first: segments that cross, or end on another
         segment's interior, or overlap collinearly, are split there
-        (:func:`sengine.planar.planarize`, vectorized).  Turn off only for
+        (:func:`sengine.segments.planarize`, vectorized).  Turn off only for
         input known to be plane: crossings without a node give overlapping,
         invalid faces.
     decimals : int or None

@@ -43,7 +43,8 @@ from scipy.sparse import csr_matrix
 
 from sengine import Layer, Param, Port, SENode, register
 from sengine.geometry import strtree_query
-from sengine.planar import argsort_int, merge_points, planar_faces
+from sengine.planar import planar_faces
+from sengine.segments import argsort_int, merge_points
 
 from .blocks import BlocksCircuits, find_blocks
 
