@@ -6,6 +6,7 @@ import json
 import os
 import platform
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -14,10 +15,25 @@ import shapely
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
+def reference_seconds(repeat: int = 3) -> float:
+    """Seconds of a fixed pure-Python loop (best of ``repeat``): this machine's speed at the time.
+
+    A shared 2-core VM runs 1.5x slower at some hours than at others; the
+    benchmarks' figures are comparable across runs after dividing by this.
+    """
+    best = float("inf")
+    for _ in range(repeat):
+        t = time.perf_counter()
+        sum(range(10_000_000))
+        best = min(best, time.perf_counter() - t)
+    return round(best, 4)
+
+
 def environment() -> dict:
-    """The versions and machine the figures were measured with."""
+    """The versions and machine the figures were measured with, and its speed at the time."""
     return {"python": platform.python_version(), "machine": platform.machine(), "cpus": os.cpu_count(),
-            "numpy": np.__version__, "shapely": shapely.__version__, "geos": shapely.geos_version_string}
+            "numpy": np.__version__, "shapely": shapely.__version__, "geos": shapely.geos_version_string,
+            "reference_seconds": reference_seconds()}
 
 
 def write(out: Path, benchmark: str, results) -> Path:

@@ -29,7 +29,6 @@ import argparse
 import json
 import math
 import os
-import platform
 import resource
 import statistics
 import subprocess
@@ -37,6 +36,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from _results import environment
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / "configs" / "manhattan.xml"
@@ -125,8 +126,7 @@ def main() -> None:
                                   "seconds_ratio": round(results["scale10"]["seconds"].get(k, 0)
                                                          / max(api["seconds"].get(k, 1e-9), 1e-9), 2)}
                               for k, v in api["counts"].items()}
-    results["meta"] = {"python": platform.python_version(), "machine": platform.machine(),
-                       "processor": platform.processor(), "seed": args.seed, "repeat": args.repeat,
+    results["meta"] = {**environment(), "seed": args.seed, "repeat": args.repeat,
                        "config": str(CONFIG.relative_to(ROOT))}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(results, indent=2) + "\n")
