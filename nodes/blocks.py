@@ -35,8 +35,8 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
-import networkx as nx
 import numpy as np
 import shapely
 
@@ -44,6 +44,9 @@ from sengine import Layer, Param, Port, SENode, register
 from sengine.geometry import frame_boxes, inset, threaded
 from sengine.planar import PlanarFaces, planar_faces
 from sengine.segments import merge_points, planarize, segments_from_lines
+
+if TYPE_CHECKING:
+    import networkx as nx
 
 __all__ = ["find_blocks", "BlockFaces", "traced_faces", "face_half_widths", "shrink_faces", "street_graph", "BlocksCircuits"]
 
@@ -75,7 +78,7 @@ class BlockFaces:
     counts : dict
         Numbers for the node's report (segments, crossings, duplicates,
         bridges, faces, holes, degenerate ...).
-    walk_vertex, walk_start, walk_area : ndarray
+    walk_vertex, walk_start, walk_area, walk_polygon : ndarray
         Every closed walk traced, as :class:`sengine.planar.PlanarFaces`
         gives them (node ids into ``xy``).
     """
@@ -92,6 +95,7 @@ class BlockFaces:
     walk_vertex: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
     walk_start: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
     walk_area: np.ndarray = field(default_factory=lambda: np.empty(0))
+    walk_polygon: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
 
 
 def find_blocks(streets, *, node: bool = True, decimals: int | None = 6) -> BlockFaces:
@@ -162,7 +166,7 @@ def find_blocks(streets, *, node: bool = True, decimals: int | None = 6) -> Bloc
     log.info("blocks: %d segments -> %d faces (%d dead-end/bridge segments dropped, %d holes)",
              counts["segments"], counts["faces"], counts["bridges"], counts["holes"])
     return BlockFaces(pf.polygons, xy, u, v, src, pf.edge_faces, pf.bridge, pf.outline, counts,
-                      pf.walk_vertex, pf.walk_start, pf.walk_area)
+                      pf.walk_vertex, pf.walk_start, pf.walk_area, pf.walk_polygon)
 
 
 def traced_faces(meta: dict, rows: int, *, decimals: int | None) -> BlockFaces | None:
@@ -294,6 +298,8 @@ def street_graph(bf: BlockFaces) -> nx.Graph:
     Nodes are node ids with attribute ``xy``; edges carry ``src`` (input
     index), ``length`` (m), ``faces`` (left, right face ids) and ``bridge``.
     """
+    import networkx as nx  # here: a run does not need it, and its import is slow
+
     g = nx.Graph()
     g.add_nodes_from((i, {"xy": tuple(p)}) for i, p in enumerate(bf.xy.tolist()))
     length = np.hypot(*(bf.xy[bf.v] - bf.xy[bf.u]).T)
@@ -363,7 +369,7 @@ class BlocksCircuits(SENode):
         faces = bf.faces
         fid = np.arange(len(faces))
         hw = face_half_widths(bf, width)
-        valid = shapely.is_valid(faces) if len(faces) else np.zeros(0, bool)
+        valid = threaded(shapely.is_valid, faces) if len(faces) else np.zeros(0, bool)
         report["dropped_invalid"] = int((~valid).sum())
         area = shapely.area(faces)
         small = valid & (area < self.p.min_area)

@@ -43,7 +43,7 @@ from scipy.sparse import csr_matrix
 
 from sengine import Layer, Param, Port, SENode, register
 from sengine.geometry import strtree_query
-from sengine.planar import planar_faces
+from sengine.planar import PlanarFaces, planar_faces
 from sengine.segments import argsort_int, merge_points
 
 from .blocks import BlocksCircuits, find_blocks
@@ -533,14 +533,38 @@ def find_slivers(nodes: np.ndarray, u: np.ndarray, v: np.ndarray, *, sliver_widt
     if not sel.any():
         return (*empty[:2], nfaces)
     faces_sel = np.flatnonzero(sel)
-    n = size[faces_sel]
-    owner = np.repeat(np.arange(len(faces_sel)), n)
-    idx = ws[faces_sel][owner] + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
-    polys = shapely.polygons(shapely.linearrings(nodes[wv[idx]], indices=owner))
+    polys = _walk_polygons(faces, faces_sel, nodes)
     bad = ~shapely.is_valid(polys)
     if bad.any():  # a walk through a pinch vertex
         polys[bad] = shapely.make_valid(polys[bad])
     return polys, np.where(island[faces_sel], "island", "median").astype(object), nfaces
+
+
+def _walk_polygons(faces, walks: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """The polygon of each of ``walks`` (closed walks of ``faces``) as a ring.
+
+    A simple walk whose face has no hole is that face's polygon already: it
+    is taken over; the others are built from their vertices.
+    """
+    wv, ws = faces.walk_vertex, faces.walk_start
+    polys = np.empty(len(walks), dtype=object)
+    shell = np.asarray(getattr(faces, "walk_polygon", np.empty(0, np.int64)))
+    own = np.full(len(walks), -1, np.int64) if len(shell) != len(ws) - 1 else shell[walks]
+    taken = np.flatnonzero(own >= 0)
+    if len(taken):
+        done = faces.polygons if isinstance(faces, PlanarFaces) else faces.faces
+        whole = shapely.get_num_interior_rings(done[own[taken]]) == 0
+        taken = taken[whole]
+        polys[taken] = done[own[taken]]
+    rest = np.ones(len(walks), bool)
+    rest[taken] = False
+    rest = np.flatnonzero(rest)
+    if len(rest):
+        n = np.diff(ws)[walks[rest]]
+        owner = np.repeat(np.arange(len(rest)), n)
+        idx = ws[walks[rest]][owner] + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
+        polys[rest] = shapely.polygons(shapely.linearrings(nodes[wv[idx]], indices=owner))
+    return polys
 
 
 @register

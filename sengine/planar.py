@@ -12,6 +12,7 @@ Public API
 :func:`planar_faces` -- bounded faces of a plane graph as polygons with
 holes; bridges (dead ends) removed; the outer face(s) returned apart.
 :func:`signed_area` -- shoelace area of rings given as grouped vertices.
+:func:`split_walks` -- closed walks that revisit vertices cut into simple cycles.
 
 Half-edge convention: input edge ``e`` (from ``u[e]`` to ``v[e]``) gives
 half-edges ``2 e`` (u -> v) and ``2 e + 1`` (v -> u); each half-edge bounds
@@ -40,6 +41,7 @@ __all__ = [
     "planar_faces",
     "PlanarFaces",
     "signed_area",
+    "split_walks",
 ]
 
 log = logging.getLogger(__name__)
@@ -143,7 +145,13 @@ def _cycle_order(nxt: np.ndarray, face: np.ndarray, nf: int) -> tuple[np.ndarray
 
 
 def _split_walk(vids: list[int]) -> list[list[int]]:
-    """Split a closed walk that revisits vertices into simple closed walks."""
+    """Split a closed walk that revisits vertices into simple closed walks (a stack, in Python).
+
+    Going along the walk, a vertex already on the stack closes the cycle
+    from its first visit to here: that cycle is emitted and popped, the
+    vertex stays.  What is left at the end is the last cycle.  Cycles of
+    fewer than three vertices are dropped.
+    """
     stack: list[int] = []
     where: dict[int, int] = {}
     out = []
@@ -160,6 +168,107 @@ def _split_walk(vids: list[int]) -> list[list[int]]:
     if len(stack) >= 3:
         out.append(stack)
     return [c for c in out if len(c) >= 3]
+
+
+def split_walks(vid: np.ndarray, walk: np.ndarray, nwalk: int):
+    """:func:`_split_walk` of many closed walks at once, vectorized.
+
+    Parameters
+    ----------
+    vid : ndarray of int (n,)
+        Vertex of each position, walk after walk.
+    walk : ndarray of int (n,)
+        Walk of each position (non-decreasing, ``0 .. nwalk-1``).
+    nwalk : int
+
+    Returns
+    -------
+    vertex : ndarray of int64
+        The cycles' vertices, cycle after cycle, each in walk order.
+    cycle : ndarray of int64
+        Cycle of each entry, ``0 .. c-1``, in the order :func:`_split_walk` emits them walk by walk.
+    cycle_walk : ndarray of int64 (c,)
+        Walk of each cycle.
+
+    Notes
+    -----
+    Two consecutive visits ``p < q`` of one vertex enclose an interval; on
+    the boundary of a face of a plane graph these intervals nest (a walk
+    ``a .. b .. a .. b`` would need the face to cross itself).  The cycle
+    closed at ``q`` is its first visit ``p`` and the first visits of other
+    vertices whose innermost enclosing interval is ``(p, q)``; first visits
+    inside no interval make the walk's last cycle.  The innermost interval
+    of each position is found per nesting depth with one ``searchsorted``.
+    Walks that do not nest (not the faces of a plane embedding) go through
+    :func:`_split_walk`.
+    """
+    vid = np.asarray(vid, np.int64)
+    walk = np.asarray(walk, np.int64)
+    n = len(vid)
+    pos = np.arange(n, dtype=np.int64)
+    key = walk * (int(vid.max(initial=0)) + 1) + vid
+    o = argsort_int(key)
+    same = key[o][1:] == key[o][:-1]
+    p, q = o[:-1][same], o[1:][same]  # consecutive visits of one vertex in one walk
+    k = len(p)
+    level, nested = _nesting(p, q, n)
+    if not nested:
+        return _split_walks_python(vid, walk, nwalk)
+    first = np.ones(n, bool)
+    first[q] = False
+    depth = np.cumsum(np.bincount(p + 1, minlength=n + 1) - np.bincount(q, minlength=n + 1))[:n]
+    inner = np.full(n, -1, np.int64)
+    if k:  # the last interval of the position's depth opened before it
+        ikey = level * (n + 1) + p
+        io = argsort_int(ikey)
+        at = np.searchsorted(ikey[io], depth * (n + 1) + pos) - 1
+        inner = np.where(depth > 0, io[np.maximum(at, 0)], -1)
+    # cycles 0..k-1 close at q; cycle k + w is walk w's remainder, emitted at its end
+    wend = np.searchsorted(walk, np.arange(nwalk), side="right")
+    emitted = np.argsort(np.r_[2 * q, 2 * wend - 1], kind="stable")
+    rank = np.empty(k + nwalk, np.int64)
+    rank[emitted] = np.arange(k + nwalk)
+    mpos = np.r_[pos[first], p]
+    mcyc = rank[np.r_[np.where(inner[first] >= 0, inner[first], k + walk[first]), np.arange(k)]]
+    e = np.lexsort((mpos, mcyc))
+    mcyc, mpos = mcyc[e], mpos[e]
+    big = np.bincount(mcyc, minlength=k + nwalk)[mcyc] >= 3
+    used, cycle = np.unique(mcyc[big], return_inverse=True)
+    return vid[mpos[big]], cycle.ravel().astype(np.int64), np.r_[walk[p], np.arange(nwalk)][emitted[used]]
+
+
+def _nesting(p: np.ndarray, q: np.ndarray, n: int) -> tuple[np.ndarray, bool]:
+    """Nesting level of intervals ``[p, q)`` (1 = outermost), and whether they nest properly.
+
+    Read as brackets (a close before an open at the same position), each
+    close must match the last open of its own level.
+    """
+    k = len(p)
+    if np.any(q < p + 2):
+        return np.empty(0, np.int64), False
+    ev = np.r_[2 * p + 1, 2 * q]
+    eo = np.argsort(ev, kind="stable")
+    d = np.cumsum(np.where(eo < k, 1, -1))
+    lev = np.empty(2 * k, np.int64)
+    lev[eo] = np.where(eo < k, d, d + 1)
+    big = 2 * n + 2
+    okey = lev[:k] * big + ev[:k]
+    so = np.argsort(okey, kind="stable")
+    match = np.searchsorted(okey[so], lev[k:] * big + ev[k:]) - 1
+    nested = bool(np.all(match >= 0) and np.array_equal(so[np.maximum(match, 0)], np.arange(k)))
+    return lev[:k], nested
+
+
+def _split_walks_python(vid: np.ndarray, walk: np.ndarray, nwalk: int):
+    """:func:`split_walks` walk by walk with :func:`_split_walk`."""
+    starts = np.searchsorted(walk, np.arange(nwalk + 1))
+    cycles = [(w, c) for w in range(nwalk) for c in _split_walk(vid[starts[w]:starts[w + 1]].tolist())]
+    if not cycles:
+        z = np.empty(0, np.int64)
+        return z, z, z
+    size = [len(c) for _, c in cycles]
+    return (np.fromiter((x for _, c in cycles for x in c), np.int64, sum(size)),
+            np.repeat(np.arange(len(cycles)), size), np.array([w for w, _ in cycles], np.int64))
 
 
 def signed_area(xy: np.ndarray, index: np.ndarray, n: int | None = None) -> np.ndarray:
@@ -221,6 +330,9 @@ class PlanarFaces:
         Walk ``k`` is ``walk_vertex[walk_start[k]:walk_start[k + 1]]``.
     walk_area : ndarray of float, shape (w,)
         Signed area of each walk (m2): positive for bounded faces.
+    walk_polygon : ndarray of int64, shape (w,)
+        The polygon whose shell is the walk, vertex for vertex (simple
+        bounded walks), else ``-1``.
     """
 
     polygons: np.ndarray
@@ -231,6 +343,7 @@ class PlanarFaces:
     walk_vertex: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
     walk_start: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
     walk_area: np.ndarray = field(default_factory=lambda: np.empty(0))
+    walk_polygon: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
 
 
 def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
@@ -320,7 +433,7 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     pinched[rep] = True
     pinched &= ~degenerate
     counts["pinched"] = int(pinched.sum())
-    # ring units: simple faces directly, pinched faces split in Python
+    # ring units: simple faces directly, pinched faces split into simple cycles
     simple = ~pinched & ~degenerate
     ovid = org[ordered]
     oface = np.repeat(np.arange(nf), fsize)
@@ -330,18 +443,14 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     unit_face = [sf]
     unit_of_entry = [np.repeat(np.arange(len(sf)), fsize[sf])]
     nunit = len(sf)
-    extra_v, extra_u, extra_f = [], [], []
-    for f in np.flatnonzero(pinched):
-        walk = ovid[offset[f]:offset[f] + fsize[f]].tolist()
-        for cyc in _split_walk(walk):
-            extra_v.append(np.asarray(cyc, np.int64))
-            extra_u.append(np.full(len(cyc), nunit, np.int64))
-            extra_f.append(f)
-            nunit += 1
-    if extra_v:
-        unit_vid.append(np.concatenate(extra_v))
-        unit_of_entry.append(np.concatenate(extra_u))
-        unit_face.append(np.asarray(extra_f, np.int64))
+    pf = np.flatnonzero(pinched)
+    if len(pf):
+        sel = pinched[oface]
+        cv, cyc, cwalk = split_walks(ovid[sel], np.searchsorted(pf, oface[sel]), len(pf))
+        unit_vid.append(cv)
+        unit_of_entry.append(nunit + cyc)
+        unit_face.append(pf[cwalk])
+        nunit += len(cwalk)
     unit_vid = np.concatenate(unit_vid)
     unit_idx = np.concatenate(unit_of_entry)
     unit_face = np.concatenate(unit_face)
@@ -400,4 +509,5 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     bridge[ok] = bridge_u[emap[ok]]
     counts["faces"] = int(len(polygons))
     return PlanarFaces(np.asarray(polygons, dtype=object), edge_faces, np.asarray(outline, dtype=object),
-                       bridge, counts, ovid, np.r_[offset, len(ovid)].astype(np.int64), area)
+                       bridge, counts, ovid, np.r_[offset, len(ovid)].astype(np.int64), area,
+                       np.where(simple, face_poly, -1))

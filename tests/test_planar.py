@@ -1,0 +1,70 @@
+"""sengine.planar: cutting closed walks into simple cycles, vectorized against the stack walk."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from sengine.planar import _split_walk, planar_faces, split_walks
+
+SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+@st.composite
+def face_walks(draw):
+    """Closed walks like a face boundary: cycles hanging off each other's vertices (a cactus), rotated."""
+    counter = [0]
+
+    def cycle(depth):
+        k = draw(st.integers(2, 4))
+        verts = list(range(counter[0], counter[0] + k))
+        counter[0] += k
+        out = []
+        for x in verts:
+            out.append(x)
+            for _ in range(draw(st.integers(0, 2)) if depth < 3 else 0):
+                out += cycle(depth + 1) + [x]
+        return out
+
+    walks = []
+    for _ in range(draw(st.integers(1, 4))):
+        w = cycle(0)
+        r = draw(st.integers(0, len(w) - 1))
+        walks.append(w[r:] + w[:r])
+    return walks
+
+
+def _as_lists(vertex, cycle, cycle_walk):
+    return [(int(cycle_walk[c]), vertex[cycle == c].tolist()) for c in range(len(cycle_walk))]
+
+
+@SETTINGS
+@given(face_walks())
+def test_split_walks_is_the_stack_walk(walks):
+    vid = np.concatenate([np.asarray(w) for w in walks])
+    walk = np.repeat(np.arange(len(walks)), [len(w) for w in walks])
+    expected = [(i, c) for i, w in enumerate(walks) for c in _split_walk(w)]
+    assert _as_lists(*split_walks(vid, walk, len(walks))) == expected
+
+
+def test_walks_that_do_not_nest_take_the_stack_walk():
+    """a .. b .. a .. b cannot bound a face of a plane graph; the result is still the stack walk's."""
+    walks = [[0, 1, 2, 0, 5, 1, 6], [7, 8, 9]]
+    vid = np.concatenate([np.asarray(w) for w in walks])
+    walk = np.repeat(np.arange(2), [7, 3])
+    expected = [(i, c) for i, w in enumerate(walks) for c in _split_walk(w)]
+    assert _as_lists(*split_walks(vid, walk, 2)) == expected
+
+
+def test_pinched_faces_keep_each_lobe():
+    """Two squares sharing a corner inside a big square: one face touching itself at that corner."""
+    xy = np.array([[0, 0], [10, 0], [10, 10], [0, 10], [2, 2], [5, 2], [5, 5], [2, 5], [8, 5], [8, 8], [5, 8]],
+                  float)
+    edges = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (6, 8), (8, 9), (9, 10), (10, 6)]
+    u, v = np.array(edges).T
+    pf = planar_faces(xy, u, v)
+    assert pf.counts["pinched"] == 1 and pf.counts["faces"] == 3
+    assert np.isclose(sum(p.area for p in pf.polygons), 100.0)
+    shells = pf.walk_polygon[pf.walk_polygon >= 0]
+    assert sorted(pf.polygons[shells].tolist(), key=lambda p: p.area)[0].area == 9.0
