@@ -34,6 +34,7 @@ skylineEngine, §5.4 "Blocks Module" and Figure 8.
 from __future__ import annotations
 
 import logging
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
@@ -240,15 +241,16 @@ def shrink_faces(faces, half_width, sidewalk: float):
     faces = np.asarray(faces, dtype=object)
     hw = np.asarray(half_width, np.float64)
     edge = inset(faces, hw)
-    if sidewalk > 0:
-        # a face with nothing left inside its street surface has no block either: no second inset for it
-        block = edge.copy()
-        live = np.flatnonzero(~shapely.is_empty(edge))
-        block[live] = inset(faces[live], hw[live] + sidewalk)
-    else:
-        block = edge
-    return (_ring_between(faces, edge, gap=hw > 0),
-            _ring_between(edge, block, gap=np.full(len(faces), sidewalk > 0)), block)
+    if sidewalk <= 0:
+        return _ring_between(faces, edge, gap=hw > 0), _ring_between(edge, edge, gap=np.zeros(len(faces), bool)), edge
+    # a face with nothing left inside its street surface has no block either: no second inset for it
+    block = edge.copy()
+    live = np.flatnonzero(~shapely.is_empty(edge))
+    with ThreadPoolExecutor(1) as pool:  # the second inset (GEOS threads) while this thread makes the streets
+        blocks = pool.submit(inset, faces[live], hw[live] + sidewalk)
+        street = _ring_between(faces, edge, gap=hw > 0)
+        block[live] = blocks.result()
+    return street, _ring_between(edge, block, gap=np.ones(len(faces), bool)), block
 
 
 def _ring_between(outer, inner, gap=None):

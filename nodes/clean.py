@@ -44,7 +44,7 @@ from scipy.sparse import csr_matrix
 from sengine import Layer, Param, Port, SENode, register
 from sengine.geometry import strtree_query
 from sengine.planar import PlanarFaces, planar_faces
-from sengine.segments import argsort_int, merge_points
+from sengine.segments import argsort_int, lines_from_groups, merge_points
 
 from .blocks import BlocksCircuits, find_blocks
 
@@ -630,8 +630,7 @@ class RoadsClean(SENode):
         if not whole.all():
             sel = ~whole[pieces.piece]
             rest = np.flatnonzero(~whole)
-            geoms[rest] = shapely.linestrings(xy[pieces.vertex[sel]],
-                                              indices=np.searchsorted(rest, pieces.piece[sel]))
+            geoms[rest] = lines_from_groups(xy[pieces.vertex[sel]], np.searchsorted(rest, pieces.piece[sel]))
         nodes, su, sv, pu, pv, row = segment_graph(pieces, xy, key)
         graph = {"rows": len(pieces), "xy": nodes, "u": su, "v": sv, "row": row, "decimals": None}
         faces = None

@@ -42,6 +42,7 @@ import shapely
 from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import InputDataError
 from sengine.geo import from_lonlat, utm_crs
+from sengine.segments import lines_from_groups
 
 from .clean import split_at_junctions
 from .osm_stream import TAG_KEYS, OsmExtract, int_tag, read_osm
@@ -148,7 +149,7 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
     # the frame from all points; each node (junctions are shared) projected once
     nodes, crs, origin = project_extract(fixed[pieces.vertex[uidx]] / 1e7,
                                          bounds=(fixed.min(axis=0) / 1e7, fixed.max(axis=0) / 1e7))
-    geoms = shapely.linestrings(nodes[vnode], indices=pieces.piece)
+    geoms = lines_from_groups(nodes[vnode], pieces.piece)
     row = pieces.line
     names = np.array(list(ext.codes), dtype=object)
     code = ext.code
