@@ -5,7 +5,8 @@ Blocks are the minimal closed circuits of the street graph (skylineEngine
 shared nodes; a real map (OpenStreetMap, a traced image, an OBJ) is not
 quite one.  This module prepares it, on whole numpy arrays:
 
-1. **Split** -- every line is cut at its junctions into street segments.
+1. **Split** -- every line is cut at its junctions into street segments
+   (:mod:`.junctions`).
 2. **Duplicates** -- segments joining the same two junctions along the same
    path (within ``dup_tol``) are merged, the higher-ranked class kept; done
    first, so that twin ways (both directions of a street) are not cut at
@@ -20,7 +21,7 @@ quite one.  This module prepares it, on whole numpy arrays:
 5. **Slivers** -- the thin faces between dual carriageways and the tiny
    traffic islands inside junctions are street surface, not blocks: faces
    narrower than ``sliver_width`` or smaller than ``island_area`` are found
-   with the face tracer the blocks use, counted (``slivers_merged``) and
+   with the face tracer the blocks use (:mod:`.slivers`), counted (``slivers_merged``) and
    handed on as ``slivers`` (polygons of kind ``median`` / ``island``) to
    be drawn as street surface.  The faces are traced once: the plane
    segment graph and its faces go on in ``meta["graph"]``, numbered as
@@ -35,7 +36,6 @@ shared node once, so shared nodes are bit-identical.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 
 import numpy as np
 import shapely
@@ -43,137 +43,19 @@ from scipy.sparse import csr_matrix
 
 from sengine import Layer, Param, Port, SENode, register
 from sengine.geometry import strtree_query
-from sengine.planar import PlanarFaces, planar_faces
 from sengine.segments import argsort_int, lines_from_groups, merge_points
 
 from .blocks import BlocksCircuits, find_blocks
+from .junctions import Pieces, point_keys, split_at_junctions, take_pieces
+from .slivers import find_slivers, segment_graph
 
-__all__ = [
-    "Pieces",
-    "split_at_junctions",
-    "point_keys",
-    "crossing_points",
-    "clean_streets",
-    "find_slivers",
-    "RoadsClean",
-]
+__all__ = ["crossing_points", "clean_streets", "RoadsClean"]
 
 log = logging.getLogger(__name__)
 
 #: Rank of highway classes when duplicates are merged: the first one wins.
 CLASS_RANK = ("motorway", "trunk", "primary", "secondary", "tertiary", "unclassified", "residential",
               "living_street", "pedestrian", "service")
-
-
-@dataclass
-class Pieces:
-    """Lines cut at their junctions (result of :func:`split_at_junctions`).
-
-    Attributes
-    ----------
-    vertex : ndarray of int64
-        Indices into the input point arrays, piece after piece in order; a
-        junction inside a line appears twice (end of one piece, start of the next).
-    piece : ndarray of int64
-        Piece index of each entry of ``vertex`` (non-decreasing).
-    line : ndarray of int64
-        Source line of each piece.
-    first, last : ndarray of int64
-        Input index of the first and last point of each piece.
-    whole : ndarray of bool, optional
-        Set by :func:`clean_streets`: the piece is its source line,
-        unchanged (same points, none added or dropped).
-    node, node_key : ndarray of int64, optional
-        Set by :func:`split_at_junctions`: the node of each entry of
-        ``vertex`` (``0 .. k-1``) and the key of each node (ascending).
-    """
-
-    vertex: np.ndarray
-    piece: np.ndarray
-    line: np.ndarray
-    first: np.ndarray
-    last: np.ndarray
-    whole: np.ndarray | None = None
-    node: np.ndarray | None = None
-    node_key: np.ndarray | None = None
-
-    def __len__(self) -> int:
-        return len(self.line)
-
-
-def split_at_junctions(key: np.ndarray, line: np.ndarray, *, ends_only: bool = False) -> Pieces:
-    """Cut polylines at every point shared with another line (or revisited) and at their ends.
-
-    Parameters
-    ----------
-    key : ndarray of int64 (n,)
-        Identity of each point: equal keys are the same node.
-    line : ndarray of int (n,)
-        Line of each point, non-decreasing; points of a line are in order.
-    ends_only : bool
-        The caller knows that no inner point is shared (its keys are
-        unique): lines are not cut, and no node numbers are made.
-
-    Returns
-    -------
-    Pieces
-        Consecutive repeated points are dropped first; lines left with fewer
-        than two points vanish.
-    """
-    key = np.asarray(key)
-    line = np.asarray(line, np.int64)
-    n = len(key)
-    if n == 0:
-        z = np.empty(0, np.int64)
-        return Pieces(z, z, z, z, z)
-    keep = np.ones(n, bool)
-    keep[1:] = ~((key[1:] == key[:-1]) & (line[1:] == line[:-1]))
-    idx = np.flatnonzero(keep)
-    k, ln = key[idx], line[idx]
-    idx = idx[np.bincount(ln)[ln] >= 2]
-    k, ln = key[idx], line[idx]
-    m = len(idx)
-    if m == 0:
-        z = np.empty(0, np.int64)
-        return Pieces(z, z, z, z, z)
-    first = np.r_[True, ln[1:] != ln[:-1]]
-    last = np.r_[ln[1:] != ln[:-1], True]
-    if ends_only:
-        lab = np.cumsum(first) - 1
-        return Pieces(idx, lab, ln[first], idx[first], idx[last])
-    ukey, inv = _dense(k)
-    used = np.bincount(inv)[inv]
-    junction = (used >= 2) | first | last
-    start = junction & ~last
-    p = np.cumsum(start) - 1
-    inner = np.flatnonzero(junction & ~first & ~last)
-    pos = np.r_[np.arange(m), inner]
-    lab = np.r_[p, p[inner] - 1]
-    if len(inner):  # an inner junction ends one piece and starts the next: put its copy in place
-        order = np.lexsort((pos, lab))
-        pos, lab = pos[order], lab[order]
-    brk = np.r_[True, lab[1:] != lab[:-1]]
-    ends = np.r_[lab[1:] != lab[:-1], True]
-    vertex = idx[pos]
-    return Pieces(vertex, lab, ln[pos[brk]], vertex[brk], vertex[ends], node=inv[pos], node_key=ukey)
-
-
-def _dense(k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``np.unique(k, return_inverse=True)``; by a presence table, without sorting, for keys in a narrow range."""
-    lo, hi = int(k.min()), int(k.max())
-    if hi - lo > 4 * len(k) + 1024:
-        ukey, inv = np.unique(k, return_inverse=True)
-        return ukey, inv.ravel()
-    present = np.zeros(hi - lo + 1, bool)
-    present[k - lo] = True
-    return np.flatnonzero(present) + lo, (np.cumsum(present) - 1)[k - lo]
-
-
-def point_keys(xy: np.ndarray) -> np.ndarray:
-    """An int64 identity per point: equal coordinates, equal key (``-0.0 == 0.0``)."""
-    xy = np.ascontiguousarray(xy, np.float64) + 0.0
-    _, inv = np.unique(xy.view(np.complex128).ravel(), return_inverse=True)
-    return inv.ravel().astype(np.int64)
 
 
 def crossing_points(xy: np.ndarray, line: np.ndarray, level: np.ndarray, key: np.ndarray | None = None,
@@ -321,7 +203,7 @@ def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | No
     # merge duplicates first: twin ways would otherwise be cut at slightly different crossing points
     pieces = split_at_junctions(key, part_line, ends_only=known)
     keep, ndup = _duplicates(pieces, xy, key, r[src[pieces.line]], dup_tol)
-    pieces = _take_pieces(pieces, keep)
+    pieces = take_pieces(pieces, keep)
     npts = np.bincount(pidx, minlength=nparts)
     pstart = np.cumsum(npts) - npts
     segs = None
@@ -353,7 +235,7 @@ def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | No
         size = np.bincount(pieces.piece, minlength=len(pieces))
         o0, o1 = orig[pieces.first], orig[pieces.last]
         pieces.whole = (size == npts[part]) & (o0 == pstart[part]) & (o1 == pstart[part] + npts[part] - 1)
-    return _take_pieces(pieces, keep), xy, key, counts
+    return take_pieces(pieces, keep), xy, key, counts
 
 
 def _drop_dead_ends(pieces: Pieces, key: np.ndarray, keep: np.ndarray) -> int:
@@ -434,137 +316,6 @@ def _duplicates(pieces: Pieces, xy: np.ndarray, key: np.ndarray, rank: np.ndarra
     dup = shapely.hausdorff_distance(lines[order[cand]], lines[grp_first[cand]]) <= dup_tol
     keep[order[cand[dup]]] = False
     return keep, int(dup.sum() + straight.sum())
-
-
-def _take_pieces(pieces: Pieces, keep: np.ndarray) -> Pieces:
-    kept = np.flatnonzero(keep)
-    renum = np.full(len(pieces), -1, np.int64)
-    renum[kept] = np.arange(len(kept))
-    sel = keep[pieces.piece]
-    return Pieces(pieces.vertex[sel], renum[pieces.piece[sel]], pieces.line[kept], pieces.first[kept],
-                  pieces.last[kept], None if pieces.whole is None else pieces.whole[kept],
-                  None if pieces.node is None else pieces.node[sel], pieces.node_key)
-
-
-def segment_graph(pieces: Pieces, xy: np.ndarray, key: np.ndarray):
-    """The straight-segment graph of street segments.
-
-    Returns
-    -------
-    nodes : ndarray (k, 2)
-        Node coordinates (m).
-    u, v : ndarray of int64
-        End node ids of every straight segment.
-    pu, pv : ndarray of int64
-        End node ids of every piece (street segment).
-    row : ndarray of int64
-        Piece of every straight segment.
-    """
-    if pieces.node is not None:  # the split's node numbering (ascending key), without unused nodes
-        used = np.zeros(len(pieces.node_key), bool)
-        used[pieces.node] = True
-        inv = (np.cumsum(used) - 1)[pieces.node]
-        first = np.empty(int(used.sum()), np.int64)
-        first[inv[::-1]] = np.arange(len(inv) - 1, -1, -1)
-    else:
-        _, first, inv = np.unique(key[pieces.vertex], return_index=True, return_inverse=True)
-        inv = inv.ravel()
-    nodes = xy[pieces.vertex[first]]
-    lab = pieces.piece
-    s = np.flatnonzero(lab[1:] == lab[:-1])
-    starts = np.flatnonzero(np.r_[True, lab[1:] != lab[:-1]]) if len(lab) else np.empty(0, np.int64)
-    ends = np.r_[starts[1:] - 1, len(lab) - 1] if len(lab) else starts
-    return nodes, inv[s], inv[s + 1], inv[starts], inv[ends], lab[s]
-
-
-def find_slivers(nodes: np.ndarray, u: np.ndarray, v: np.ndarray, *, sliver_width: float,
-                 island_area: float, faces=None) -> tuple[np.ndarray, np.ndarray, int]:
-    """Faces of the street graph that are street surface, not blocks.
-
-    Parameters
-    ----------
-    nodes, u, v : ndarray
-        A plane segment graph (see :func:`segment_graph`).
-    sliver_width : float
-        Faces whose mean width ``2 area / perimeter`` (m) is below this are
-        medians between dual carriageways.
-    island_area : float
-        Faces smaller than this (m2) are traffic islands.
-    faces : PlanarFaces or BlockFaces, optional
-        The faces of exactly this graph, already traced (their closed walks
-        are used); traced here when None.
-
-    Returns
-    -------
-    polygons : ndarray of shapely.Polygon
-    kind : ndarray of str
-        ``"island"`` or ``"median"``.
-    nfaces : int
-        Number of faces of the graph.
-
-    Notes
-    -----
-    Area and perimeter are those of each face's closed walk (its outer
-    ring; what lies inside does not count), and a sliver's polygon is that
-    walk as a ring (made valid when the walk touches itself).
-    """
-    empty = (np.empty(0, object), np.empty(0, object), 0)
-    if faces is None:
-        faces = planar_faces(nodes, u, v)
-    wv, ws, warea = faces.walk_vertex, faces.walk_start, faces.walk_area
-    nf = len(warea)
-    if nf == 0 or not len(wv):
-        return empty
-    size = np.diff(ws)
-    walk = np.repeat(np.arange(nf), size)
-    k = np.arange(len(wv))
-    first = ws[:-1][walk]
-    nxt = np.where(k + 1 < first + size[walk], k + 1, first)
-    p, q = nodes[wv], nodes[wv[nxt]]
-    perimeter = np.bincount(walk, weights=np.hypot(*(q - p).T), minlength=nf)
-    # bounded faces turn the other way round from the outer face (the largest walk)
-    area = warea * -np.sign(warea[np.argmax(np.abs(warea))])
-    bounded = area > 0
-    width = 2.0 * area / np.maximum(perimeter, 1e-12)
-    island = bounded & (area < island_area)
-    median = bounded & ~island & (width < sliver_width)
-    sel = island | median
-    nfaces = int(bounded.sum())
-    if not sel.any():
-        return (*empty[:2], nfaces)
-    faces_sel = np.flatnonzero(sel)
-    polys = _walk_polygons(faces, faces_sel, nodes)
-    bad = ~shapely.is_valid(polys)
-    if bad.any():  # a walk through a pinch vertex
-        polys[bad] = shapely.make_valid(polys[bad])
-    return polys, np.where(island[faces_sel], "island", "median").astype(object), nfaces
-
-
-def _walk_polygons(faces, walks: np.ndarray, nodes: np.ndarray) -> np.ndarray:
-    """The polygon of each of ``walks`` (closed walks of ``faces``) as a ring.
-
-    A simple walk whose face has no hole is that face's polygon already: it
-    is taken over; the others are built from their vertices.
-    """
-    wv, ws = faces.walk_vertex, faces.walk_start
-    polys = np.empty(len(walks), dtype=object)
-    shell = np.asarray(getattr(faces, "walk_polygon", np.empty(0, np.int64)))
-    own = np.full(len(walks), -1, np.int64) if len(shell) != len(ws) - 1 else shell[walks]
-    taken = np.flatnonzero(own >= 0)
-    if len(taken):
-        done = faces.polygons if isinstance(faces, PlanarFaces) else faces.faces
-        whole = shapely.get_num_interior_rings(done[own[taken]]) == 0
-        taken = taken[whole]
-        polys[taken] = done[own[taken]]
-    rest = np.ones(len(walks), bool)
-    rest[taken] = False
-    rest = np.flatnonzero(rest)
-    if len(rest):
-        n = np.diff(ws)[walks[rest]]
-        owner = np.repeat(np.arange(len(rest)), n)
-        idx = ws[walks[rest]][owner] + np.arange(int(n.sum())) - np.repeat(np.cumsum(n) - n, n)
-        polys[rest] = shapely.polygons(shapely.linearrings(nodes[wv[idx]], indices=owner))
-    return polys
 
 
 @register

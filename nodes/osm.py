@@ -44,7 +44,7 @@ from sengine.errors import InputDataError
 from sengine.geo import from_lonlat, utm_crs
 from sengine.segments import lines_from_groups
 
-from .clean import split_at_junctions
+from .junctions import split_at_junctions
 from .osm_stream import TAG_KEYS, OsmExtract, int_tag, read_osm
 
 __all__ = [
