@@ -1,0 +1,80 @@
+"""The pyosmium pass of osm.read: one process or two give the same extract."""
+
+from __future__ import annotations
+
+import importlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sengine.errors import InputDataError
+
+DATA = Path(__file__).resolve().parent.parent / "configs" / "data"
+KEEP = frozenset("primary,secondary,tertiary,unclassified,residential,living_street,pedestrian".split(","))
+
+
+@pytest.fixture(scope="module")
+def stream():
+    from sengine.builtin import load
+
+    load()
+    return importlib.import_module("sengine_nodes.osm_stream")
+
+
+def _same(a, b):
+    for k in ("fixed", "line", "way_id", "code", "node_ids"):
+        assert np.array_equal(getattr(a, k), getattr(b, k)), k
+    assert a.codes == b.codes and a.clipped == b.clipped
+    for k in a.tags:
+        assert np.array_equal(a.tags[k], b.tags[k]), k
+    for kind, (geoms, attrs) in a.polygons.items():
+        assert geoms == b.polygons[kind][0]
+        assert [{**d, "height": str(d["height"])} for d in attrs] == \
+            [{**d, "height": str(d["height"])} for d in b.polygons[kind][1]]
+
+
+@pytest.mark.parametrize("name", ["helsinki_centre.osm.pbf", "monaco.osm.pbf", "west_oakland.osm.bz2"])
+def test_two_processes_read_what_one_reads(stream, name):
+    extras = frozenset({"water", "parks", "buildings"})
+    one = stream.read_osm(DATA / name, classes=KEEP, extras=extras, node_ids=True, workers=1)
+    two = stream.read_osm(DATA / name, classes=KEEP, extras=extras, node_ids=True, workers=2)
+    assert len(one.way_id) > 10 and "residential" in one.codes
+    _same(one, two)
+    assert np.all(np.diff(one.way_id) > 0)
+
+
+def _write(path, nodes, ways):
+    import osmium
+
+    w = osmium.SimpleWriter(str(path))
+    for i, lon, lat in nodes:
+        w.add_node(osmium.osm.mutable.Node(id=i, location=(lon, lat)))
+    for i, refs, tags in ways:
+        w.add_way(osmium.osm.mutable.Way(id=i, nodes=refs, tags=tags))
+    w.close()
+
+
+def test_ways_come_out_by_id_with_their_points_and_tags(stream, tmp_path):
+    nodes = [(i, 7.40 + 0.001 * i, 43.70) for i in range(1, 9)]
+    ways = [(30, [1, 2], {"highway": "primary", "name": "C"}), (10, [3, 4, 5], {"highway": "residential"}),
+            (20, [6, 7], {"highway": "residential", "name": "B"}), (5, [8, 1], {"highway": "tertiary"})]
+    path = tmp_path / "unsorted.osm.pbf"
+    _write(path, nodes, ways)
+    for workers in (1, 2):
+        ext = stream.read_osm(path, classes=KEEP, node_ids=True, workers=workers)
+        assert list(ext.way_id) == [5, 10, 20, 30]
+        assert list(ext.node_ids) == [8, 1, 3, 4, 5, 6, 7, 1, 2]
+        assert list(ext.line) == [0, 0, 1, 1, 1, 2, 2, 3, 3]
+        assert list(ext.tags["name"]) == [None, None, "B", "C"]
+        assert list(ext.codes) == ["tertiary", "residential", "primary"]
+
+
+def test_an_error_in_the_forked_share_is_raised_here(stream, tmp_path):
+    """A bad node on a residential way (the child's share) fails the read as in one process."""
+    path = tmp_path / "wild.osm.pbf"
+    _write(path, [(1, 7.4, 95.0), (2, 7.41, 43.7), (3, 7.42, 43.7)],
+           [(10, [1, 2], {"highway": "residential"}), (11, [2, 3], {"highway": "primary"})])
+    for workers in (1, 2):
+        with pytest.raises(InputDataError, match="outside"):
+            stream.read_osm(path, classes=KEEP, workers=workers)
