@@ -166,6 +166,8 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
     if not split or workers < 2:
         parts = [_read_pass(path, classes, extras=extras, node_ids=node_ids, where=where, out=out)]
     else:
+        import osmium  # noqa: F401 (before the fork: the child must not wait on an import lock another thread held)
+
         child = frozenset({SPLIT_CLASS})
         job = _Forked(lambda: _read_pass(path, child, extras=frozenset(), node_ids=node_ids, where=where))
         with job:
