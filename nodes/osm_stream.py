@@ -21,6 +21,7 @@ same pass as this process's ways.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pickle
 import re
@@ -163,13 +164,16 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
     split = classes is not None and SPLIT_CLASS in classes and len(classes) > 1
     if workers is None:
         workers = _free_cores() if path.stat().st_size >= PARALLEL_BYTES else 1
-    if not split or workers < 2:
-        parts = [_read_pass(path, classes, extras=extras, node_ids=node_ids, where=where, out=out)]
-    else:
+    job = None
+    if split and workers >= 2:
         import osmium  # noqa: F401 (before the fork: the child must not wait on an import lock another thread held)
 
         child = frozenset({SPLIT_CLASS})
-        job = _Forked(lambda: _read_pass(path, child, extras=frozenset(), node_ids=node_ids, where=where))
+        with contextlib.suppress(OSError):  # no process to spare: read alone
+            job = _Forked(lambda: _read_pass(path, child, extras=frozenset(), node_ids=node_ids, where=where))
+    if job is None:
+        parts = [_read_pass(path, classes, extras=extras, node_ids=node_ids, where=where, out=out)]
+    else:
         with job:
             mine = _read_pass(path, classes - child, extras=extras, node_ids=node_ids, where=where, out=out)
             theirs = job.result()
