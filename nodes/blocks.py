@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import logging
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -54,15 +54,16 @@ __all__ = ["find_blocks", "BlockFaces", "traced_faces", "face_half_widths", "shr
 log = logging.getLogger(__name__)
 
 
-@dataclass
-class BlockFaces:
-    """Result of :func:`find_blocks`.
+@dataclass(kw_only=True)
+class BlockFaces(PlanarFaces):
+    """Result of :func:`find_blocks`: the faces of the street graph and the graph they were traced on.
 
     Attributes
     ----------
-    faces : ndarray of shapely.Polygon
-        Bounded faces of the street graph (blocks before the sidewalk
-        inset), possibly with holes; degenerate faces removed.
+    polygons, edge_faces, bridge, outline, counts, walk_vertex, walk_start, walk_area, walk_polygon
+        As :class:`sengine.planar.PlanarFaces` gives them, for the graph
+        below; ``counts`` adds the street graph's numbers for the node's
+        report (segments, repeated, crossings).
     xy : ndarray (n, 2)
         Node coordinates of the plane graph actually traced (m).
     u, v : ndarray of int64 (m,)
@@ -70,33 +71,17 @@ class BlockFaces:
     src : ndarray of int64 (m,)
         For each segment, the input line (lines entry) or input edge (arrays
         entry) it comes from.
-    edge_faces : ndarray of int64 (m, 2)
-        Face on the left / right of each segment, ``-1`` for none.
-    bridge : ndarray of bool (m,)
-        Dead-end and connector segments removed before tracing.
-    outline : ndarray of shapely.Polygon
-        The outer circuit of each outermost component (Fig. 8d), removed.
-    counts : dict
-        Numbers for the node's report (segments, crossings, duplicates,
-        bridges, faces, holes, degenerate ...).
-    walk_vertex, walk_start, walk_area, walk_polygon : ndarray
-        Every closed walk traced, as :class:`sengine.planar.PlanarFaces`
-        gives them (node ids into ``xy``).
     """
 
-    faces: np.ndarray
     xy: np.ndarray
     u: np.ndarray
     v: np.ndarray
     src: np.ndarray
-    edge_faces: np.ndarray
-    bridge: np.ndarray
-    outline: np.ndarray
-    counts: dict = field(default_factory=dict)
-    walk_vertex: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
-    walk_start: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
-    walk_area: np.ndarray = field(default_factory=lambda: np.empty(0))
-    walk_polygon: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+
+    @property
+    def faces(self) -> np.ndarray:
+        """Bounded faces of the street graph (blocks before the sidewalk inset), possibly with holes."""
+        return self.polygons
 
 
 def find_blocks(streets, *, node: bool = True, decimals: int | None = 6) -> BlockFaces:
@@ -166,8 +151,7 @@ def find_blocks(streets, *, node: bool = True, decimals: int | None = 6) -> Bloc
         counts[k] = pf.counts.get(k, 0)
     log.info("blocks: %d segments -> %d faces (%d dead-end/bridge segments dropped, %d holes)",
              counts["segments"], counts["faces"], counts["bridges"], counts["holes"])
-    return BlockFaces(pf.polygons, xy, u, v, src, pf.edge_faces, pf.bridge, pf.outline, counts,
-                      pf.walk_vertex, pf.walk_start, pf.walk_area, pf.walk_polygon)
+    return BlockFaces(**{**vars(pf), "counts": counts}, xy=xy, u=u, v=v, src=src)
 
 
 def traced_faces(meta: dict, rows: int, *, decimals: int | None) -> BlockFaces | None:
