@@ -8,32 +8,29 @@ call.
 
 The Python callback per way is the cost of the read (libosmium decodes a
 city extract in a fraction of it), so the ways are shared between two
-processes when the machine has two cores: libosmium's own tag filter
-(``osmium.filter.TagFilter``, in C++) hands the ``residential`` ways to a
-forked child and every other kept class to this process, each reading the
-whole file.  Either way the ways come out ordered by OSM id (file order for
-the usual sorted extracts) with the class codes numbered by first
-appearance: the extract does not depend on the number of processes.
+processes when the machine has two cores (:func:`sengine.parallel.run_jobs`):
+libosmium's own tag filter (``osmium.filter.TagFilter``, in C++) hands the
+``residential`` ways to one pass and every other kept class to the other,
+each reading the whole file.  Either way the ways come out ordered by OSM id
+(file order for the usual sorted extracts) with the class codes numbered by
+first appearance: the extract does not depend on the number of processes.
 
 Water, parks and buildings (areas assembled by pyosmium) are read in the
-same pass as this process's ways.
+same pass as the other classes' ways.
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
-import pickle
 import re
-import sys
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 import shapely
 
 from sengine.errors import InputDataError
-from sengine.parallel import available_cores
+from sengine.parallel import available_cores, can_fork, in_worker, run_jobs
 
 __all__ = ["OsmExtract", "read_osm", "decode_lines", "parse_height", "int_tag", "TAG_KEYS"]
 
@@ -120,6 +117,7 @@ class _Ways:
     more: list  # (way index, name, layer, bridge, tunnel, oneway) of ways with more tags than highway
     node_ids: np.ndarray | None
     clipped: int
+    polygons: dict  # the areas of the pass (see OsmExtract.polygons), empty without extras
 
 
 def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras: frozenset[str] = frozenset(),
@@ -142,10 +140,10 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
         Prefix for error messages.
     workers : int, optional
         Processes reading the ways: 1, or 2 to read the :data:`SPLIT_CLASS`
-        ways in a forked child (used only when ``classes`` holds it and
-        another class).  Default: 2 for a file of at least
-        :data:`PARALLEL_BYTES` on a machine with two free cores, outside a
-        worker process.  The result is the same.
+        ways in a pass of their own, side by side with the other classes'
+        (used only when ``classes`` holds it and another class).  Default:
+        2 for a file of at least :data:`PARALLEL_BYTES` on a machine with
+        two free cores, outside a worker process.  The result is the same.
 
     Returns
     -------
@@ -164,81 +162,27 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
     split = classes is not None and SPLIT_CLASS in classes and len(classes) > 1
     if workers is None:
         workers = _free_cores() if path.stat().st_size >= PARALLEL_BYTES else 1
-    job = None
     if split and workers >= 2:
-        import osmium  # noqa: F401 (before the fork: the child must not wait on an import lock another thread held)
+        import osmium  # noqa: F401 (before the fork: a child must not wait on an import lock another thread held)
 
-        child = frozenset({SPLIT_CLASS})
-        with contextlib.suppress(OSError):  # no process to spare: read alone
-            job = _Forked(lambda: _read_pass(path, child, extras=frozenset(), node_ids=node_ids, where=where))
-    if job is None:
-        parts = [_read_pass(path, classes, extras=extras, node_ids=node_ids, where=where, out=out)]
+        split_off = frozenset({SPLIT_CLASS})
+        parts = run_jobs([partial(_read_pass, path, classes - split_off, extras=extras, node_ids=node_ids, where=where),
+                          partial(_read_pass, path, split_off, extras=frozenset(), node_ids=node_ids, where=where)], 2)
     else:
-        with job:
-            mine = _read_pass(path, classes - child, extras=extras, node_ids=node_ids, where=where, out=out)
-            theirs = job.result()
-        if theirs is None:  # the child failed: read its share here, which raises its error
-            theirs = _read_pass(path, child, extras=frozenset(), node_ids=node_ids, where=where)
-        parts = [mine, theirs]
+        parts = [_read_pass(path, classes, extras=extras, node_ids=node_ids, where=where)]
+    for kind, (geoms, attrs) in parts[0].polygons.items():
+        out.polygons[kind] = (geoms, attrs)
     _merge(out, parts, node_ids=node_ids)
     return out
 
 
 def _free_cores() -> int:
-    """2 when a forked reader would get a core of its own; 1 inside a worker process or without a safe fork."""
-    import multiprocessing  # here: most runs read small files and never fork
-
-    if multiprocessing.parent_process() is not None or sys.platform in ("darwin", "win32"):
-        return 1
-    return min(2, available_cores())
+    """2 when a second reader would get a core of its own; 1 in a worker process or without a safe fork."""
+    return 1 if in_worker() or not can_fork() else min(2, available_cores())
 
 
-class _Forked:
-    """``job()`` run in a forked child process; its (pickled) result comes back through a pipe.
-
-    Use as a context manager: on leaving, the child is reaped even when this
-    process failed first.  ``result()`` is None when the child failed (the
-    caller redoes the work itself, which raises the error where it belongs).
-    """
-
-    def __init__(self, job):
-        read, write = os.pipe()
-        self._pid = os.fork()
-        if self._pid == 0:  # the child: no logging, no cleanup handlers, just the bytes
-            os.close(read)
-            status = 1
-            try:
-                data = pickle.dumps(job(), protocol=pickle.HIGHEST_PROTOCOL)
-                with os.fdopen(write, "wb") as pipe:
-                    pipe.write(data)
-                status = 0
-            finally:
-                os._exit(status)
-        os.close(write)
-        self._pipe = os.fdopen(read, "rb")
-
-    def result(self):
-        data = self._pipe.read()
-        return pickle.loads(data) if self._wait() == 0 and data else None
-
-    def _wait(self) -> int:
-        self._pipe.close()  # a child still writing gets a broken pipe and exits
-        if self._pid is None:
-            return 1
-        _, status = os.waitpid(self._pid, 0)
-        self._pid = None
-        return status
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self._wait()
-
-
-def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: bool, where,
-               out: OsmExtract | None = None) -> _Ways:
-    """One pyosmium pass: the highway ways whose class is in ``select`` (all when None); the areas into ``out``.
+def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: bool, where) -> _Ways:
+    """One pyosmium pass: the highway ways whose class is in ``select`` (all when None), and the ``extras`` areas.
 
     The class filter runs in libosmium (C++), so that other ways never
     reach Python.
@@ -281,8 +225,10 @@ def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: b
             refs.append(kept if kept is not None else [n.ref for n in w.nodes])
 
     callbacks = {"way": way}
-    if extras and out is not None:
-        callbacks["area"] = _area_callback(wkb, extras, out.polygons)
+    polygons: dict = {}
+    if extras:
+        polygons = {k: ([], []) for k in ("water", "parks", "buildings")}
+        callbacks["area"] = _area_callback(wkb, extras, polygons)
     if select is None:
         ways_filter = osmium.filter.KeyFilter("highway")
     else:
@@ -298,7 +244,8 @@ def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: b
     lonlat, line = decode_lines(hex_wkb)
     return _Ways(np.rint(lonlat * 1e7).astype(np.int32), np.bincount(line, minlength=len(code_l)),
                  np.asarray(way_id, np.int64), np.asarray(code_l, np.int64), list(codes), more,
-                 np.fromiter((r for way in refs for r in way), np.int64) if node_ids else None, clipped[0])
+                 np.fromiter((r for way in refs for r in way), np.int64) if node_ids else None, clipped[0],
+                 polygons)
 
 
 def _area_callback(wkb, extras: frozenset[str], polygons: dict):

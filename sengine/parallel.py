@@ -1,24 +1,26 @@
-"""Independent jobs side by side in forked worker processes.
+"""Independent jobs side by side in forked processes.
 
-The executor's feature chunks, the exporter's files and ``sengine batch``'s
-seeds are independent jobs: each reads what the run has made so far and
-returns a small result.  On a POSIX system they run in forked processes, which
-inherit the jobs (the layers are not pickled on the way in; only the results
-come back), so that a 2-core machine writes two files at once.  Elsewhere, or
-with one worker, they run in turn in this process.  Either way the results,
-and the files the jobs write, are the same.
+The executor's feature chunks, the exporter's files, ``sengine batch``'s seeds
+and the OSM reader's two passes are independent jobs: each reads what the
+run has made so far and returns a result.  On a POSIX system ``workers - 1``
+processes are forked; they inherit the jobs (nothing is pickled on the way
+in), and every process, this one included, takes the next job not yet taken
+until none are left.  Only the results travel back, pickled through a pipe.
+Elsewhere, or with one worker, the jobs run here in turn.  Either way the
+results, and the files the jobs write, are the same.
 """
 
 from __future__ import annotations
 
 import os
+import pickle
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
-__all__ = ["available_cores", "run_jobs"]
+__all__ = ["available_cores", "can_fork", "in_worker", "run_jobs"]
 
-_JOBS: Sequence[Callable[[], Any]] = ()  # the jobs of the pool being run, inherited by its forked workers
+_in_worker = False  # set in the processes run_jobs forks: jobs they run do not fork again
 
 
 def available_cores() -> int:
@@ -29,15 +31,14 @@ def available_cores() -> int:
         return os.cpu_count() or 1
 
 
-def _can_fork() -> bool:
-    import multiprocessing
-
-    # macOS lists fork but its system libraries are not fork-safe
-    return sys.platform != "darwin" and "fork" in multiprocessing.get_all_start_methods()
+def in_worker() -> bool:
+    """Whether this process is one that :func:`run_jobs` forked."""
+    return _in_worker
 
 
-def _call(i: int) -> Any:
-    return _JOBS[i]()
+def can_fork() -> bool:
+    """Whether forking is safe here (macOS lists fork, but its system libraries are not fork-safe)."""
+    return hasattr(os, "fork") and sys.platform != "darwin"
 
 
 def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
@@ -46,27 +47,84 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
     Parameters
     ----------
     jobs : sequence of callable
-        Independent jobs.  They start in this order as workers come free:
-        put the longest first.
+        Independent jobs.  They are taken in this order: put the longest
+        first.
     workers : int
-        Processes to use; 1 (or a system without a safe ``fork``: Windows,
-        macOS) runs the jobs here, in turn.
+        Processes to use, this one included.  1, a worker process (no
+        processes within processes) or a system where forking is not safe
+        (Windows, macOS) runs the jobs here, in turn.
 
     Returns
     -------
     list
-        ``[job() for job in jobs]``; a job's exception is raised here.
+        ``[job() for job in jobs]``.  The exception of the first job that
+        failed (in job order) is raised here, once every process stopped.
     """
-    global _JOBS
+    global _in_worker
     workers = min(int(workers), len(jobs))
-    if workers <= 1 or not _can_fork():
+    if workers <= 1 or _in_worker or not can_fork():
         return [job() for job in jobs]
     import multiprocessing  # here: the CLI imports this module, and most runs never fork
-    from concurrent.futures import ProcessPoolExecutor
 
-    outer, _JOBS = _JOBS, jobs
+    taken = multiprocessing.get_context("fork").Value("l", 0)  # shared: the next job to take
+    children = []
+    for _ in range(workers - 1):
+        read, write = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # a worker: take jobs, send (index, ok, result) back, leave without cleanup handlers
+            _in_worker = True
+            os.close(read)
+            status = 1
+            try:
+                done = _take_jobs(jobs, taken)
+                try:
+                    data = pickle.dumps(done, protocol=pickle.HIGHEST_PROTOCOL)
+                except Exception as exc:  # noqa: BLE001 (a result or an error that does not pickle)
+                    data = pickle.dumps([(i, False, RuntimeError(f"job {i}: {exc}")) for i, _, _ in done])
+                with os.fdopen(write, "wb") as pipe:
+                    pipe.write(data)
+                status = 0
+            finally:
+                os._exit(status)
+        os.close(write)
+        children.append((pid, os.fdopen(read, "rb")))
+    done = None
     try:
-        with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("fork")) as pool:
-            return list(pool.map(_call, range(len(jobs))))
+        done = _take_jobs(jobs, taken)
     finally:
-        _JOBS = outer
+        if done is None:  # interrupted here: the workers stop after their current job
+            with taken.get_lock():
+                taken.value = len(jobs)
+        for pid, pipe in children:
+            data = pipe.read()
+            pipe.close()
+            _, status = os.waitpid(pid, 0)
+            if done is not None and status == 0 and data:
+                done += pickle.loads(data)
+    results: list[Any] = [None] * len(jobs)
+    finished = [False] * len(jobs)
+    for i, ok, value in sorted(done, key=lambda d: d[0]):
+        if not ok:
+            raise value
+        results[i], finished[i] = value, True
+    if not all(finished):
+        raise RuntimeError(f"a worker process died before finishing job {finished.index(False)}")
+    return results
+
+
+def _take_jobs(jobs: Sequence[Callable[[], Any]], taken) -> list[tuple[int, bool, Any]]:
+    """Run the next job not yet taken until none are left; stop at the first failure."""
+    done = []
+    while True:
+        with taken.get_lock():
+            i = taken.value
+            taken.value = i + 1
+        if i >= len(jobs):
+            return done
+        try:
+            done.append((i, True, jobs[i]()))
+        except Exception as exc:  # noqa: BLE001 (handed to run_jobs, which raises it in job order)
+            done.append((i, False, exc))
+            with taken.get_lock():  # the others stop after their current job
+                taken.value = len(jobs)
+            return done

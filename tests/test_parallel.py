@@ -1,0 +1,69 @@
+"""sengine.parallel.run_jobs: forked workers and this process share the jobs; results and errors as in one process."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import pytest
+
+from sengine.errors import InputDataError
+from sengine.parallel import can_fork, in_worker, run_jobs
+
+pytestmark = pytest.mark.skipif(not can_fork(), reason="forking is not safe on this system")
+
+
+def _square(i):
+    def run():
+        time.sleep(0.01)  # long enough for every process to get some
+        return i * i, os.getpid()
+    return run
+
+
+@pytest.mark.parametrize("workers", [1, 2, 3])
+def test_results_come_back_in_job_order(workers):
+    out = run_jobs([_square(i) for i in range(20)], workers)
+    assert [r for r, _ in out] == [i * i for i in range(20)]
+    pids = {pid for _, pid in out}
+    assert os.getpid() in pids  # this process takes jobs too
+    assert len(pids) <= workers
+
+
+def test_jobs_write_the_same_files_in_any_process(tmp_path):
+    def write(i):
+        return lambda: (tmp_path / f"{i}.txt").write_text(str(i) * i)
+
+    assert run_jobs([write(i) for i in range(8)], 2) == [i for i in range(8)]
+    assert sorted(p.read_text() for p in tmp_path.iterdir()) == sorted(str(i) * i for i in range(8))
+
+
+def test_a_failing_job_raises_its_own_error_here():
+    def job(i):
+        def run():
+            if i == 3:
+                raise InputDataError("bad file", where="x.osm")
+            return i
+        return run
+
+    for workers in (1, 2):
+        with pytest.raises(InputDataError, match="x.osm: bad file"):
+            run_jobs([job(i) for i in range(6)], workers)
+
+
+def test_a_worker_that_dies_is_an_error_not_a_missing_result():
+    def job():
+        if in_worker():
+            os._exit(3)
+        time.sleep(0.2)  # here: slow, so that the worker surely takes a job and dies
+        return "here"
+
+    with pytest.raises(RuntimeError, match="worker process died"):
+        run_jobs([job] * 3, 2)
+
+
+def test_no_processes_within_processes():
+    out = run_jobs([lambda: (in_worker(), run_jobs([lambda: os.getpid()] * 3, 2)) for _ in range(4)], 2)
+    for worker, pids in out:
+        assert len(set(pids)) == 1  # nested jobs ran in turn in the process that took the outer job
+        if worker:
+            assert pids[0] != os.getpid()
