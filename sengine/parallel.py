@@ -4,8 +4,9 @@ The executor's feature chunks, the exporter's files, ``sengine batch``'s seeds
 and the OSM reader's two passes are independent jobs: each reads what the
 run has made so far and returns a result.  On a POSIX system ``workers - 1``
 processes are forked; they inherit the jobs (nothing is pickled on the way
-in), and every process, this one included, takes the next job not yet taken
-until none are left.  Only the results travel back, pickled through a pipe.
+in).  This process runs the first job (the longest, whose result then needs
+no pickling), and every process takes the next job not yet taken until none
+are left.  Only the workers' results travel back, pickled through a pipe.
 Elsewhere, or with one worker, the jobs run here in turn.  Either way the
 results, and the files the jobs write, are the same.
 """
@@ -47,8 +48,8 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
     Parameters
     ----------
     jobs : sequence of callable
-        Independent jobs.  They are taken in this order: put the longest
-        first.
+        Independent jobs.  They are taken in this order, the first by this
+        process: put the longest first.
     workers : int
         Processes to use, this one included.  1, a worker process (no
         processes within processes) or a system where forking is not safe
@@ -66,7 +67,7 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
         return [job() for job in jobs]
     import multiprocessing  # here: the CLI imports this module, and most runs never fork
 
-    taken = multiprocessing.get_context("fork").Value("l", 0)  # shared: the next job to take
+    taken = multiprocessing.get_context("fork").Value("l", 1)  # shared: the next job to take (0 is this process's)
     children = []
     for _ in range(workers - 1):
         read, write = os.pipe()
@@ -90,7 +91,7 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
         children.append((pid, os.fdopen(read, "rb")))
     done = None
     try:
-        done = _take_jobs(jobs, taken)
+        done = _take_jobs(jobs, taken, first=0)
     finally:
         if done is None:  # interrupted here: the workers stop after their current job
             with taken.get_lock():
@@ -112,13 +113,15 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
     return results
 
 
-def _take_jobs(jobs: Sequence[Callable[[], Any]], taken) -> list[tuple[int, bool, Any]]:
-    """Run the next job not yet taken until none are left; stop at the first failure."""
+def _take_jobs(jobs: Sequence[Callable[[], Any]], taken, first: int | None = None) -> list[tuple[int, bool, Any]]:
+    """Run job ``first``, then the next job not yet taken until none are left; stop at the first failure."""
     done = []
+    i = first
     while True:
-        with taken.get_lock():
-            i = taken.value
-            taken.value = i + 1
+        if i is None:
+            with taken.get_lock():
+                i = taken.value
+                taken.value = i + 1
         if i >= len(jobs):
             return done
         try:
@@ -128,3 +131,4 @@ def _take_jobs(jobs: Sequence[Callable[[], Any]], taken) -> list[tuple[int, bool
             with taken.get_lock():  # the others stop after their current job
                 taken.value = len(jobs)
             return done
+        i = None
