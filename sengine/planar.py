@@ -3,8 +3,7 @@
 Nothing here knows about cities: these are the faces of the planar
 embedding of a segment graph ``(xy, u, v)``, vectorized over numpy arrays.
 The graphs themselves (merged points, lines exploded into segments,
-crossings split) come from :mod:`sengine.segments`, whose functions are
-importable from here too.
+crossings split) come from :mod:`sengine.segments`.
 
 Public API
 ----------
@@ -30,13 +29,9 @@ import shapely
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
-from .segments import argsort_int, merge_points, planarize, segments_from_lines
+from .segments import argsort_int
 
 __all__ = [
-    "argsort_int",
-    "merge_points",
-    "segments_from_lines",
-    "planarize",
     "trace_faces",
     "planar_faces",
     "PlanarFaces",
@@ -355,7 +350,7 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
         Node coordinates (m).
     u, v : array_like of int (m,)
         Edge end node ids.  The graph must be plane (edges meet only at
-        nodes; see :func:`planarize`).  Self-loops are ignored, duplicate
+        nodes; see :func:`sengine.segments.planarize`).  Self-loops are ignored, duplicate
         edges (either direction) count once.
     area_eps : float
         Faces whose absolute signed area is at most this (m2) are degenerate

@@ -17,14 +17,8 @@ from sengine.geometry import (
     strtree_query,
     threaded,
 )
-from sengine.planar import (
-    merge_points,
-    planar_faces,
-    planarize,
-    segments_from_lines,
-    signed_area,
-    trace_faces,
-)
+from sengine.planar import planar_faces, signed_area, trace_faces
+from sengine.segments import merge_points, planarize, segments_from_lines
 
 SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -177,7 +171,7 @@ def test_trace_with_a_filtered_order_is_the_same_trace():
 
 
 def test_argsort_int_is_a_stable_argsort():
-    from sengine.planar import argsort_int
+    from sengine.segments import argsort_int
 
     rng = np.random.default_rng(0)
     for span in (3, 1000, 70_000, 2**31, 2**47, 2**60):
