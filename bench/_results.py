@@ -16,10 +16,13 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def reference_seconds(repeat: int = 3) -> float:
-    """Seconds of a fixed pure-Python loop (best of ``repeat``): this machine's speed at the time.
+    """Seconds of a fixed pure-Python loop on one core (best of ``repeat``): one sign of the machine's state.
 
-    A shared 2-core VM runs 1.5x slower at some hours than at others; the
-    benchmarks' figures are comparable across runs after dividing by this.
+    The shared 2-core VM this project is built on ran the same Manhattan
+    run 1.5x slower at some hours than at others.  This figure catches a
+    slower core; it does not catch a busy second core or slow file reads,
+    so compare figures from different runs with care (the benchmarks also
+    interleave or repeat their cases).
     """
     best = float("inf")
     for _ in range(repeat):
