@@ -21,7 +21,8 @@ from typing import Any
 
 __all__ = ["available_cores", "can_fork", "in_worker", "run_jobs"]
 
-_in_worker = False  # set in the processes run_jobs forks: jobs they run do not fork again
+_in_worker = False  # set in the processes run_jobs forks
+_running = False  # set while this process runs jobs of a run_jobs call: jobs within jobs run in turn
 
 
 def available_cores() -> int:
@@ -51,9 +52,9 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
         Independent jobs.  They are taken in this order, the first by this
         process: put the longest first.
     workers : int
-        Processes to use, this one included.  1, a worker process (no
-        processes within processes) or a system where forking is not safe
-        (Windows, macOS) runs the jobs here, in turn.
+        Processes to use, this one included.  1, a job of another
+        ``run_jobs`` call (no processes within processes) or a system where
+        forking is not safe (Windows, macOS) runs the jobs here, in turn.
 
     Returns
     -------
@@ -61,17 +62,23 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
         ``[job() for job in jobs]``.  The exception of the first job that
         failed (in job order) is raised here, once every process stopped.
     """
-    global _in_worker
+    global _in_worker, _running
     workers = min(int(workers), len(jobs))
-    if workers <= 1 or _in_worker or not can_fork():
+    if workers <= 1 or _in_worker or _running or not can_fork():
         return [job() for job in jobs]
     import multiprocessing  # here: the CLI imports this module, and most runs never fork
 
-    taken = multiprocessing.get_context("fork").Value("l", 1)  # shared: the next job to take (0 is this process's)
+    try:
+        taken = multiprocessing.get_context("fork").Value("l", 1)  # the next job to take (0 is this process's)
+    except OSError:  # no shared memory (some containers): one process
+        return [job() for job in jobs]
     children = []
     for _ in range(workers - 1):
-        read, write = os.pipe()
-        pid = os.fork()
+        try:
+            read, write = os.pipe()
+            pid = os.fork()
+        except OSError:  # no process to spare: the ones forked so far do the work
+            break
         if pid == 0:  # a worker: take jobs, send (index, ok, result) back, leave without cleanup handlers
             _in_worker = True
             os.close(read)
@@ -91,8 +98,10 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
         children.append((pid, os.fdopen(read, "rb")))
     done = None
     try:
+        _running = True
         done = _take_jobs(jobs, taken, first=0)
     finally:
+        _running = False
         if done is None:  # interrupted here: the workers stop after their current job
             with taken.get_lock():
                 taken.value = len(jobs)

@@ -62,8 +62,20 @@ def test_a_worker_that_dies_is_an_error_not_a_missing_result():
 
 
 def test_no_processes_within_processes():
-    out = run_jobs([lambda: (in_worker(), run_jobs([lambda: os.getpid()] * 3, 2)) for _ in range(4)], 2)
-    for worker, pids in out:
-        assert len(set(pids)) == 1  # nested jobs ran in turn in the process that took the outer job
-        if worker:
-            assert pids[0] != os.getpid()
+    def outer():
+        time.sleep(0.05)  # every process gets an outer job
+        return os.getpid(), run_jobs([os.getpid] * 3, 2)
+
+    out = run_jobs([outer] * 4, 2)
+    for pid, inner in out:
+        assert inner == [pid] * 3  # the inner jobs ran in turn in the process that took the outer job
+    assert len({pid for pid, _ in out}) == 2
+    assert len({pid for pid, _ in run_jobs([outer] * 2, 2)}) == 2  # and this process forks again afterwards
+
+
+def test_without_a_process_to_spare_the_jobs_run_here(monkeypatch):
+    def no_fork():
+        raise BlockingIOError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(os, "fork", no_fork)
+    assert [r for r, pid in run_jobs([_square(i) for i in range(5)], 2)] == [0, 1, 4, 9, 16]
