@@ -54,7 +54,7 @@ def test_a_worker_that_dies_is_an_error_not_a_missing_result():
     def job():
         if in_worker():
             os._exit(3)
-        time.sleep(0.2)  # here: slow, so that the worker surely takes a job and dies
+        time.sleep(0.5)  # here: slow, so that the worker surely takes a job and dies
         return "here"
 
     with pytest.raises(RuntimeError, match="worker process died"):
@@ -63,7 +63,7 @@ def test_a_worker_that_dies_is_an_error_not_a_missing_result():
 
 def test_no_processes_within_processes():
     def outer():
-        time.sleep(0.05)  # every process gets an outer job
+        time.sleep(0.2)  # long enough for the worker to start and take an outer job
         return os.getpid(), run_jobs([os.getpid] * 3, 2)
 
     out = run_jobs([outer] * 4, 2)
