@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import resource
 import statistics
 import subprocess
@@ -38,6 +37,8 @@ import time
 from pathlib import Path
 
 from _results import environment
+
+from sengine.parallel import available_cores
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / "configs" / "manhattan.xml"
@@ -94,7 +95,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results" / "manhattan.json")
-    ap.add_argument("--workers", type=int, default=len(os.sched_getaffinity(0)),
+    ap.add_argument("--workers", type=int, default=available_cores(),
                     help="processes per run (default: every core, as the CLI)")
     ap.add_argument("--sengine", dest="exe", default=None,
                     help="the sengine command to time in the cli case, e.g. the one of a venv made with "
