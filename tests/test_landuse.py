@@ -1,0 +1,81 @@
+"""blocks.landuse: water and parks of the map are cut out of the blocks before the lots are drawn."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import sengine
+from sengine import Context, Layer
+from sengine.builtin import load
+from sengine.registry import get
+
+load()
+from sengine_nodes.landuse import cut_blocks  # noqa: E402 (registered by load())
+
+ROOT = Path(__file__).resolve().parent.parent
+
+coord = st.floats(0, 300, allow_nan=False)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(coord, coord, st.floats(2, 80)), max_size=6),
+       st.lists(st.tuples(coord, coord, st.floats(1, 120), st.floats(1, 30)), max_size=4))
+def test_pieces_and_cut_land_partition_each_block(circles, rects):
+    blocks = np.array([shapely.box(x, y, x + 90, y + 60) for x in (0, 100, 200) for y in (0, 70, 140)])
+    cut = [shapely.Point(x, y).buffer(r, quad_segs=4) for x, y, r in circles]
+    cut += [shapely.box(x, y, x + w, y + h) for x, y, w, h in rects]
+    pieces, src, counts = cut_blocks(blocks, cut, min_area=0.0)
+    land = shapely.union_all(cut) if cut else shapely.Polygon()
+    assert shapely.is_valid(pieces).all() and (shapely.get_type_id(pieces) == 3).all()
+    per_block = np.bincount(src, weights=shapely.area(pieces), minlength=len(blocks))
+    taken = shapely.area(shapely.intersection(blocks, land))
+    assert np.allclose(per_block + taken, shapely.area(blocks), atol=1e-6)
+    assert shapely.area(shapely.intersection(pieces, land)).sum() <= 1e-6
+    assert counts["blocks_cut"] == int(shapely.intersects(blocks, land).sum())
+    assert counts["area_removed_m2"] == pytest.approx(taken.sum(), abs=0.1)
+
+
+def test_a_river_splits_a_block_and_slivers_go():
+    blocks = Layer.from_geoms([shapely.box(0, 0, 100, 60), shapely.box(110, 0, 210, 60)], ids=[4, 9],
+                              district=np.array([2, 3]))
+    water = Layer.from_geoms([shapely.box(40, -10, 55, 70), shapely.box(110, 0, 210, 59.5)], kind="water")
+    park = Layer.from_geoms([shapely.Point(80, 30).buffer(8)], kind="park")
+    node = get("blocks.landuse")("landuse", {"min_area": "60"}, Context())
+    out = node.run(blocks=blocks, water=water, parks=park)["blocks"]
+    # block 4 falls in two pieces (the first keeps the id), block 9 keeps only a 0.5 m strip: dropped
+    assert sorted(out.ids.tolist()) == [4, 10]
+    assert out["district"].tolist() == [2, 2]
+    assert sorted(shapely.area(out.geometry)) == pytest.approx([40 * 60, 45 * 60 - park.geometry[0].area])
+    assert node.report["blocks_removed"] == 1 and node.report["pieces_dropped"] == 1
+    assert node.report["blocks_cut"] == 2 and node.report["blocks"] == 2
+    assert all(shapely.intersection(g, park.geometry[0]).area < 1e-9 for g in out.geometry)
+
+
+def test_monaco_builds_nothing_in_its_parks_or_water():
+    layers, stats = sengine.load(ROOT / "configs" / "monaco.xml").run(seed=1)
+    read = layers["majorRoads"]
+    land = shapely.union_all(shapely.make_valid(np.concatenate([read["parks"].geometry, read["water"].geometry])))
+    shapely.prepare(land)
+    # the street faces do hold park land (so the test can fail) ...
+    blocks = layers["blocks"]["blocks"]
+    assert shapely.area(shapely.intersection(blocks.geometry, land)).sum() > 10_000
+    # ... which no lot and no building takes
+    for lay in (layers["lots"]["lots"], layers["buildings"]["buildings"]):
+        assert shapely.area(shapely.intersection(lay.geometry, land)).sum() < 1e-3
+    rep = stats["report"]["landuse"]
+    cut = layers["landuse"]["blocks"]
+    assert rep["blocks"] == len(cut) == stats["counts"]["landuse"] and rep["blocks_cut"] > 5
+    assert rep["area_removed_m2"] == pytest.approx(blocks.area() - cut.area(), abs=1.0)
+    # the lots partition the land-use blocks
+    lots = layers["lots"]["lots"]
+    order = np.argsort(cut.ids)
+    owner = order[np.searchsorted(cut.ids[order], lots["block"])]
+    assert np.array_equal(cut.ids[owner], lots["block"])
+    lot_area = np.bincount(owner, weights=shapely.area(lots.geometry), minlength=len(cut))
+    assert np.allclose(lot_area, shapely.area(cut.geometry), rtol=1e-3)
