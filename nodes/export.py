@@ -51,7 +51,7 @@ def export_layers(out: Path, layers: dict[str, Layer | None], formats, *, plan=N
         Existing folder to write into.
     layers : dict of str to Layer or None
         Layers by name (``roads``, ``streets``, ``sidewalks``, ``blocks``,
-        ``lots``, ``buildings``, ``parks``); ``None`` ones are skipped.
+        ``lots``, ``buildings``, ``parks``, ``water``); ``None`` ones are skipped.
     formats : iterable of str
         Names among :data:`FORMATS`; others are ignored, empty means
         :data:`DEFAULT_FORMATS`.
@@ -148,6 +148,7 @@ class ExportCity(SENode):
         "lots": Port("lots", "lots", required=False),
         "buildings": Port("buildings", "building footprints with height", required=False),
         "parks": Port("parks", "parks", required=False),
+        "water": Port("polygons", "water areas (rivers, lakes, harbours)", required=False),
     }
     outputs = {}
     params = {
@@ -159,7 +160,7 @@ class ExportCity(SENode):
 
     def run(self, *, roads: Layer | None = None, streets: Layer | None = None, sidewalks: Layer | None = None,
             blocks: Layer | None = None, lots: Layer | None = None, buildings: Layer | None = None,
-            parks: Layer | None = None) -> dict[str, Layer]:
+            parks: Layer | None = None, water: Layer | None = None) -> dict[str, Layer]:
         out = self.context.out
         if out is None:  # an in-memory run (tests, notebooks): nothing to write
             log.info("%s: no output folder, nothing written", self.where)
@@ -168,7 +169,7 @@ class ExportCity(SENode):
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         layers = {"roads": roads, "streets": streets, "sidewalks": sidewalks, "blocks": blocks, "lots": lots,
-                  "buildings": buildings, "parks": parks}
+                  "buildings": buildings, "parks": parks, "water": water}
         report = export_layers(out, layers, self.context.formats, plan=self.context.plan,
                                line_width=self.p.line_width, preview_size=self.p.preview_size,
                                workers=self.context.workers)

@@ -344,3 +344,18 @@ def test_random_polygons_mesh_exactly(offset):
         assert (flat.face_normals[:, 2] > 0).all()
 
     check()
+
+
+def test_water_lies_under_the_streets(city, tmp_path):
+    plan, layers = city
+    x0, y0, x1, y1 = shapely.total_bounds(layers["streets"].geometry)
+    river = shapely.box(x0, (y0 + y1) / 2 - 20, x1, (y0 + y1) / 2 + 20)
+    water = Layer.from_geoms([river, shapely.Point(x0, y0).buffer(30)], meta=layers["streets"].meta, kind="water")
+    report = export(tmp_path, plan, {**layers, "water": water}, formats={"glb", "geojson", "png"})
+    assert report["geojson.water"] == 2 and report["glb.water.triangles"] > 0
+    w = trimesh.load(tmp_path / "city.glb").geometry["water"]
+    assert w.area == pytest.approx(water.area(), rel=1e-3)
+    assert w.bounds[:, 1] == pytest.approx([-0.5, -0.5])  # below the street surface (y = 0)
+    with Image.open(tmp_path / "preview.png") as im:
+        rgb = np.asarray(im.convert("RGB")).reshape(-1, 3)
+    assert (rgb == COLOURS["water"]).all(axis=1).sum() > 100

@@ -2,7 +2,7 @@
 
 Layers become meshes in batches (:mod:`sengine.io.mesh`): buildings are
 extruded to their ``height``; lines (roads) become thin flat ribbons; other
-polygons (streets, sidewalks, blocks, lots, parks) become flat surfaces at
+polygons (water, streets, sidewalks, blocks, lots, parks) become flat surfaces at
 slightly different heights so they do not z-fight.  Units are metres; the
 frame is glTF's: x east, **y up**, z south (planar y -> -Z, height -> Y).
 
@@ -38,10 +38,11 @@ __all__ = ["LAYERS", "COLOURS", "LEVELS", "layer_mesh", "glb_bytes", "write_glb"
 log = logging.getLogger(__name__)
 
 #: Layer names the exporters know, in drawing order.
-LAYERS = ("streets", "sidewalks", "blocks", "lots", "parks", "roads", "buildings")
+LAYERS = ("water", "streets", "sidewalks", "blocks", "lots", "parks", "roads", "buildings")
 
 #: Base colour (sRGB, 0-255) of each layer.
 COLOURS = {
+    "water": (135, 175, 210),
     "roads": (70, 70, 76),
     "streets": (150, 150, 155),
     "sidewalks": (205, 203, 196),
@@ -53,7 +54,7 @@ COLOURS = {
 _DEFAULT_COLOUR = (180, 180, 180)
 
 #: Height (m) of each flat layer, so that overlapping surfaces do not z-fight.
-LEVELS = {"streets": 0.0, "sidewalks": 0.12, "blocks": 0.12, "lots": 0.15, "parks": 0.2, "roads": 0.25}
+LEVELS = {"water": -0.5, "streets": 0.0, "sidewalks": 0.12, "blocks": 0.12, "lots": 0.15, "parks": 0.2, "roads": 0.25}
 
 
 def layer_mesh(name: str, layer: Layer, *, line_width: float = 1.0) -> tuple[np.ndarray, np.ndarray]:

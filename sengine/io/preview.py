@@ -2,7 +2,7 @@
 
 Drawn with Pillow's ImageDraw into 8-bit index layers that are composited
 with numpy, then saved as a palette PNG (small, and no time chunk: the same
-layers give the same bytes).  Layers from bottom to top: streets,
+layers give the same bytes).  Layers from bottom to top: water, streets,
 sidewalks, blocks, lots (with their outlines), parks, buildings (a colour
 ramp over height), roads (centre lines).  A footer holds the height legend,
 a scale bar and the layer swatches.
@@ -26,7 +26,7 @@ __all__ = ["render", "write_preview", "PALETTE", "ROADS_INDEX", "ramp"]
 
 log = logging.getLogger(__name__)
 
-_ORDER = ("streets", "sidewalks", "blocks", "lots", "parks", "buildings", "roads")
+_ORDER = ("water", "streets", "sidewalks", "blocks", "lots", "parks", "buildings", "roads")
 _BACKGROUND = (250, 250, 247)
 _INK = (30, 30, 30)
 _LOT_EDGE = (196, 188, 170)
@@ -111,7 +111,7 @@ def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Ima
     ----------
     layers : mapping of str to Layer
         Layers by name (``roads``, ``streets``, ``sidewalks``, ``blocks``,
-        ``lots``, ``parks``, ``buildings``); unknown names are ignored.
+        ``lots``, ``parks``, ``buildings``, ``water``); unknown names are ignored.
     size : int
         Pixels along the longer side of the map.
     extent : tuple of float, optional
