@@ -25,13 +25,14 @@ import numpy as np
 import shapely
 
 from sengine import Layer, Param, Port, SENode, register
+from sengine.geometry import inset
 
 __all__ = ["cut_blocks", "BlocksLanduse"]
 
 log = logging.getLogger(__name__)
 
 
-def cut_blocks(blocks, cut, *, min_area: float = 0.0) -> tuple[np.ndarray, np.ndarray, dict]:
+def cut_blocks(blocks, cut, *, min_area: float = 0.0, min_width: float = 0.0) -> tuple[np.ndarray, np.ndarray, dict]:
     """The parts of each block outside every ``cut`` polygon.
 
     Parameters
@@ -43,6 +44,10 @@ def cut_blocks(blocks, cut, *, min_area: float = 0.0) -> tuple[np.ndarray, np.nd
         repaired first; points and lines are ignored.
     min_area : float
         Pieces smaller than this are dropped (m2).
+    min_width : float
+        Pieces of a cut block that are nowhere this wide (their inset by
+        half of it is empty) are dropped (m): the strip a park leaves
+        along a street.
 
     Returns
     -------
@@ -53,7 +58,7 @@ def cut_blocks(blocks, cut, *, min_area: float = 0.0) -> tuple[np.ndarray, np.nd
     counts : dict
         ``blocks_cut`` (blocks a polygon took land from), ``blocks_removed``
         (blocks left with no piece), ``pieces_dropped`` (under
-        ``min_area``), ``area_removed_m2``.
+        ``min_area`` or ``min_width``), ``area_removed_m2``.
     """
     blocks = np.asarray(blocks, dtype=object)
     cut = shapely.get_parts(shapely.make_valid(np.asarray(cut, dtype=object)))
@@ -74,6 +79,9 @@ def cut_blocks(blocks, cut, *, min_area: float = 0.0) -> tuple[np.ndarray, np.nd
     poly = shapely.get_type_id(pieces) == 3
     area = shapely.area(pieces)
     keep = poly & (area >= min_area)
+    thin = np.flatnonzero(keep & np.isin(block, bi))  # only a cut can make a block thin
+    if min_width > 0 and len(thin):
+        keep[thin] = ~shapely.is_empty(inset(pieces[thin], min_width / 2.0))
     before = shapely.area(blocks).sum() if len(blocks) else 0.0
     counts = {
         "blocks_cut": int(len(np.unique(bi))),
@@ -97,12 +105,15 @@ class BlocksLanduse(SENode):
     outputs = {"blocks": Port("blocks", "the buildable pieces; a block cut in two keeps its id on the first piece")}
     params = {
         "min_area": Param("float", 50.0, min=0.0, unit="m2", doc="pieces smaller than this are dropped"),
+        "min_width": Param("float", 4.0, min=0.0, unit="m",
+                           doc="pieces of a cut block nowhere this wide are dropped (a strip left along a park)"),
     }
 
     def run(self, *, blocks: Layer, water: Layer | None = None, parks: Layer | None = None) -> dict[str, Layer]:
         cut = [lay.geometry for lay in (water, parks) if lay is not None and len(lay)]
         geoms = np.concatenate(cut) if cut else np.empty(0, dtype=object)
-        pieces, src, counts = cut_blocks(blocks.geometry, geoms, min_area=self.p.min_area)
+        pieces, src, counts = cut_blocks(blocks.geometry, geoms, min_area=self.p.min_area,
+                                           min_width=self.p.min_width)
         out = blocks.take(src)
         # the first piece of a block keeps its id; further pieces get new ones after the largest
         again = np.r_[False, src[1:] == src[:-1]] if len(src) else np.zeros(0, bool)

@@ -42,19 +42,22 @@ def test_pieces_and_cut_land_partition_each_block(circles, rects):
 
 
 def test_a_river_splits_a_block_and_slivers_go():
-    blocks = Layer.from_geoms([shapely.box(0, 0, 100, 60), shapely.box(110, 0, 210, 60)], ids=[4, 9],
-                              district=np.array([2, 3]))
+    blocks = Layer.from_geoms([shapely.box(0, 0, 100, 60), shapely.box(110, 0, 210, 60),
+                               shapely.box(220, 0, 320, 60), shapely.box(330, 0, 430, 60)], ids=[4, 9, 12, 15],
+                              district=np.array([2, 3, 3, 3]))
     water = Layer.from_geoms([shapely.box(40, -10, 55, 70), shapely.box(110, 0, 210, 59.5)], kind="water")
-    park = Layer.from_geoms([shapely.Point(80, 30).buffer(8)], kind="park")
-    node = get("blocks.landuse")("landuse", {"min_area": "60"}, Context())
-    out = node.run(blocks=blocks, water=water, parks=park)["blocks"]
-    # block 4 falls in two pieces (the first keeps the id), block 9 keeps only a 0.5 m strip: dropped
-    assert sorted(out.ids.tolist()) == [4, 10]
-    assert out["district"].tolist() == [2, 2]
-    assert sorted(shapely.area(out.geometry)) == pytest.approx([40 * 60, 45 * 60 - park.geometry[0].area])
-    assert node.report["blocks_removed"] == 1 and node.report["pieces_dropped"] == 1
-    assert node.report["blocks_cut"] == 2 and node.report["blocks"] == 2
-    assert all(shapely.intersection(g, park.geometry[0]).area < 1e-9 for g in out.geometry)
+    parks = Layer.from_geoms([shapely.Point(80, 30).buffer(8), shapely.box(220, 3, 320, 60),
+                              shapely.box(330, 5, 430, 60)], kind="park")
+    node = get("blocks.landuse")("landuse", {"min_area": "60", "min_width": "4"}, Context())
+    out = node.run(blocks=blocks, water=water, parks=parks)["blocks"]
+    # block 4 falls in two pieces (the first keeps the id); block 9 keeps a 0.5 m strip of 50 m2 (under
+    # min_area) and block 12 a 3 m strip of 300 m2 (under min_width): both go; block 15 keeps its 5 m strip
+    assert sorted(out.ids.tolist()) == [4, 15, 16]
+    assert out["district"].tolist() == [2, 2, 3]
+    assert sorted(shapely.area(out.geometry)) == pytest.approx([5 * 100, 40 * 60, 45 * 60 - parks.geometry[0].area])
+    assert node.report["blocks_removed"] == 2 and node.report["pieces_dropped"] == 2
+    assert node.report["blocks_cut"] == 4 and node.report["blocks"] == 3
+    assert all(shapely.intersection(g, parks.geometry[0]).area < 1e-9 for g in out.geometry)
 
 
 def test_monaco_builds_nothing_in_its_parks_or_water():
