@@ -25,13 +25,17 @@ How it is computed, for all blocks at once and without polygon overlay:
 3. Candidates that are not simple, or overlap a neighbour (tested on windows
    of three consecutive candidates, whose union must be simple too, where
    the displaced line folds or bunches up), are
-   merged run by run into one corner lot closed by a straight back edge;
-   a run whose corner lot is not simple either, and candidates with too
-   little street frontage, are merged into the core (which then reaches the
-   contour there).
+   merged run by run into one corner lot closed by a straight back edge.
+   Candidates with some street but less than ``min_frontage`` join such a
+   run too (with their street-side neighbour).  Only candidates without
+   street (along a cut edge, step 4) join the core, so the core, the inner
+   lot, never reaches a street; a polygon with no candidate of
+   ``min_frontage`` is one lot, inner only if it has no street at all.
 4. A block whose core is still not simple (thin arms, holes outside the
-   core) is cut in two across its main axis (:func:`sengine.split.split`;
-   the cut edges are not streets, so no lot faces them) and the halves start
+   core), or with a corner lot still not simple after growing twice by a
+   candidate on each side, is cut in two across its main axis
+   (:func:`sengine.split.split`; the cut edges are not streets, so no lot
+   faces them, and only lots without street are inner) and the halves start
    again, a few times; what remains is kept whole and counted.
 
 Randomness is a hash of (block seed, piece, sample), so results do not depend
@@ -80,6 +84,7 @@ def _clean(geoms, area):
 # -- one pass over a set of polygons ------------------------------------------------------------
 
 RISK = 0.5  # an inner segment shorter than this share of its contour segment (or reversed) is risky
+TOUCH = 1e-3  # m: less street than this is none (an inner lot may touch a street by less)
 
 
 def cstart_of(C):
@@ -126,8 +131,11 @@ def _pass(rs, depth, segment, min_frontage, C):
     ja = 3 * ci
     one = np.ones(len(cp), np.int64)
     q, qa, front, qm = C.chains(cp, ja, ja + 3, one)
-    merge = front < min_frontage  # too little street: part of the core
-    bad = ~_clean(q, qa) & ~merge
+    merge = front < TOUCH  # no street (a cut edge): part of the core
+    # no candidate with enough street: the polygon is one lot (inner if it has no street)
+    merge |= (np.bincount(cp, weights=front >= min_frontage, minlength=P) == 0)[cp]
+    short = (front < min_frontage) & ~merge  # too little street: joins a neighbour (a corner lot)
+    bad = ~_clean(q, np.where(merge | short, 0.0, qa)) & ~merge  # short ones are bad untested
     # windows of w consecutive candidates: their union must be simple too,
     # otherwise two of them overlap (winding numbers add up)
     # (only where the inner line folds or bunches up: elsewhere neighbours cannot meet)
@@ -151,23 +159,17 @@ def _pass(rs, depth, segment, min_frontage, C):
         bad[cstart[cp[sel]] + np.mod(ci[sel] + k, nseg[cp[sel]])] = True
     bad &= ~merge
     # runs of bad candidates become corner lots; a run whose corner lot is
-    # not simple grows by one candidate on each side, then joins the core
+    # not simple (or has too little street) grows by one candidate on each
+    # side, twice; one still refused refuses its polygon (which is cut)
     for it in range(3):
         run_p, s_i, n_i = _runs(bad, cp, ci, nseg)
-        corner, ca, cfront, _ = C.chains(run_p, 3 * s_i, 3 * (s_i + n_i), 3 * n_i)
+        corner, ca, cfront, cm = C.chains(run_p, 3 * s_i, 3 * (s_i + n_i), 3 * n_i)
         f = ~(_clean(corner, ca) & (cfront >= min_frontage))
-        if not f.any():
+        if not f.any() or it == 2:
             break
         base, first, cnt, nn = cstart[run_p[f]], s_i[f], n_i[f], nseg[run_p[f]]
-        if it < 2:  # grow
-            for at in (base + np.mod(first - 1, nn), base + np.mod(first + cnt, nn)):
-                bad[at] |= ~merge[at]
-        else:  # give up: these candidates join the core
-            members = np.repeat(base, cnt) + np.mod(np.repeat(first, cnt) + ramp(cnt), np.repeat(nn, cnt))
-            merge[members] = True
-            bad[members] = False
-    run_p, s_i, n_i = _runs(bad, cp, ci, nseg)
-    corner, ca, cfront, cm = C.chains(run_p, 3 * s_i, 3 * (s_i + n_i), 3 * n_i)
+        for at in (base + np.mod(first - 1, nn), base + np.mod(first + cnt, nn)):
+            bad[at] |= ~merge[at]
     merge_runs = _runs(merge, cp, ci, nseg)
     good = ~bad & ~merge
     # the core, unit after unit in ring order
@@ -186,7 +188,7 @@ def _pass(rs, depth, segment, min_frontage, C):
     core_of[cpoly] = core
     core_mark = np.full(P, -1, np.int64)  # index into corem, -1: unknown marks
     core_mark[cpoly] = np.arange(len(cpoly))
-    done &= np.bincount(run_p, weights=~_clean(corner, ca) | (cfront < min_frontage), minlength=P) == 0
+    done &= np.bincount(run_p, weights=f, minlength=P) == 0
     # holes must lie inside the core
     nring = np.bincount(rs.poly, minlength=P)
     holed = np.flatnonzero(done & (nring > 1))
@@ -199,11 +201,14 @@ def _pass(rs, depth, segment, min_frontage, C):
                 core_mark[hi] = -1
             else:
                 done[hi] = False
-    whole = np.flatnonzero(all_merged)  # no street worth a lot: the polygon is one inner lot
+    whole = np.flatnonzero(all_merged)  # no street worth a lot: the polygon is one lot
     done[whole] = True
-    whole_m = Marks.of(rs.take(whole))
+    wsub = rs.take(whole)
+    whole_inner = np.zeros(P, bool)
+    whole_inner[whole] = wsub.flagged_length() < TOUCH
+    whole_m = Marks.of(wsub)
     if len(whole):
-        core_of[whole] = rs.take(whole).polygons()
+        core_of[whole] = wsub.polygons()
         core_mark[whole] = len(cpoly) + np.arange(len(whole))
     corem = Marks.concat([corem, whole_m])
     # lots: good candidates, corner lots, cores (small cores join their longest neighbour)
@@ -234,7 +239,7 @@ def _pass(rs, depth, segment, min_frontage, C):
     kc = np.flatnonzero(done & ~merged)
     lots = np.r_[lots, core_of[kc]]
     lpoly = np.r_[lpoly, kc]
-    inner = np.r_[np.zeros(len(lots) - len(kc), bool), np.ones(len(kc), bool)]
+    inner = np.r_[np.zeros(len(lots) - len(kc), bool), ~all_merged[kc] | whole_inner[kc]]
     # segment marks, where the construction knows them (not for GEOS-made lots)
     nq, nc = int(gsel.sum()), int(csel.sum())
     src = Marks.concat([qm.take(np.flatnonzero(gsel)), cm.take(np.flatnonzero(csel)), corem])
@@ -294,12 +299,14 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
     rngs : sequence of numpy.random.Generator (n,), optional
         One generator per block (``SENode.rng(block_id)``).
     min_frontage : float
-        Perimeter pieces with less street frontage (m) join the core.
+        Perimeter pieces with less street frontage (m) join a neighbouring
+        perimeter lot; only pieces without street join the core.
     max_cuts : int
         How many times a block the partition test refuses may be cut in
         two before its pieces are kept whole.
     report : dict, optional
-        Receives ``paris_inner`` (core lots), ``paris_corner`` (corner lots
+        Receives ``paris_inner`` (inner lots: cores, and pieces without
+        street kept whole), ``paris_corner`` (corner lots
         merged from overlapping candidates), ``paris_cut`` (cuts made) and
         ``paris_fallback`` (pieces kept whole).
 
@@ -311,7 +318,8 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
     -------
     lots, owner : ndarray of shapely.Polygon, ndarray of int64 (non-decreasing)
     inner : ndarray of bool
-        True for the core lot(s) (courtyards) that need not touch a street.
+        True for the core lot(s) (courtyards), which touch no street (less
+        than ``TOUCH`` = 1 mm of the polygon's street edges).
     on, known : ndarray of bool, only with ``street``
         One mark per boundary segment of the lots (order of
         :func:`sengine.boundary.ring_segments`), and per lot whether the marks
@@ -363,7 +371,7 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
         if len(stuck):
             out_l.append(sub.take(stuck).polygons())
             out_o.append(own[fail[stuck]])
-            out_i.append(np.zeros(len(stuck), bool))
+            out_i.append(sub.take(stuck).flagged_length() < TOUCH)
             out_m.append(Marks.of(sub.take(stuck)))
             out_k.append(np.ones(len(stuck), bool))
         rs, own, key = pieces, own[fail[parent]], key[fail[parent]] * np.uint64(2) + side.astype(np.uint64)
@@ -374,7 +382,7 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
         fallback = len(rest)
         out_l.append(sub.polygons())
         out_o.append(own[rest])
-        out_i.append(sub.flagged_length() < min_frontage)
+        out_i.append(sub.flagged_length() < TOUCH)
         out_m.append(Marks.of(sub))
         out_k.append(np.ones(len(rest), bool))
     lots = np.concatenate(out_l) if out_l else np.empty(0, object)

@@ -290,3 +290,59 @@ def test_awkward_blocks():
             lots = node.run(blocks=blocks)["lots"]
             check_lots(blocks, lots, name)
             assert node.report.get("kept_whole", 0) == 0
+
+
+@pytest.fixture(scope="module")
+def paris_demo():
+    """Blocks and lots of the Paris demo (configs/paris.xml: Paris lots in every district, 803 blocks)."""
+    import sengine
+
+    layers, _ = sengine.load(Path(__file__).resolve().parent.parent / "configs" / "paris.xml").run()
+    return layers["blocks"]["blocks"], layers["lots"]["lots"]
+
+
+def test_paris_courtyards_do_not_reach_the_street(paris_demo):
+    """§5.5, Fig. 10: the core is an inner lot; every perimeter lot keeps a street; lots partition blocks.
+
+    Blocks the method cuts in two have contour stretches without street; the
+    courtyard must reach the contour only there, never along the street.
+    """
+    blocks, lots = paris_demo
+    own = np.searchsorted(blocks.ids, lots["block"])
+    assert np.array_equal(blocks.ids[own], lots["block"])
+    inner = lots["inner"]
+    assert inner.sum() >= 0.8 * len(blocks)  # courtyards there are
+
+    def shared(rings):  # length (m) of each lot's boundary lying on its block's rings (within 1 um)
+        zone = shapely.buffer(rings, 1e-6)[own]
+        return shapely.length(shapely.intersection(shapely.boundary(lots.geometry), zone))
+
+    on_exterior = shared(shapely.get_exterior_ring(blocks.geometry))
+    assert on_exterior[inner].max() < 0.01, \
+        f"courtyards on the street: {np.round(np.sort(on_exterior[inner])[-5:], 2)} m in blocks " \
+        f"{sorted(set(lots['block'][inner & (on_exterior >= 0.01)].tolist()))}"
+    assert (shared(shapely.boundary(blocks.geometry))[~inner] > 0).all()
+    assert (lots["frontage"][~inner] > 0).all()
+    # within the block, no overlap, areas add up: the union is the block
+    barea = shapely.area(blocks.geometry)
+    total = np.bincount(own, weights=shapely.area(lots.geometry), minlength=len(blocks))
+    assert (np.abs(total - barea) <= 1e-6 * barea).all()
+    outside = shapely.area(shapely.difference(lots.geometry, blocks.geometry[own], grid_size=GRID))
+    assert (np.bincount(own, weights=outside, minlength=len(blocks)) <= 1e-6 * barea).all()
+    i, j = shapely.STRtree(lots.geometry).query(lots.geometry, predicate="intersects")
+    sel = (i < j) & (own[i] == own[j])
+    both = shapely.intersection(lots.geometry[i[sel]], lots.geometry[j[sel]], grid_size=GRID)
+    overlap = np.bincount(own[i[sel]], weights=shapely.area(both), minlength=len(blocks))
+    assert (overlap <= 1e-6 * barea).all()
+
+
+@SETTINGS
+@given(st.lists(block_polygon(), min_size=1, max_size=4), st.integers(0, 2**16))
+def test_paris_courtyards_of_random_blocks_are_inner(polys, seed):
+    blocks = Layer.from_geoms(polys)
+    lots = get("lots.paris")("lots", {}, Context(seed=seed)).run(blocks=blocks)["lots"]
+    check_lots(blocks, lots, "lots.paris")
+    inner = lots["inner"]
+    ext = shapely.buffer(shapely.get_exterior_ring(blocks.geometry), 1e-6)[lots["block"]]
+    on_exterior = shapely.length(shapely.intersection(shapely.boundary(lots.geometry[inner]), ext[inner]))
+    assert (on_exterior < 0.01).all(), on_exterior
