@@ -42,7 +42,7 @@ import numpy as np
 import shapely
 
 from sengine import Layer, Param, Port, SENode, register
-from sengine.geometry import frame_boxes, inset, threaded
+from sengine.geometry import containing, frame_boxes, inset, threaded
 from sengine.planar import PlanarFaces, planar_faces
 from sengine.segments import merge_points, planarize, segments_from_lines
 
@@ -296,19 +296,6 @@ def street_graph(bf: BlockFaces) -> nx.Graph:
     return g
 
 
-def _containing(points, polys) -> np.ndarray:
-    """Index of the polygon containing each point (``-1`` for none; first one wins)."""
-    out = np.full(len(points), -1, np.int64)
-    if len(points) == 0 or len(polys) == 0:
-        return out
-    pi, qi = shapely.STRtree(polys).query(points, predicate="within")
-    o = np.lexsort((qi, pi))
-    pi, qi = pi[o], qi[o]
-    first = np.r_[True, pi[1:] != pi[:-1]] if len(pi) else np.zeros(0, bool)
-    out[pi[first]] = qi[first]
-    return out
-
-
 @register
 class BlocksCircuits(SENode):
     """Blocks as minimal closed circuits of the street graph, shrunk for streets and sidewalks (§5.4)."""
@@ -384,7 +371,7 @@ class BlocksCircuits(SENode):
         fdistrict = np.full(len(faces), -1, np.int64)
         fparent = np.full(len(faces), -1, np.int64)
         if areas is not None and len(areas):
-            host = _containing(shapely.point_on_surface(faces), areas.geometry)
+            host = containing(shapely.point_on_surface(faces), areas.geometry)
             has = host >= 0
             fparent[has] = areas.ids[host[has]]
             if "district" in areas:

@@ -17,6 +17,7 @@ Public API
     :func:`split_by_line` -- both sides of each polygon cut by a line.
     :func:`boundary_segments` -- every boundary segment of each geometry.
     :func:`segments_on` -- which segments lie on a reference boundary.
+    :func:`containing` -- the polygon each point lies in.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ __all__ = [
     "split_by_line",
     "boundary_segments",
     "segments_on",
+    "containing",
 ]
 
 log = logging.getLogger(__name__)
@@ -305,3 +307,16 @@ def clip_frame_boxes(geoms, center, axis, a0, a1, b0, b1):
         pieces[idx] = shapely.intersection(geoms[idx], frame_boxes(center[idx], axis[idx], a0[idx], a1[idx],
                                                                    b0[idx], b1[idx]))
     return pieces
+
+
+def containing(points, polys) -> np.ndarray:
+    """Index of the polygon each point lies in (``-1`` for none; the lowest index where several do)."""
+    out = np.full(len(points), -1, np.int64)
+    if len(points) == 0 or len(polys) == 0:
+        return out
+    pi, qi = shapely.STRtree(polys).query(points, predicate="within")
+    o = np.lexsort((qi, pi))  # by point, then by polygon: a point's first hit is its lowest polygon
+    pi, qi = pi[o], qi[o]
+    first = np.r_[True, pi[1:] != pi[:-1]] if len(pi) else np.zeros(0, bool)
+    out[pi[first]] = qi[first]
+    return out

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 import shapely
 from _city import grid_city, monaco_lots
-from conftest import ROOT
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -189,12 +188,3 @@ def test_surveyed_heights_of_existing_buildings_win():
     built = node.run(lots=lots, existing=existing)["buildings"]
     assert built["height"].tolist() == pytest.approx([35 * 3.2, 4 * 3.2, 4 * 3.2])  # 111 m -> 35 floors
     assert node.report["surveyed_heights"] == 1
-
-
-def test_monaco_buildings_take_osm_heights(tmp_path):
-    import sengine
-
-    net = sengine.load(ROOT / "configs" / "monaco.xml")
-    layers, stats = net.run(seed=1)
-    assert stats["report"]["buildings"]["surveyed_heights"] > 100
-    assert layers["buildings"]["buildings"]["height"].max() > 60  # Monaco's towers, not the 10 m default

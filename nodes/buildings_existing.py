@@ -1,0 +1,125 @@
+"""Existing buildings: the real footprints of the map stand, generated ones fill the rest.
+
+A real city's map often holds its buildings too (OSM ``building=*`` with
+``height`` or ``building:levels``, read by ``osm.read``).  As a CityEngine or
+osmnx user expects from an OSM import, those footprints are kept as they
+are, extruded to their tagged height (or the reader's default), and the
+engine builds only where the map has nothing: a generated building that
+would overlap an existing one is not built.  What is left is one buildings
+layer with a ``source`` column (``"osm"`` or ``"generated"``), so every
+exporter, the preview and the report take both alike.
+
+``keep`` chooses the layer for the study at hand: ``both`` (the default: the
+city as it is, completed), ``existing`` (the map's buildings only) or
+``generated`` (the engine's envelope on every lot, as a capacity study
+wants; the map's buildings are left out).
+
+References
+----------
+skylineEngine (paper 002), §5.2 (real maps as input) and §5.6 (buildings).
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import shapely
+
+from sengine import Layer, Param, Port, SENode, register
+from sengine.errors import InputDataError
+
+__all__ = ["overlap_areas", "largest_share", "BuildingsExisting"]
+
+log = logging.getLogger(__name__)
+
+
+def _pairs(geoms, others):
+    """Intersecting (geoms index, others index) pairs and the area (m2) each pair shares."""
+    gi, oi = shapely.STRtree(others).query(geoms, predicate="intersects")
+    return gi, oi, shapely.area(shapely.intersection(geoms[gi], others[oi])) if len(gi) else np.zeros(0)
+
+
+def overlap_areas(geoms, others) -> np.ndarray:
+    """Area (m2) of each of ``geoms`` covered by ``others`` (summed over them).
+
+    ``others`` are assumed not to overlap each other much (buildings): a
+    part covered twice counts twice, which only errs on the side of "covered".
+    """
+    if not len(geoms) or not len(others):
+        return np.zeros(len(geoms))
+    gi, _, area = _pairs(geoms, others)
+    return np.bincount(gi, weights=area, minlength=len(geoms))
+
+
+def largest_share(geoms, polys) -> np.ndarray:
+    """Index of the polygon holding the largest part of each geometry (``-1`` for none)."""
+    out = np.full(len(geoms), -1, np.int64)
+    if not len(geoms) or not len(polys):
+        return out
+    gi, pi, area = _pairs(geoms, polys)
+    o = np.lexsort((pi, -area, gi))  # per geometry, the largest share first (the lowest index on a tie)
+    gi, pi, area = gi[o], pi[o], area[o]
+    first = np.r_[True, gi[1:] != gi[:-1]] if len(gi) else np.zeros(0, bool)
+    first &= area > 0
+    out[gi[first]] = pi[first]
+    return out
+
+
+@register
+class BuildingsExisting(SENode):
+    """The map's existing buildings kept, generated buildings only where they leave room (§5.2)."""
+
+    name = "buildings.existing"
+    inputs = {
+        "buildings": Port("buildings", "generated buildings (e.g. buildings.extrude)"),
+        "existing": Port("buildings", "buildings already there, with a height column (e.g. osm.read's buildings)",
+                         required=False),
+        "lots": Port("lots", "lots: give each existing building the lot and district it stands in", required=False),
+    }
+    outputs = {"buildings": Port("buildings", "existing and generated buildings, with 'source' and 'osm_id'")}
+    params = {
+        "keep": Param("str", "both", choices=("both", "existing", "generated"),
+                      doc="the existing buildings and the generated ones clear of them, or one kind only"),
+        "overlap": Param("float", 1.0, min=0.0, unit="m2",
+                         doc="a generated building overlapping existing ones by more than this is not built"),
+    }
+
+    def run(self, *, buildings: Layer, existing: Layer | None = None, lots: Layer | None = None) -> dict[str, Layer]:
+        real = existing if existing is not None and self.p.keep != "generated" else Layer.empty()
+        if len(real) and "height" not in real:
+            raise InputDataError("existing buildings carry no 'height' column", where=self.where)
+        geoms = real.geometry.copy()
+        bad = ~shapely.is_valid(geoms) if len(geoms) else np.zeros(0, bool)
+        geoms[bad] = shapely.make_valid(geoms[bad])  # map polygons may self-touch: repair them for the overlap test
+        covered = overlap_areas(buildings.geometry, geoms)
+        build = covered <= self.p.overlap if self.p.keep != "existing" else np.zeros(len(buildings), bool)
+        generated = buildings.take(np.flatnonzero(build))
+        m = len(generated)
+        generated = generated.with_columns(source=np.full(m, "generated", dtype=object), osm_id=np.full(m, -1, np.int64),
+                                           name=np.full(m, "", dtype=object),
+                                           height_source=np.full(m, "generated", dtype=object))
+        n = len(real)
+        # an existing building belongs to the lot holding most of it; its ids follow the generated ones
+        lot_i = largest_share(geoms, lots.geometry) if lots is not None else np.full(n, -1, np.int64)
+        has = lot_i >= 0
+        lot = np.where(has, lots.ids[np.maximum(lot_i, 0)], -1) if has.any() else lot_i
+        district = np.full(n, -1, np.int64)
+        if has.any() and "district" in lots.attrs:
+            district[has] = np.asarray(lots["district"], np.int64)[lot_i[has]]
+        cols = {"height": np.asarray(real["height"], np.float64) if n else np.empty(0),
+                "floors": real.get("floors", np.maximum(1, np.rint(real.get("height", np.zeros(n)) / 3.2))),
+                "roof": real.get("roof", np.full(n, "flat", dtype=object)),
+                "lot": lot, "district": district, "source": np.full(n, "osm", dtype=object),
+                "osm_id": real.get("osm_id", np.full(n, -1, np.int64)),
+                "name": real.get("name", np.full(n, "", dtype=object)),
+                "height_source": real.get("height_source", np.full(n, "height", dtype=object))}
+        top = int(buildings.ids.max(initial=-1)) + 1
+        kept = Layer(geoms, top + np.arange(n, dtype=np.int64), lot.copy(),
+                     {k: np.asarray(v) for k, v in cols.items()}, dict(buildings.meta))
+        out = Layer.concat([generated, kept], renumber=False).with_meta(**buildings.meta)
+        self.report = {"buildings": len(out), "existing": n, "generated": len(generated),
+                       "not_built": int(len(buildings) - len(generated)), "existing_on_lots": int(has.sum())}
+        log.info("%s: %d existing buildings kept, %d of %d generated buildings clear of them", self.where, n,
+                 len(generated), len(buildings))
+        return {"buildings": out}
