@@ -97,12 +97,12 @@ def test_monaco_keeps_its_osm_buildings_and_fills_the_rest(tmp_path):
     result = net.run(seed=1, out=tmp_path / "out", formats={"geojson", "cityjson"})
     layers, stats = result.layers, result.stats
     osm_in = layers["majorRoads"]["buildings"]
-    out = layers["existing"]["buildings"]
+    out = layers["buildings"]["buildings"]
     osm = out["source"] == "osm"
     assert sorted(out["osm_id"][osm].tolist()) == sorted(osm_in["osm_id"].tolist())  # every map building stands
     assert out["height"][osm].max() > 60  # Monaco's towers, tagged, not the 10 m default
     gen = out.take(np.flatnonzero(~osm))
-    assert 0 < len(gen) < len(layers["buildings"]["buildings"])  # the map leaves some lots free, not all
+    assert 0 < len(gen) < len(layers["generated"]["buildings"])  # the map leaves some lots free, not all
     real = shapely.make_valid(out.geometry[osm])
     tree = shapely.STRtree(real)
     gi, ri = tree.query(gen.geometry, predicate="intersects")
@@ -112,8 +112,8 @@ def test_monaco_keeps_its_osm_buildings_and_fills_the_rest(tmp_path):
     lots = layers["lots"]["lots"]
     lot_of = dict(zip(lots.ids.tolist(), lots.geometry))
     assert shapely.within(gen.geometry, shapely.buffer([lot_of[i] for i in gen["lot"].tolist()], 1e-6)).all()
-    rep = stats["report"]["existing"]
-    assert rep["buildings"] == len(out) == stats["counts"]["existing"]
+    rep = stats["report"]["buildings"]
+    assert rep["buildings"] == len(out) == stats["counts"]["buildings"]
     assert rep["existing"] == int(osm.sum()) and rep["generated"] == len(gen)
     features = json.loads((tmp_path / "out" / "buildings.geojson").read_text())["features"]
     assert len(features) == len(out)
