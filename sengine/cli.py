@@ -152,7 +152,8 @@ def cmd_batch(args: argparse.Namespace) -> int:
         stats = run_jobs(jobs, args.workers)
     else:
         stats = [_batch_run(net, seed, args.out, formats, _progress(args), args.workers) for seed in seeds]
-    rows = [{"seed": seed, "counts": st["counts"], "areas": st["areas"]} for seed, st in zip(seeds, stats)]
+    rows = [{"seed": seed, "counts": st["counts"], "areas": st["areas"], "report": st["report"]}
+            for seed, st in zip(seeds, stats)]
     if not args.quiet:
         for row in rows:
             print(f"seed {row['seed']}: " + ", ".join(f"{k} {v:,}" for k, v in row["counts"].items()))

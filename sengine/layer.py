@@ -137,6 +137,15 @@ class Layer:
     def columns(self) -> list[str]:
         return list(self.attrs)
 
+    def rows_of(self, ids) -> np.ndarray:
+        """Row of the feature with each of ``ids`` (``-1`` for ids not in the layer)."""
+        ids = np.asarray(ids, np.int64)
+        if not len(self):
+            return np.full(len(ids), -1, np.int64)
+        order = np.argsort(self.ids, kind="stable")
+        pos = order[np.minimum(np.searchsorted(self.ids, ids, sorter=order), len(order) - 1)]
+        return np.where(self.ids[pos] == ids, pos, -1)
+
     def take(self, index: np.ndarray) -> Layer:
         """The features selected by a boolean mask or an integer index."""
         index = np.asarray(index)

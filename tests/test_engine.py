@@ -291,6 +291,9 @@ def test_batch_runs_each_seed(fixtures, tmp_path, cli):
     batch = json.loads((tmp_path / "b" / "batch.json").read_text())
     assert [r["seed"] for r in batch["runs"]] == [1, 2, 3]
     assert all((tmp_path / "b" / f"seed-{s}" / "stats.json").exists() for s in (1, 2, 3))
+    for r in batch["runs"]:  # each run's node reports, side by side
+        own = json.loads((tmp_path / "b" / f"seed-{r['seed']}" / "stats.json").read_text())
+        assert r["report"] == own["report"] and r["counts"] == own["counts"]
     # the same seeds two at a time in two processes: the same files
     res = cli("batch", fixtures / "squares.xml", "-o", tmp_path / "p", "--seeds", "1-3", "--workers", "2")
     assert res.returncode == 0, res.stderr
