@@ -33,6 +33,9 @@ __all__ = ["overlap_areas", "largest_share", "BuildingsExisting"]
 
 log = logging.getLogger(__name__)
 
+#: Storey height (m) for existing buildings that come with a height but no floors.
+FLOOR_HEIGHT = 3.2
+
 
 def _pairs(geoms, others):
     """Intersecting (geoms index, others index) pairs and the area (m2) each pair shares."""
@@ -108,7 +111,7 @@ class BuildingsExisting(SENode):
         if has.any() and "district" in lots.attrs:
             district[has] = np.asarray(lots["district"], np.int64)[lot_i[has]]
         cols = {"height": np.asarray(real["height"], np.float64) if n else np.empty(0),
-                "floors": real.get("floors", np.maximum(1, np.rint(real.get("height", np.zeros(n)) / 3.2))),
+                "floors": real.get("floors", np.maximum(1, np.rint(real.get("height", np.zeros(n)) / FLOOR_HEIGHT))),
                 "roof": real.get("roof", np.full(n, "flat", dtype=object)),
                 "lot": lot, "district": district, "source": np.full(n, "osm", dtype=object),
                 "osm_id": real.get("osm_id", np.full(n, -1, np.int64)),

@@ -14,7 +14,8 @@ the whole city the built footprint, the gross floor area (GFA: footprint
 times floors), the floor area ratio (FAR = GFA / site area), the coverage
 (footprint / site area) and the residents the floor area would house.
 A building is counted on the lots it stands on, in proportion to the area
-it covers there, so a real building across two lots counts half on each.
+it covers there: a real building across two lots counts on each with its
+part.
 """
 
 from __future__ import annotations
