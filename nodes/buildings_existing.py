@@ -111,7 +111,8 @@ class BuildingsExisting(SENode):
         if has.any() and "district" in lots.attrs:
             district[has] = np.asarray(lots["district"], np.int64)[lot_i[has]]
         cols = {"height": np.asarray(real["height"], np.float64) if n else np.empty(0),
-                "floors": real.get("floors", np.maximum(1, np.rint(real.get("height", np.zeros(n)) / FLOOR_HEIGHT))),
+                "floors": np.asarray(real.get("floors", np.maximum(1, np.rint(real.get("height", np.zeros(n))
+                                                                               / FLOOR_HEIGHT))), np.int64),
                 "roof": real.get("roof", np.full(n, "flat", dtype=object)),
                 "lot": lot, "district": district, "source": np.full(n, "osm", dtype=object),
                 "osm_id": real.get("osm_id", np.full(n, -1, np.int64)),
