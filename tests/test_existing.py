@@ -122,3 +122,14 @@ def test_monaco_keeps_its_osm_buildings_and_fills_the_rest(tmp_path):
     assert {f["properties"]["source"] for f in features} == {"osm", "generated"}
     city = json.loads((tmp_path / "out" / "buildings.city.json").read_text())
     assert len(city["CityObjects"]) == len(out)
+
+
+def test_a_self_crossing_map_footprint_is_repaired_not_fatal():
+    lots, built = street_of_lots()
+    bowtie = shapely.Polygon([(2, 2), (18, 28), (18, 2), (2, 28)])  # crosses itself in lot 10
+    assert not bowtie.is_valid
+    out, report = run(built, Layer.from_geoms([bowtie], height=np.array([12.0])), lots)
+    osm = out.geometry[out["source"] == "osm"]
+    assert len(osm) == 1 and shapely.is_valid(osm).all()
+    assert osm[0].area == pytest.approx(2 * 0.5 * 16 * 13)  # the two triangles of the bow-tie
+    assert 10 not in out["lot"][out["source"] == "generated"].tolist() and report["generated"] == 4
