@@ -29,7 +29,7 @@ import shapely
 from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import InputDataError
 
-__all__ = ["overlap_areas", "largest_share", "BuildingsExisting"]
+__all__ = ["overlap_areas", "largest_share", "map_buildings", "BuildingsExisting"]
 
 log = logging.getLogger(__name__)
 
@@ -69,6 +69,34 @@ def largest_share(geoms, polys) -> np.ndarray:
     return out
 
 
+def map_buildings(real: Layer, lots: Layer | None, first_id: int) -> Layer:
+    """The map's buildings as a buildings layer, ids from ``first_id`` on.
+
+    Each takes the lot holding most of its footprint (``lot`` and the
+    parent id; ``-1`` on none) and that lot's ``district``; ``floors`` come
+    from the map or from the height at :data:`FLOOR_HEIGHT` a storey.
+    """
+    n = len(real)
+    lot_i = largest_share(real.geometry, lots.geometry) if lots is not None else np.full(n, -1, np.int64)
+    has = lot_i >= 0
+    lot = np.full(n, -1, np.int64)
+    district = np.full(n, -1, np.int64)
+    if has.any():
+        lot[has] = lots.ids[lot_i[has]]
+        if "district" in lots:
+            district[has] = np.asarray(lots["district"], np.int64)[lot_i[has]]
+    height = np.asarray(real["height"], np.float64)
+    floors = real.get("floors", np.maximum(1, np.rint(height / FLOOR_HEIGHT)))
+    cols = {"height": height, "floors": np.asarray(floors, np.int64),
+            "roof": real.get("roof", np.full(n, "flat", dtype=object)),
+            "lot": lot, "district": district, "source": np.full(n, "osm", dtype=object),
+            "osm_id": real.get("osm_id", np.full(n, -1, np.int64)),
+            "name": real.get("name", np.full(n, "", dtype=object)),
+            "height_source": real.get("height_source", np.full(n, "height", dtype=object))}
+    return Layer(real.geometry, first_id + np.arange(n, dtype=np.int64), lot.copy(),
+                 {k: np.asarray(v) for k, v in cols.items()}, dict(real.meta))
+
+
 @register
 class BuildingsExisting(SENode):
     """The map's existing buildings kept, generated buildings only where they leave room (§5.2)."""
@@ -80,7 +108,8 @@ class BuildingsExisting(SENode):
                          required=False),
         "lots": Port("lots", "lots: give each existing building the lot and district it stands in", required=False),
     }
-    outputs = {"buildings": Port("buildings", "existing and generated buildings, with 'source' and 'osm_id'")}
+    outputs = {"buildings": Port("buildings", "existing and generated buildings, with 'source' (and the map's "
+                                              "'osm_id', 'name', 'height_source' when it has buildings)")}
     params = {
         "keep": Param("str", "both", choices=("both", "existing", "generated"),
                       doc="the existing buildings and the generated ones clear of them, or one kind only"),
@@ -95,35 +124,21 @@ class BuildingsExisting(SENode):
         geoms = real.geometry.copy()
         bad = ~shapely.is_valid(geoms) if len(geoms) else np.zeros(0, bool)
         geoms[bad] = shapely.make_valid(geoms[bad])  # map polygons may self-touch: repair them for the overlap test
+        real = real.with_geometry(geoms)
         covered = overlap_areas(buildings.geometry, geoms)
         build = covered <= self.p.overlap if self.p.keep != "existing" else np.zeros(len(buildings), bool)
         generated = buildings.take(np.flatnonzero(build))
-        m = len(generated)
-        generated = generated.with_columns(source=np.full(m, "generated", dtype=object), osm_id=np.full(m, -1, np.int64),
-                                           name=np.full(m, "", dtype=object),
-                                           height_source=np.full(m, "generated", dtype=object))
-        n = len(real)
-        # an existing building belongs to the lot holding most of it; its ids follow the generated ones
-        lot_i = largest_share(geoms, lots.geometry) if lots is not None else np.full(n, -1, np.int64)
-        has = lot_i >= 0
-        lot = np.where(has, lots.ids[np.maximum(lot_i, 0)], -1) if has.any() else lot_i
-        district = np.full(n, -1, np.int64)
-        if has.any() and "district" in lots.attrs:
-            district[has] = np.asarray(lots["district"], np.int64)[lot_i[has]]
-        cols = {"height": np.asarray(real["height"], np.float64) if n else np.empty(0),
-                "floors": np.asarray(real.get("floors", np.maximum(1, np.rint(real.get("height", np.zeros(n))
-                                                                               / FLOOR_HEIGHT))), np.int64),
-                "roof": real.get("roof", np.full(n, "flat", dtype=object)),
-                "lot": lot, "district": district, "source": np.full(n, "osm", dtype=object),
-                "osm_id": real.get("osm_id", np.full(n, -1, np.int64)),
-                "name": real.get("name", np.full(n, "", dtype=object)),
-                "height_source": real.get("height_source", np.full(n, "height", dtype=object))}
-        top = int(buildings.ids.max(initial=-1)) + 1
-        kept = Layer(geoms, top + np.arange(n, dtype=np.int64), lot.copy(),
-                     {k: np.asarray(v) for k, v in cols.items()}, dict(buildings.meta))
-        out = Layer.concat([generated, kept], renumber=False).with_meta(**buildings.meta)
-        self.report = {"buildings": len(out), "existing": n, "generated": len(generated),
-                       "not_built": int(len(buildings) - len(generated)), "existing_on_lots": int(has.sum())}
+        m, n = len(generated), len(real)
+        out = generated.with_columns(source=np.full(m, "generated", dtype=object))
+        on_lots = 0
+        if n:  # the map's columns, for the generated ones too (a city without map buildings has no use for them)
+            kept = map_buildings(real, lots, first_id=int(buildings.ids.max(initial=-1)) + 1)
+            on_lots = int((kept["lot"] >= 0).sum())
+            out = out.with_columns(osm_id=np.full(m, -1, np.int64), name=np.full(m, "", dtype=object),
+                                   height_source=np.full(m, "generated", dtype=object))
+            out = Layer.concat([out, kept], renumber=False).with_meta(**buildings.meta)
+        self.report = {"buildings": len(out), "existing": n, "generated": m, "not_built": len(buildings) - m,
+                       "existing_on_lots": on_lots}
         log.info("%s: %d existing buildings kept, %d of %d generated buildings clear of them", self.where, n,
-                 len(generated), len(buildings))
+                 m, len(buildings))
         return {"buildings": out}

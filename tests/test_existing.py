@@ -64,6 +64,7 @@ def test_keep_chooses_one_kind():
     assert len(only_map) == 1 and only_map["source"].tolist() == ["osm"] and rep["generated"] == 0
     only_gen, rep = run(built, existing, lots, keep="generated")
     assert len(only_gen) == 5 and set(only_gen["source"]) == {"generated"} and rep["existing"] == 0
+    assert set(only_gen.columns) == set(built.columns) | {"source"}  # no empty map columns without map buildings
     tall = Layer.from_geoms([shapely.box(200, 0, 210, 10)], height=np.array([31.0]))  # no floors column
     assert run(built, tall, lots)[0]["floors"].tolist() == [4, 4, 4, 4, 4, 10]
     with pytest.raises(sengine.errors.InputDataError, match="height"):
