@@ -147,7 +147,7 @@ class StatsPlanning(SENode):
     }
     outputs = {
         "lots": Port("lots", "the lots with footprint, floor_area (m2), far and coverage columns"),
-        "blocks": Port("blocks", "the blocks with the same columns (empty without blocks)"),
+        "blocks": Port("blocks", "the blocks with the same columns, for what stands on their lots (empty without blocks)"),
     }
     params = {
         "m2_per_resident": Param("float", 50.0, min=1.0, max=1000.0, unit="m2",
@@ -177,11 +177,14 @@ class StatsPlanning(SENode):
                 report[f"{kind}_buildings"] = {"footprint_m2": round(float(part[mine].sum()), 1),
                                                "floor_area_m2": round(float(floor_area[mine].sum()), 1)}
         out_blocks = Layer.empty(meta=lots.meta)
-        if blocks is not None and "block" in lots:
-            owner = blocks.rows_of(lots["block"])
-            has = owner >= 0
-            bf = np.bincount(owner[has], weights=foot[has], minlength=len(blocks))
-            bg = np.bincount(owner[has], weights=gfa[has], minlength=len(blocks))
+        if blocks is not None:
+            if "block" in lots:  # the lots' sums: every building on a lot is on its block
+                owner = blocks.rows_of(lots["block"])
+                has = owner >= 0
+                bf = np.bincount(owner[has], weights=foot[has], minlength=len(blocks))
+                bg = np.bincount(owner[has], weights=gfa[has], minlength=len(blocks))
+            else:
+                bf, bg = built_on_sites(blocks, buildings)
             out_blocks = blocks.with_columns(**planning_columns(shapely.area(blocks.geometry), bf, bg))
         self.report = report
         c = report["city"]

@@ -41,6 +41,9 @@ def test_buildings_count_on_the_lots_they_stand_on():
     assert blocks_out.ids.tolist() == [1, 2]
     assert blocks_out["floor_area"].tolist() == pytest.approx([500.0, 0.0])
     assert blocks_out["far"].tolist() == pytest.approx([500 / 1200, 0.0])
+    # lots that do not name their block: the blocks are measured on the ground, to the same figures
+    unnamed = Layer(lots.geometry, lots.ids, lots.parent, {"district": lots["district"]})
+    assert run(unnamed, buildings, blocks)[1]["floor_area"].tolist() == pytest.approx([500.0, 0.0])
     city = report["city"]
     assert city == {"site_area_m2": 1800.0, "footprint_m2": 200.0, "floor_area_m2": 500.0,
                     "far": round(500 / 1800, 4), "coverage": round(200 / 1800, 4), "residents": 10}
@@ -88,5 +91,7 @@ def test_manhattan_report_matches_the_lots_file(tmp_path):
     assert city["far"] == pytest.approx(gfa / city["site_area_m2"], abs=1e-4)
     assert 0 < city["coverage"] < 1
     assert all(0 <= f["properties"]["coverage"] <= 1 + 1e-9 for f in feats)
+    blocks = json.loads((tmp_path / "o" / "blocks.geojson").read_text())["features"]
+    assert sum(f["properties"]["floor_area"] for f in blocks) == pytest.approx(gfa, rel=1e-9)
     districts = stats["report"]["planning"]["districts"]
     assert sum(d["floor_area_m2"] for d in districts.values()) == pytest.approx(city["floor_area_m2"], abs=1.0)
