@@ -176,6 +176,19 @@ def test_geojson_real_polygons_with_holes(tmp_path):
     assert data["features"][0]["properties"]["height"] is None
 
 
+@pytest.mark.parametrize("chunk", [1, 7, 100])
+def test_geojson_written_in_chunks_is_the_same_text(city, written, chunk):
+    from sengine.io.geojson import feature_collection_chunks
+
+    plan, layers = city
+    text = (written / "lots.geojson").read_text(encoding="utf-8")
+    lots = layers["lots"]
+    assert len(lots) > 100  # so that chunks of 100 split it too
+    pieces = list(feature_collection_chunks(lots, to_lonlat(lots.meta["crs"]), name="lots", chunk=chunk))
+    assert len(pieces) == 2 + -(-len(lots) // chunk)
+    assert "".join(pieces) + "\n" == text
+
+
 # -- OSM XML ---------------------------------------------------------------------
 def test_streets_osm_reads_back_with_shared_junctions(city, written):
     _, layers = city

@@ -9,14 +9,15 @@ every attribute column; NaN becomes ``null``.  Keys are sorted, so the same
 layer always gives the same bytes.
 
 Geometries are serialised by GEOS in one vectorized call and attribute values
-column by column, so a layer of thousands of features takes milliseconds.
+column by column, so a layer of thousands of features takes milliseconds; a
+whole city's layer is written in chunks of :data:`CHUNK` features.
 """
 
 from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,7 @@ import shapely
 
 from ..layer import Layer
 
-__all__ = ["to_wgs84", "feature_collection_text", "write_geojson"]
+__all__ = ["to_wgs84", "feature_collection_chunks", "feature_collection_text", "write_geojson"]
 
 log = logging.getLogger(__name__)
 
@@ -122,35 +123,49 @@ def _default(v: Any) -> Any:
     return str(v)
 
 
-def feature_collection_text(layer: Layer, to_lonlat: Callable[[np.ndarray], np.ndarray], *,
-                            name: str | None = None, precision: int = 7) -> str:
-    """The RFC 7946 FeatureCollection of ``layer`` as JSON text (sorted keys).
+#: Features rendered at a time: the text of a chunk is written before the next one is made.
+CHUNK = 20_000
+
+
+def feature_collection_chunks(layer: Layer, to_lonlat: Callable[[np.ndarray], np.ndarray], *,
+                              name: str | None = None, precision: int = 7, chunk: int = CHUNK) -> Iterator[str]:
+    """The RFC 7946 FeatureCollection of ``layer`` as pieces of JSON text (sorted keys).
 
     Values are rendered column by column (ints with ``str``, floats with
     ``repr`` as :mod:`json` does, strings through :func:`json.dumps` once per
     distinct value) and features are assembled with one ``%`` template, which
-    keeps a layer of thousands of features in the milliseconds.
+    keeps a layer of thousands of features in the milliseconds.  ``chunk``
+    features at a time, so that a whole city's layer never sits in memory as
+    text; the pieces join to the same text for any ``chunk``.
     """
     geoms = to_wgs84(layer.geometry, to_lonlat, precision=precision)
-    n = len(geoms)
-    geo_texts = [("null" if t is None else t) for t in shapely.to_geojson(geoms).tolist()] if n else []
     cols = {"id": layer.ids, "parent_id": layer.parent, **dict(layer.attrs)}
     keys = sorted(cols)
-    texts = [_column_texts(cols[k]) for k in keys]
     props = "{" + ",".join(_dumps(k).replace("%", "%%") + ":%s" for k in keys) + "}"
-    prop_texts = [props % row for row in zip(*texts, strict=False)] if n else []
     feature = '{"geometry":%s,"id":%s,"properties":%s,"type":"Feature"}'
-    feats = ",".join([feature % row for row in zip(geo_texts, _column_texts(layer.ids), prop_texts, strict=False)])
-    head = '{"features":[' + feats + "]"
-    if name:
-        head += ',"name":' + _dumps(name)
-    return head + ',"type":"FeatureCollection"}'
+    yield '{"features":['
+    for lo in range(0, len(geoms), max(int(chunk), 1)):
+        part = slice(lo, lo + max(int(chunk), 1))
+        geo_texts = [("null" if t is None else t) for t in shapely.to_geojson(geoms[part]).tolist()]
+        texts = [_column_texts(cols[k][part]) for k in keys]
+        prop_texts = [props % row for row in zip(*texts, strict=False)]
+        ids = _column_texts(layer.ids[part])
+        yield ("," if lo else "") + ",".join([feature % row for row in zip(geo_texts, ids, prop_texts, strict=False)])
+    yield "]" + (',"name":' + _dumps(name) if name else "") + ',"type":"FeatureCollection"}'
+
+
+def feature_collection_text(layer: Layer, to_lonlat: Callable[[np.ndarray], np.ndarray], *,
+                            name: str | None = None, precision: int = 7) -> str:
+    """The RFC 7946 FeatureCollection of ``layer`` as JSON text (see :func:`feature_collection_chunks`)."""
+    return "".join(feature_collection_chunks(layer, to_lonlat, name=name, precision=precision))
 
 
 def write_geojson(path: str | Path, layer: Layer, to_lonlat: Callable[[np.ndarray], np.ndarray], *,
                   name: str | None = None, precision: int = 7) -> int:
-    """Write ``layer`` as RFC 7946 GeoJSON; return the number of features."""
-    text = feature_collection_text(layer, to_lonlat, name=name, precision=precision)
-    Path(path).write_text(text + "\n", encoding="utf-8")
+    """Write ``layer`` as RFC 7946 GeoJSON, a chunk of features at a time; return the number of features."""
+    with open(path, "w", encoding="utf-8") as f:
+        for piece in feature_collection_chunks(layer, to_lonlat, name=name, precision=precision):
+            f.write(piece)
+        f.write("\n")
     log.info("wrote %s: %d features", path, len(layer))
     return len(layer)
