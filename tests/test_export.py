@@ -236,6 +236,24 @@ def test_preview_png(city, written):
     assert len(counts) > 20  # the height ramp is used
 
 
+def test_preview_outlines_the_maps_buildings_only():
+    from sengine.io.preview import _FIXED, render
+
+    boxes = [shapely.box(20 * i, 0, 20 * i + 12, 12) for i in range(6)]
+    source = np.array(["generated", "osm"] * 3, dtype=object)
+    built = Layer.from_geoms(boxes, height=np.full(6, 10.0), source=source)
+    edge = _FIXED["map_edge"]
+
+    def edge_pixels(layer):
+        image = np.asarray(render({"buildings": layer}, size=400))
+        scale = (400 - 2 * 10) / 112  # px per m: 10 px padding, the 112 m the boxes span
+        return (np.flatnonzero((image[:-64] == edge).any(axis=0)) - 10) / scale  # columns, in metres
+
+    cols = edge_pixels(built)
+    assert len(cols) and all(any(20 * i - 1 <= c <= 20 * i + 13 for i in (1, 3, 5)) for c in cols)
+    assert not len(edge_pixels(built.with_columns(source=np.full(6, "generated", dtype=object))))
+
+
 # -- OBJ / CityJSON ----------------------------------------------------------------
 def test_obj_one_group_per_layer(city, written):
     _, layers = city

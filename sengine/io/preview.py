@@ -4,8 +4,9 @@ Drawn with Pillow's ImageDraw into 8-bit index layers that are composited
 with numpy, then saved as a palette PNG (small, and no time chunk: the same
 layers give the same bytes).  Layers from bottom to top: water, streets,
 sidewalks, blocks, lots (with their outlines), parks, buildings (a colour
-ramp over height), roads (centre lines).  A footer holds the height legend,
-a scale bar and the layer swatches.
+ramp over height; those of the map, ``source`` ``"osm"``, outlined), roads
+(centre lines).  A footer holds the height legend, a scale bar and the layer
+swatches.
 """
 
 from __future__ import annotations
@@ -30,8 +31,9 @@ _ORDER = ("water", "streets", "sidewalks", "blocks", "lots", "parks", "buildings
 _BACKGROUND = (250, 250, 247)
 _INK = (30, 30, 30)
 _LOT_EDGE = (196, 188, 170)
-# palette: 0 background, 1 ink, 2 white, 3 lot edges, 8.. layers, 64..127 height ramp
-_FIXED = {"background": 0, "ink": 1, "white": 2, "lot_edge": 3}
+_MAP_EDGE = (70, 70, 70)
+# palette: 0 background, 1 ink, 2 white, 3 lot edges, 4 map buildings' edges, 8.. layers, 64..127 height ramp
+_FIXED = {"background": 0, "ink": 1, "white": 2, "lot_edge": 3, "map_edge": 4}
 _LAYER_INDEX = {name: 8 + i for i, name in enumerate(_ORDER)}
 ROADS_INDEX = _LAYER_INDEX["roads"]
 _RAMP0, _RAMP_N = 64, 64
@@ -48,7 +50,7 @@ def ramp(t: np.ndarray) -> np.ndarray:
 
 def _palette() -> np.ndarray:
     pal = np.zeros((256, 3), np.uint8)
-    pal[0], pal[1], pal[2], pal[3] = _BACKGROUND, _INK, (255, 255, 255), _LOT_EDGE
+    pal[0], pal[1], pal[2], pal[3], pal[4] = _BACKGROUND, _INK, (255, 255, 255), _LOT_EDGE, _MAP_EDGE
     for name, idx in _LAYER_INDEX.items():
         pal[idx] = COLOURS[name]
     pal[_RAMP0:_RAMP0 + _RAMP_N] = ramp(np.linspace(0, 1, _RAMP_N))
@@ -140,6 +142,7 @@ def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Ima
 
     canvas = Image.new("L", (w, h), 0)
     hmin = hmax = 0.0
+    has_map = False
     for name in _ORDER:
         lay = layers.get(name)
         if lay is None:
@@ -159,7 +162,13 @@ def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Ima
                 hmin, hmax = float(hts.min()), float(hts.max())
                 t = (hts - hmin) / (hmax - hmin) if hmax > hmin else np.full(len(hts), 0.5)
                 vals = _RAMP0 + np.minimum((t * _RAMP_N).astype(int), _RAMP_N - 1)
-                _draw_polygons(draw, rings, to_px, vals[polys])
+                mapped = np.asarray(lay["source"]).astype(str) == "osm" if "source" in lay.attrs else polys & False
+                if mapped.any():  # the map's own buildings outlined, over the generated ones
+                    has_map = True
+                    for sel, edge in ((polys & ~mapped, None), (polys & mapped, _FIXED["map_edge"])):
+                        _draw_polygons(draw, ring_arrays(geoms[sel]), to_px, vals[sel], outline=edge)
+                else:
+                    _draw_polygons(draw, rings, to_px, vals[polys])
             else:
                 edge = _FIXED["lot_edge"] if name == "lots" else None
                 _draw_polygons(draw, rings, to_px, _LAYER_INDEX.get(name, _FIXED["ink"]), outline=edge)
@@ -176,11 +185,12 @@ def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Ima
     canvas = np.asarray(canvas)
     image = Image.fromarray(np.vstack([canvas, np.zeros((64, w), np.uint8)]), "P")
     image.putpalette(PALETTE.ravel().tolist())
-    _footer(image, h, w, scale, hmin, hmax, [n for n in _ORDER if n in layers])
+    _footer(image, h, w, scale, hmin, hmax, [n for n in _ORDER if n in layers], map_buildings=has_map)
     return image
 
 
-def _footer(image: Image.Image, top: int, w: int, scale: float, hmin: float, hmax: float, present: list) -> None:
+def _footer(image: Image.Image, top: int, w: int, scale: float, hmin: float, hmax: float, present: list, *,
+            map_buildings: bool = False) -> None:
     draw = ImageDraw.Draw(image)
     font = ImageFont.load_default(size=13)
     ink = _FIXED["ink"]
@@ -203,6 +213,10 @@ def _footer(image: Image.Image, top: int, w: int, scale: float, hmin: float, hma
         draw.text((x + bar, y + 20), f"{hmax:.0f} m", fill=ink, font=font, anchor="ra")
         draw.text((x, y - 8), "building height", fill=ink, font=font)
         x += bar + 30
+        if map_buildings:
+            draw.rectangle([x, y + 8, x + 14, y + 20], fill=_RAMP0 + _RAMP_N // 4, outline=_FIXED["map_edge"], width=2)
+            draw.text((x + 18, y + 7), "from the map", fill=ink, font=font)
+            x += 24 + int(draw.textlength("from the map", font=font)) + 12
     for name in present:
         if name == "buildings" or x > w - 90:
             continue
