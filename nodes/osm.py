@@ -277,8 +277,9 @@ class OsmRead(SENode):
             raise InputDataError(f"OSM file {str(path)!r}: {exc.message}", where=where) from None
         meta = dict(roads.meta)
         if not len(roads):
-            log.warning("%s: OSM file %s holds no highway of the classes %s: the city is empty",
-                        self.where, path, ",".join(sorted(keep)) if keep else "*")
+            log.warning("%s: OSM file %s holds no highway of the classes %s: the city is empty of streets, "
+                        "blocks and lots (%d buildings of the map)", self.where, path,
+                        ",".join(sorted(keep)) if keep else "*", len(ext.polygons["buildings"][0]))
             lonlat = [shapely.get_coordinates(shapely.from_wkb(h)) for h in ext.polygons["buildings"][0][:1]]
             if lonlat:
                 _, crs, origin = project_extract(lonlat[0])

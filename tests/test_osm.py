@@ -230,7 +230,7 @@ def test_no_highways_is_an_empty_city(tmp_path, caplog):
     with caplog.at_level(logging.WARNING):
         out, _ = read(f)
     assert len(out["roads"]) == 0
-    assert "empty" in caplog.text and "fields.osm" in caplog.text
+    assert "empty of streets" in caplog.text and "fields.osm" in caplog.text and "1 buildings of the map" in caplog.text
     assert len(out["buildings"]) == 1 and out["roads"].meta["crs"] == "EPSG:32632"
     cleaned = get("roads.clean")("clean", {}, Context()).run(roads=out["roads"])
     assert len(cleaned["roads"]) == 0
