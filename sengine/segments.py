@@ -130,6 +130,23 @@ def _segments_intersect(p1, p2, p3, p4) -> np.ndarray:
     return hit
 
 
+def _overlap_past_node(p1, p2, p3, p4) -> np.ndarray:
+    """Whether collinear segments p1p2 and p3p4 that share an end point overlap beyond it."""
+    r, s = p2 - p1, p4 - p3
+
+    def cross(a, b):
+        return a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+
+    col = (cross(r, p3 - p1) == 0) & (cross(r, p4 - p1) == 0)
+    rr, ss = np.einsum("ij,ij->i", r, r), np.einsum("ij,ij->i", s, s)
+    inside = np.zeros(len(p1), bool)
+    for a, d, dd, ends in ((p1, r, rr, (p3, p4)), (p3, s, ss, (p1, p2))):
+        for e in ends:  # an end of one segment strictly inside the other
+            t = np.einsum("ij,ij->i", e - a, d) / np.where(dd > 0, dd, 1.0)
+            inside |= (t > 0) & (t < 1)
+    return col & inside
+
+
 def planarize(xy, u, v, *, decimals: int | None = 9):
     """Split segments that cross or touch without a shared node.
 
@@ -168,7 +185,10 @@ def planarize(xy, u, v, *, decimals: int | None = 9):
     sel = i < j
     i, j = i[sel], j[sel]
     shared = (u[i] == u[j]) | (u[i] == v[j]) | (v[i] == u[j]) | (v[i] == v[j])
-    i, j = i[~shared], j[~shared]
+    # a shared node rules out a crossing, not a collinear overlap past it (a short way along a long one)
+    past = np.zeros(len(i), bool)
+    past[shared] = _overlap_past_node(xy[u[i[shared]]], xy[v[i[shared]]], xy[u[j[shared]]], xy[v[j[shared]]])
+    i, j = i[~shared | past], j[~shared | past]
     hit = _segments_intersect(xy[u[i]], xy[v[i]], xy[u[j]], xy[v[j]])
     i, j = i[hit], j[hit]
     if len(i) == 0:

@@ -106,6 +106,18 @@ def test_planarize_splits_crossings_t_junctions_and_overlaps():
     assert planarize(nxy, nu, nv)[4] == 0
 
 
+def test_planarize_splits_a_collinear_overlap_that_shares_a_node():
+    """A long way from a node along two short ones (found by hypothesis): split at the middle node."""
+    xy = np.array([[0, 0], [20.1171875, 0], [40.234375, 0], [60, 0.0]])
+    u, v = np.array([0, 1, 0, 2]), np.array([1, 2, 2, 3])  # 0-1, 1-2, then 0-2 over both, and 2-3 straight on
+    nxy, nu, nv, src, crossings = planarize(xy, u, v)
+    assert crossings == 2  # 0-2 with 0-1 and with 1-2; the straight continuation 2-3 is no overlap
+    pieces = {tuple(sorted((nxy[a, 0], nxy[b, 0]))) for a, b in zip(nu, nv, strict=True)}
+    assert pieces == {(0, 20.1171875), (20.1171875, 40.234375), (40.234375, 60)}  # the long way over the two
+    assert sorted(src.tolist()) == [0, 1, 2, 2, 3]
+    assert planarize(nxy, nu, nv)[4] == 0
+
+
 def test_signed_area_and_merge_points():
     xy = np.array([[0, 0], [2, 0], [2, 1], [0, 0], [0, 1], [1, 0.0]])
     a = signed_area(xy, np.array([0, 0, 0, 1, 1, 1]))
