@@ -24,7 +24,9 @@ Blocks are then shrunk for the streets and sidewalks (§5.4, last
 paragraph): each face is inset by the length-weighted mean half-width of
 the streets around it, giving the street surface, and by the sidewalk
 width again, giving the block; the two rings are kept as ``streets`` and
-``sidewalks`` polygon layers.
+``sidewalks`` polygon layers.  With ``inset="street"`` each side moves by
+its own street's half-width instead (:func:`inset_by_street`), so that an
+avenue keeps its width beside an alley.
 
 References
 ----------
@@ -49,7 +51,8 @@ from sengine.segments import merge_points, planarize, segments_from_lines
 if TYPE_CHECKING:
     import networkx as nx
 
-__all__ = ["find_blocks", "BlockFaces", "traced_faces", "face_half_widths", "shrink_faces", "street_graph", "BlocksCircuits"]
+__all__ = ["find_blocks", "BlockFaces", "traced_faces", "face_half_widths", "shrink_faces", "inset_by_street",
+           "shrink_faces_by_street", "street_graph", "BlocksCircuits"]
 
 log = logging.getLogger(__name__)
 
@@ -237,6 +240,75 @@ def shrink_faces(faces, half_width, sidewalk: float):
     return street, _ring_between(edge, block, gap=np.ones(len(faces), bool)), block
 
 
+def inset_by_street(faces, bf: BlockFaces, face_ids, segment_distance) -> np.ndarray:
+    """Each face shrunk street by street: every side by its own street's distance.
+
+    Parameters
+    ----------
+    faces : array_like of shapely.Polygon
+        Faces of ``bf`` (its ``faces[face_ids]``).
+    bf : BlockFaces
+        The traced street graph: its segments and the faces on their sides.
+    face_ids : array_like of int
+        Index into ``bf.faces`` of each of ``faces``.
+    segment_distance : array_like of float
+        Distance (m) to move off each segment of ``bf`` (its ``u``, ``v``).
+
+    Returns
+    -------
+    ndarray of shapely.Geometry
+        Each face inset (mitred) by the smallest distance of its sides,
+        minus the ground within each farther side's distance of it (round
+        at its ends).  The farther sides of a face at one distance are
+        merged into lines (``shapely.line_merge``: a buffer of a few long
+        lines is much cheaper than one of many segments) and buffered
+        together; a face's few distances are taken off in rounds.
+    """
+    faces = np.asarray(faces, dtype=object)
+    pos = np.full(len(bf.faces), -1, np.int64)
+    pos[np.asarray(face_ids, np.int64)] = np.arange(len(faces))
+    seg = np.repeat(np.arange(len(bf.u)), 2)
+    owner = bf.edge_faces.ravel()
+    owner = np.where(owner >= 0, pos[np.maximum(owner, 0)], -1)
+    seg, owner = seg[owner >= 0], owner[owner >= 0]
+    dist = np.asarray(segment_distance, np.float64)[seg]
+    nearest = np.full(len(faces), np.inf)
+    np.minimum.at(nearest, owner, dist)
+    out = inset(faces, np.where(np.isfinite(nearest), np.maximum(nearest, 0.0), 0.0))
+    farther = dist > nearest[owner]
+    seg, owner, dist = seg[farther], owner[farther], dist[farther]
+    if not len(seg):
+        return out
+    # distances equal to the mm share a buffer, at the largest of them
+    groups, group = np.unique(np.column_stack([owner, np.round(dist, 3)]), axis=0, return_inverse=True)
+    reach = np.zeros(len(groups))
+    np.maximum.at(reach, group, dist)
+    o = np.argsort(group, kind="stable")
+    lines = shapely.linestrings(np.stack([bf.xy[bf.u[seg[o]]], bf.xy[bf.v[seg[o]]]], axis=1))
+    sides = shapely.line_merge(shapely.multilinestrings(lines, indices=group[o]))
+    cuts = threaded(shapely.buffer, sides, reach, min_size=64, quad_segs=4)
+    gface = groups[:, 0].astype(np.int64)
+    rank = np.arange(len(gface)) - np.searchsorted(gface, gface)  # groups come sorted by face
+    for k in range(int(rank.max()) + 1):
+        sel = rank == k
+        out[gface[sel]] = threaded(shapely.difference, out[gface[sel]], cuts[sel], min_size=64)
+    return out
+
+
+def shrink_faces_by_street(faces, bf: BlockFaces, face_ids, segment_half_width, sidewalk: float):
+    """:func:`shrink_faces` with each side moved by its own street's half-width (and the sidewalk)."""
+    faces = np.asarray(faces, dtype=object)
+    hw = np.asarray(segment_half_width, np.float64)
+    edge = inset_by_street(faces, bf, face_ids, hw)
+    block = inset_by_street(faces, bf, face_ids, hw + sidewalk) if sidewalk > 0 else edge
+    # an inset keeps clear of the face's rings where every street around it has a width
+    narrow = np.zeros(len(bf.faces), bool)
+    for side in bf.edge_faces.T:
+        narrow[side[(side >= 0) & (hw <= 0)]] = True
+    wide = ~narrow[np.asarray(face_ids, np.int64)]
+    return _ring_between(faces, edge, gap=wide), _ring_between(edge, block, gap=np.full(len(faces), sidewalk > 0)), block
+
+
 def _ring_between(outer, inner, gap=None):
     """``outer - inner`` where ``inner`` lies inside ``outer``.
 
@@ -318,6 +390,9 @@ class BlocksCircuits(SENode):
                               doc="street width where the roads carry none (or 'width_from' is param)"),
         "width_from": Param("str", "roads", choices=("roads", "param"),
                             doc="street widths from the roads' width column, or street_width for all"),
+        "inset": Param("str", "mean", choices=("mean", "street"),
+                       doc="shrink each face by the mean half-width of its streets, or each side by its own "
+                           "street's (a few times slower on a whole city)"),
         "min_area": Param("float", 50.0, min=0.0, unit="m2", doc="faces and blocks smaller than this are dropped"),
         "node": Param("bool", True, doc="split crossing segments first (turn off only for plane input)"),
         "decimals": Param("int", 6, min=0, max=12, unit="1", doc="merge nodes equal to this many decimals (m)"),
@@ -356,7 +431,10 @@ class BlocksCircuits(SENode):
             report["dropped_outside_outline"] = int((ok & ~inside).sum())
             ok &= inside
         faces, fid, hw = faces[ok], fid[ok], hw[ok]
-        street, walk, block = shrink_faces(faces, hw, self.p.sidewalk)
+        if self.p.inset == "street":
+            street, walk, block = shrink_faces_by_street(faces, bf, fid, width[bf.src] / 2.0, self.p.sidewalk)
+        else:
+            street, walk, block = shrink_faces(faces, hw, self.p.sidewalk)
         gone = shapely.is_empty(block)
         report["vanished_by_inset"] = int(gone.sum())
         parts, pidx = shapely.get_parts(block, return_index=True)

@@ -144,6 +144,51 @@ def test_node_shrinks_blocks_and_partitions_faces():
     assert shapely.within(blocks.geometry, faces.geometry[blocks["face"]]).all()
 
 
+def test_street_inset_moves_each_side_by_its_own_street():
+    """A grid whose four avenues are 24 m wide and its inner streets 8 m: each block side keeps its own street."""
+    xs = ys = [0.0, 100.0, 200.0, 300.0]
+    lines, widths = [], []
+    for i, x in enumerate(xs):
+        lines.append(shapely.LineString([(x, 0), (x, 300)]))
+        widths.append(24.0 if i in (0, 3) else 8.0)
+    for j, y in enumerate(ys):
+        lines.append(shapely.LineString([(0, y), (300, y)]))
+        widths.append(24.0 if j in (0, 3) else 8.0)
+    roads = Layer.from_geoms(lines, width=np.array(widths), meta={"crs": "EPSG:32631"})
+    out = get("blocks.circuits")("blocks", {"sidewalk": 2.0, "inset": "street"}).run(roads=roads)
+    blocks, faces = out["blocks"], out["faces"]
+    # every side moves by its street's half-width and the sidewalk: 12 + 2 on avenues, 4 + 2 on inner streets
+    want = {(0, 0): (14, 14, 94, 94), (1, 1): (106, 106, 194, 194), (2, 0): (206, 14, 286, 94)}
+    for (i, j), box in want.items():
+        at = shapely.contains_xy(blocks.geometry, 100 * i + 50, 100 * j + 50)
+        assert at.sum() == 1 and shapely.equals_exact(blocks.geometry[at][0].normalize(),
+                                                      shapely.box(*box).normalize(), tolerance=1e-6)
+    # street ring + sidewalk ring + block = face, face by face
+    f = blocks["face"]
+    parts = [shapely.area(out[k].geometry) for k in ("streets", "sidewalks")]
+    assert np.allclose(parts[0][:9] + parts[1] + shapely.area(blocks.geometry), shapely.area(faces.geometry[f]))
+    # the mean inset gives the centre block the same 6 m, but the corner ones only a mean of 10 m
+    mean = get("blocks.circuits")("blocks", {"sidewalk": 2.0}).run(roads=roads)["blocks"]
+    assert np.allclose(sorted(shapely.area(mean.geometry))[-1], (100 - 2 * 6) ** 2)
+
+
+@SETTINGS
+@given(st.lists(st.floats(2.0, 30.0), min_size=8, max_size=8), st.floats(0.0, 4.0))
+def test_street_inset_keeps_every_street_clear(widths, sidewalk):
+    lines = [shapely.LineString([(x, 0), (x, 300)]) for x in (0.0, 90.0, 200.0, 300.0)]
+    lines += [shapely.LineString([(0, y), (300, y)]) for y in (0.0, 120.0, 210.0, 300.0)]
+    roads = Layer.from_geoms(lines, width=np.array(widths), meta={"crs": "EPSG:32631"})
+    out = get("blocks.circuits")("blocks", {"sidewalk": str(sidewalk), "inset": "street", "min_area": "1"}).run(
+        roads=roads)
+    blocks = out["blocks"].geometry
+    for line, w in zip(lines, widths, strict=True):  # no block comes nearer a street than its half-width + sidewalk
+        if len(blocks):
+            assert shapely.distance(blocks, line).min() >= w / 2 + sidewalk - 1e-6
+    # and the three layers still partition the faces
+    total = sum(shapely.area(out[k].geometry).sum() for k in ("streets", "sidewalks", "blocks"))
+    assert total == pytest.approx(shapely.area(out["faces"].geometry).sum(), rel=1e-9)
+
+
 def test_node_outline_areas_and_reports():
     lines = [shapely.LineString([(i * 100.0, 0), (i * 100.0, 200)]) for i in range(3)]
     lines += [shapely.LineString([(0, j * 100.0), (200, j * 100.0)]) for j in range(3)]
