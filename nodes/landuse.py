@@ -75,7 +75,16 @@ def cut_blocks(blocks, cut, *, min_area: float = 0.0, min_width: float = 0.0) ->
         for k in range(int(rank.max(initial=-1)) + 1):
             sel = rank == k
             out[bi[sel]] = shapely.difference(out[bi[sel]], cut[ci[sel]])
+    cut_ones = np.unique(bi)
+    bad = cut_ones[~shapely.is_valid(out[cut_ones])] if len(cut_ones) else cut_ones
+    out[bad] = shapely.make_valid(out[bad])  # an edge cut off a hair's breadth away collapses into a spike
     pieces, block = shapely.get_parts(out, return_index=True)
+    nested = np.isin(shapely.get_type_id(pieces), (6, 7))  # a repaired block may hold a MultiPolygon
+    if nested.any():
+        inner, k = shapely.get_parts(pieces[nested], return_index=True)
+        pieces, block = np.concatenate([pieces[~nested], inner]), np.concatenate([block[~nested], block[nested][k]])
+        o = np.argsort(block, kind="stable")
+        pieces, block = pieces[o], block[o]
     poly = shapely.get_type_id(pieces) == 3
     area = shapely.area(pieces)
     keep = poly & (area >= min_area)

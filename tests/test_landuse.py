@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import shapely
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 import sengine
@@ -26,6 +26,7 @@ coord = st.floats(0, 300, allow_nan=False)
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.tuples(coord, coord, st.floats(2, 80)), max_size=6),
        st.lists(st.tuples(coord, coord, st.floats(1, 120), st.floats(1, 30)), max_size=4))
+@example(circles=[(212.5, 16.0, 80.0)], rects=[(132.0, 5e-324, 4.0, 1.0)])  # a cut a hair above the block's edge
 def test_pieces_and_cut_land_partition_each_block(circles, rects):
     blocks = np.array([shapely.box(x, y, x + 90, y + 60) for x in (0, 100, 200) for y in (0, 70, 140)])
     cut = [shapely.Point(x, y).buffer(r, quad_segs=4) for x, y, r in circles]
