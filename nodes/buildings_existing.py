@@ -28,19 +28,14 @@ import shapely
 
 from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import InputDataError
+from sengine.geometry import largest_share, shared_areas
 
-__all__ = ["overlap_areas", "largest_share", "map_buildings", "BuildingsExisting"]
+__all__ = ["overlap_areas", "map_buildings", "BuildingsExisting"]
 
 log = logging.getLogger(__name__)
 
 #: Storey height (m) for existing buildings that come with a height but no floors.
 FLOOR_HEIGHT = 3.2
-
-
-def _pairs(geoms, others):
-    """Intersecting (geoms index, others index) pairs and the area (m2) each pair shares."""
-    gi, oi = shapely.STRtree(others).query(geoms, predicate="intersects")
-    return gi, oi, shapely.area(shapely.intersection(geoms[gi], others[oi])) if len(gi) else np.zeros(0)
 
 
 def overlap_areas(geoms, others) -> np.ndarray:
@@ -49,24 +44,8 @@ def overlap_areas(geoms, others) -> np.ndarray:
     ``others`` are assumed not to overlap each other much (buildings): a
     part covered twice counts twice, which only errs on the side of "covered".
     """
-    if not len(geoms) or not len(others):
-        return np.zeros(len(geoms))
-    gi, _, area = _pairs(geoms, others)
+    gi, _, area = shared_areas(geoms, others)
     return np.bincount(gi, weights=area, minlength=len(geoms))
-
-
-def largest_share(geoms, polys) -> np.ndarray:
-    """Index of the polygon holding the largest part of each geometry (``-1`` for none)."""
-    out = np.full(len(geoms), -1, np.int64)
-    if not len(geoms) or not len(polys):
-        return out
-    gi, pi, area = _pairs(geoms, polys)
-    o = np.lexsort((pi, -area, gi))  # per geometry, the largest share first (the lowest index on a tie)
-    gi, pi, area = gi[o], pi[o], area[o]
-    first = np.r_[True, gi[1:] != gi[:-1]] if len(gi) else np.zeros(0, bool)
-    first &= area > 0
-    out[gi[first]] = pi[first]
-    return out
 
 
 def map_buildings(real: Layer, lots: Layer | None, first_id: int) -> Layer:

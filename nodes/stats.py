@@ -26,7 +26,7 @@ import numpy as np
 import shapely
 
 from sengine import Layer, Param, Port, SENode, register
-from sengine.geometry import obb_frame, threaded
+from sengine.geometry import obb_frame, shared_areas, threaded
 
 __all__ = ["shape_stats", "building_shares", "built_on_sites", "planning_columns", "StatsShape", "StatsPlanning"]
 
@@ -99,9 +99,7 @@ def building_shares(sites: Layer, buildings: Layer) -> tuple[np.ndarray, np.ndar
     inside = site >= 0
     inside[inside] = threaded(shapely.covers, sites.geometry[site[inside]], geoms[inside])
     named, rest = np.flatnonzero(inside), np.flatnonzero(~inside)
-    ri, rsi = shapely.STRtree(sites.geometry).query(geoms[rest], predicate="intersects") if len(rest) and len(sites) \
-        else (np.zeros(0, np.int64), np.zeros(0, np.int64))
-    shared = shapely.area(shapely.intersection(geoms[rest[ri]], sites.geometry[rsi])) if len(ri) else np.zeros(0)
+    ri, rsi, shared = shared_areas(geoms[rest], sites.geometry)
     return np.r_[named, rest[ri]], np.r_[site[named], rsi], np.r_[shapely.area(geoms[named]), shared]
 
 

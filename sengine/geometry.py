@@ -18,6 +18,8 @@ Public API
     :func:`boundary_segments` -- every boundary segment of each geometry.
     :func:`segments_on` -- which segments lie on a reference boundary.
     :func:`containing` -- the polygon each point lies in.
+    :func:`shared_areas` -- the pairs of geometries that overlap, and by how much.
+    :func:`largest_share` -- the polygon holding the largest part of each geometry.
 """
 
 from __future__ import annotations
@@ -39,6 +41,8 @@ __all__ = [
     "boundary_segments",
     "segments_on",
     "containing",
+    "shared_areas",
+    "largest_share",
 ]
 
 log = logging.getLogger(__name__)
@@ -319,4 +323,25 @@ def containing(points, polys) -> np.ndarray:
     pi, qi = pi[o], qi[o]
     first = np.r_[True, pi[1:] != pi[:-1]] if len(pi) else np.zeros(0, bool)
     out[pi[first]] = qi[first]
+    return out
+
+
+def shared_areas(geoms, others) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Intersecting pairs ``(geoms index, others index)`` and the area (m2) each pair shares."""
+    geoms, others = np.asarray(geoms, dtype=object), np.asarray(others, dtype=object)
+    if not len(geoms) or not len(others):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    gi, oi = shapely.STRtree(others).query(geoms, predicate="intersects")
+    return gi, oi, shapely.area(shapely.intersection(geoms[gi], others[oi])) if len(gi) else np.zeros(0)
+
+
+def largest_share(geoms, polys) -> np.ndarray:
+    """Index of the polygon holding the largest part of each geometry (``-1`` for none; the lowest on a tie)."""
+    out = np.full(len(geoms), -1, np.int64)
+    gi, pi, area = shared_areas(geoms, polys)
+    o = np.lexsort((pi, -area, gi))  # per geometry, the largest share first
+    gi, pi, area = gi[o], pi[o], area[o]
+    first = np.r_[True, gi[1:] != gi[:-1]] if len(gi) else np.zeros(0, bool)
+    first &= area > 0
+    out[gi[first]] = pi[first]
     return out

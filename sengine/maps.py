@@ -34,9 +34,9 @@ from pathlib import Path
 
 import numpy as np
 import shapely
-from shapely import STRtree
 
 from .errors import InputDataError
+from .geometry import largest_share
 
 __all__ = ["ImageMap", "read_map", "parse_colour", "colour_hex", "classify", "vectorize", "LOSSY_FORMATS"]
 
@@ -491,12 +491,8 @@ def vectorize(
         noded = shapely.union_all(smooth)
         new = np.asarray(shapely.get_parts(shapely.polygonize([noded])), dtype=object)
         # each new face takes the label of the pixel face it overlaps most
-        ni, fi = STRtree(faces).query(new, predicate="intersects")
-        share = shapely.area(shapely.intersection(new[ni], faces[fi]))
-        order = np.lexsort((-share, ni))
-        first = order[np.r_[True, ni[order][1:] != ni[order][:-1]]]
-        new_label = np.full(len(new), -1, np.int64)
-        new_label[ni[first]] = face_label[fi[first]]
+        host = largest_share(new, faces)
+        new_label = np.where(host >= 0, face_label[np.maximum(host, 0)], -1)
         faces, face_label = new[new_label >= 0], new_label[new_label >= 0]
     if grid_size > 0:
         faces = shapely.set_precision(faces, grid_size)

@@ -189,3 +189,18 @@ def test_argsort_int_is_a_stable_argsort():
     for span in (3, 1000, 70_000, 2**31, 2**47, 2**60):
         k = rng.integers(-span, span, 20_000)
         assert np.array_equal(argsort_int(k), np.argsort(k, kind="stable"))
+
+
+def test_shared_areas_and_largest_share():
+    from sengine.geometry import largest_share, shared_areas
+
+    lots = np.array([shapely.box(0, 0, 10, 10), shapely.box(10, 0, 20, 10), shapely.box(20, 0, 30, 10)])
+    things = np.array([shapely.box(8, 2, 12, 4),    # 4 m2 on each of lots 0 and 1: the lower wins the tie
+                       shapely.box(15, 2, 27, 4),   # 10 m2 on lot 1, 14 m2 on lot 2
+                       shapely.box(30, 0, 31, 1),   # touches lot 2 only along an edge: on none
+                       shapely.box(50, 0, 51, 1)])  # far away
+    gi, li, area = shared_areas(things, lots)
+    got = {(int(g), int(k)): round(float(a), 9) for g, k, a in zip(gi, li, area, strict=True)}
+    assert got == {(0, 0): 4.0, (0, 1): 4.0, (1, 1): 10.0, (1, 2): 14.0, (2, 2): 0.0}
+    assert largest_share(things, lots).tolist() == [0, 2, -1, -1]
+    assert largest_share(things[:0], lots).tolist() == [] and largest_share(things, lots[:0]).tolist() == [-1] * 4

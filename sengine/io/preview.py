@@ -162,7 +162,7 @@ def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Ima
                 hmin, hmax = float(hts.min()), float(hts.max())
                 t = (hts - hmin) / (hmax - hmin) if hmax > hmin else np.full(len(hts), 0.5)
                 vals = _RAMP0 + np.minimum((t * _RAMP_N).astype(int), _RAMP_N - 1)
-                mapped = np.asarray(lay["source"]).astype(str) == "osm" if "source" in lay.attrs else polys & False
+                mapped = np.asarray(lay.get("source", np.full(len(lay), ""))).astype(str) == "osm"
                 if mapped.any():  # the map's own buildings outlined, over the generated ones
                     has_map = True
                     for sel, edge in ((polys & ~mapped, None), (polys & mapped, _FIXED["map_edge"])):
