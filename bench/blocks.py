@@ -26,7 +26,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import resource
 import subprocess
@@ -68,10 +67,11 @@ def _traced(fn) -> float:
 
 
 def _modules():
-    from sengine.builtin import load
 
-    load()
-    return importlib.import_module("sengine_nodes.blocks"), importlib.import_module("sengine_nodes.lots")
+    import sengine.nodes.blocks.circuits as blocks
+    import sengine.nodes.lots.nodes as lots
+
+    return blocks, lots
 
 
 def grid_lines(n: int, step: float = 100.0, jitter: float = 15.0, seed: int = 0):

@@ -31,8 +31,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
-    get("export.city")  # loads the built-in nodes as the package sengine_nodes
-    from sengine_nodes.export import export_layers
+    get("export.city")  # loads the built-in nodes (sengine.nodes)
+    from sengine.nodes.export.city import export_layers
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

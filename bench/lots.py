@@ -106,10 +106,8 @@ def blocks_of(case: str):
 
 def run_method(case: str, method: str, repeat: int) -> dict:
     from sengine import Context
-    from sengine.builtin import load
     from sengine.registry import get
 
-    load()
     blocks, _ = blocks_of(case)
     best, out, node = float("inf"), None, None
     for _ in range(repeat):
@@ -139,9 +137,7 @@ def main(argv=None) -> int:
     ap.add_argument("--prepare", metavar="CASE", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.prepare:
-        from sengine.builtin import load
 
-        load()
         blocks, dt = blocks_of(args.prepare)
         print(json.dumps({"case": args.prepare, "blocks": int(len(blocks)), "blocks_s": round(dt, 2)}))
         return 0

@@ -4,7 +4,7 @@ Times Liège's street network (about 80,000 highway ways) from file to blocks
 two ways, each in a fresh process so that peak memory is its own:
 
 * ``sengine``: the load-map network's nodes ``osm.read`` -> ``roads.clean``
-  -> ``blocks.circuits`` with the parameters of ``networks/loadmap.xml``
+  -> ``blocks.circuits`` with the parameters of ``sengine/nodes/networks/loadmap.xml``
   ("file to blocks", which includes the sidewalk inset and the street and
   sidewalk polygons); and "file to faces", the same product as the library
   route: ``roads.clean`` traces the faces of its plane segment graph
@@ -84,7 +84,7 @@ def route_sengine(path: str) -> dict:
     g = cleaned.meta["graph"]
     bf = g.get("blocks")
     if bf is None:
-        from sengine_nodes.blocks import find_blocks
+        from sengine.nodes.blocks.circuits import find_blocks
 
         bf = find_blocks((g["xy"], g["u"], g["v"]), node=False, decimals=None)
     circuits = bf.faces[shapely.area(bf.faces) >= MIN_AREA]
@@ -112,10 +112,8 @@ def route_sengine(path: str) -> dict:
 
 
 def _classes() -> frozenset[str]:
-    from sengine.builtin import load
 
-    load()
-    import sengine_nodes.osm as osm
+    import sengine.nodes.osm.read as osm
 
     return frozenset(c.strip() for c in (osm.MAJOR_CLASSES + "," + osm.MINOR_CLASSES).split(","))
 

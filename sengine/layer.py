@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 import shapely
 
+from .io.geojson import feature_collection_text
+
 __all__ = ["Layer"]
 
 
@@ -188,8 +190,6 @@ class Layer:
         Written by the same code as the GeoJSON exporter
         (:func:`sengine.io.geojson.feature_collection_text`).
         """
-        from .io.geojson import feature_collection_text
-
         return json.loads(feature_collection_text(self, transform or (lambda xy: xy), precision=precision))
 
     @classmethod

@@ -6,11 +6,9 @@ instantiates every node and checks the whole graph, collecting every problem
 before reporting; :meth:`Network.run` runs the nodes in topological order and
 keeps per-node counts and seconds.
 
-:class:`StdNetwork` is the paper's convenience class: a network built around
-the standard names ``majorRoads``, ``minorRoads``, ``blocks``, ``lots`` and
-``buildings`` with a list of associations that replace the node behind a
-name.  :class:`PatternNetwork` and :class:`LoadMapNetwork` derive from it.
-The engine gives the names no meaning; the wirings live in ``networks/``.
+The standard networks of the paper (stdNetwork, patternNetwork,
+stdLoadMapNetwork) are city knowledge: they live in the node library
+(:mod:`sengine.nodes.standard`) and are found through the registry.
 """
 
 from __future__ import annotations
@@ -28,7 +26,7 @@ from dataclasses import dataclass, field
 from functools import partial
 from graphlib import CycleError, TopologicalSorter
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -42,7 +40,7 @@ from .plan import CityPlan
 if TYPE_CHECKING:
     import networkx as nx
 
-__all__ = ["NodeSpec", "Connection", "Network", "Result", "StdNetwork", "PatternNetwork", "LoadMapNetwork"]
+__all__ = ["NodeSpec", "Connection", "Network", "Result"]
 
 log = logging.getLogger(__name__)
 
@@ -489,86 +487,6 @@ def _move_into(tmp: Path, out_dir: Path) -> None:
         if target.is_dir() and not target.is_symlink():
             shutil.rmtree(target)
         os.replace(tmp / name, target)
-
-
-class StdNetwork(Network):
-    """The standard city network of skylineEngine §5.1.
-
-    Built around the standard names; ``associations`` (a mapping or pairs
-    of standard name -> registered node type) replace the node behind a name.
-    Subclasses name a wiring file in ``networks/`` as ``template``; the base
-    class chains the associated names in standard order.
-
-    Raises
-    ------
-    NetworkError
-        When an association names a standard name the network lacks, or a
-        required name (``majorRoads``, ``minorRoads``) is missing.
-    """
-
-    STANDARD: ClassVar[tuple[str, ...]] = ("majorRoads", "minorRoads", "blocks", "lots", "buildings")
-    REQUIRED: ClassVar[tuple[str, ...]] = ("majorRoads", "minorRoads")
-    template: ClassVar[str | None] = None
-
-    def __init__(self, associations: Mapping[str, str] | Iterable[tuple[str, str]] = (), *,
-                 where: str = "", **kwargs: Any):
-        super().__init__(**kwargs)
-        pairs = list(associations.items()) if isinstance(associations, Mapping) else list(associations)
-        if self.template is not None:
-            from .builtin import data_dir
-            from .xmlconfig import read_network_file
-
-            self.merge(read_network_file(data_dir("networks") / f"{self.template}.xml"))
-            for name, type_ in pairs:
-                if name not in self.specs:
-                    raise NetworkError(f"{type(self).__name__} has no standard name {name!r} "
-                                       f"(names: {', '.join(self.names())})", where=where or None)
-                self.replace(name, type_, where=where)
-        else:
-            unknown = [name for name, _ in pairs if name not in self.STANDARD]
-            if unknown:
-                raise NetworkError(f"{unknown[0]!r} is not a standard name ({', '.join(self.STANDARD)})",
-                                   where=where or None)
-            given = dict(pairs)
-            chain = [name for name in self.STANDARD if name in given]
-            for name in chain:
-                self.add(name, given[name], where=where)
-            for a, b in zip(chain, chain[1:]):
-                self.connect(a, b, where=where)
-        missing = [name for name in self.REQUIRED if name not in self.specs]
-        if missing:
-            raise NetworkError(f"{type(self).__name__} needs the standard name {missing[0]!r}", where=where or None)
-
-    def names(self) -> list[str]:
-        """The standard names this network has."""
-        return [n for n in self.STANDARD if n in self.specs]
-
-    def standard(self, name: str) -> NodeSpec:
-        """The node behind a standard name; raises NetworkError when absent."""
-        if name not in self.STANDARD:
-            raise NetworkError(f"{name!r} is not a standard name ({', '.join(self.STANDARD)})")
-        if name not in self.specs:
-            raise NetworkError(f"{type(self).__name__} has no node behind the standard name {name!r}")
-        return self.specs[name]
-
-
-class PatternNetwork(StdNetwork):
-    """Synthetic cities from patterns: districts, major and minor roads (``networks/pattern.xml``)."""
-
-    template = "pattern"
-
-
-class LoadMapNetwork(StdNetwork):
-    """Cities from a map file; ``minorRoads`` is a pass-through null node (``networks/loadmap.xml``)."""
-
-    template = "loadmap"
-
-
-STANDARD_NETWORKS: dict[str, type[StdNetwork]] = {
-    "std": StdNetwork,
-    "pattern": PatternNetwork,
-    "loadmap": LoadMapNetwork,
-}
 
 
 def _stderr_progress(i: int, n: int, node_id: str, type_: str, count: int, seconds: float) -> None:

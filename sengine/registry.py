@@ -3,8 +3,8 @@
 Nodes register with :func:`register`.  Plugins are modules that register
 nodes when imported; they arrive four ways, all through :func:`load_plugin`:
 
-* the entry-point group ``sengine.nodes`` (the built-in nodes are the first
-  such plugin, see :mod:`sengine.builtin`);
+* the entry-point group ``sengine.nodes`` (the built-in node library,
+  :mod:`sengine.nodes`, is the first such plugin: entry point ``builtin``);
 * ``<plugin module="..."/>`` in a configuration file;
 * ``<plugin path="..."/>`` (a ``.py`` file or a package folder);
 * ``--plugin MODULE_OR_PATH`` on the command line.
@@ -27,7 +27,8 @@ from typing import TypeVar
 from .errors import RegistryError
 from .node import SENode, stable_hash
 
-__all__ = ["REGISTRY", "register", "get", "load_plugin", "load_entry_points", "broken_plugins"]
+__all__ = ["REGISTRY", "register", "get", "load_plugin", "load_entry_points", "broken_plugins",
+           "register_network", "network_class", "network_names"]
 
 log = logging.getLogger(__name__)
 
@@ -35,6 +36,7 @@ ENTRY_POINT_GROUP = "sengine.nodes"
 NAME_RE = re.compile(r"^[a-z][a-z0-9_]*(\.[a-z][a-z0-9_]*)*$", re.IGNORECASE)
 
 REGISTRY: dict[str, type[SENode]] = {}
+NETWORKS: dict[str, type] = {}  # base name -> network class (``<network base="...">``)
 _loaded: dict[str, str] = {}  # plugin key -> module name
 _broken: dict[str, str] = {}
 _entry_points_loaded = False
@@ -88,6 +90,41 @@ def names() -> list[str]:
     return sorted(REGISTRY)
 
 
+def register_network(name: str) -> Callable[[type], type]:
+    """Class decorator naming a network class for ``<network base="NAME">``.
+
+    The class needs a ``from_config(pairs, *, where, **kwargs)`` classmethod
+    (``pairs``: the ``(id, type)`` of the ``<node>`` elements).  A second class
+    under the same name is an error.
+    """
+
+    def deco(cls: type) -> type:
+        old = NETWORKS.get(name)
+        if old is not None and _qualname(old) != _qualname(cls):
+            raise RegistryError(f"network base {name!r} is registered twice: {_qualname(old)} and {_qualname(cls)}")
+        NETWORKS[name] = cls
+        return cls
+
+    return deco
+
+
+def network_class(name: str, *, where: str | None = None) -> type:
+    """The network class registered as ``name``; the error lists the known ones."""
+    load_entry_points()
+    try:
+        return NETWORKS[name]
+    except KeyError:
+        close = difflib.get_close_matches(name, NETWORKS, n=1, cutoff=0.5)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise RegistryError(f"unknown network base {name!r} (known: {', '.join(sorted(NETWORKS))}){hint}",
+                            where=where) from None
+
+
+def network_names() -> list[str]:
+    load_entry_points()
+    return sorted(NETWORKS)
+
+
 def load_entry_points() -> None:
     """Load every plugin of the ``sengine.nodes`` entry-point group once.
 
@@ -109,10 +146,9 @@ def load_entry_points() -> None:
         except Exception as exc:  # a broken third-party plugin must not break sengine
             _broken[ep.name] = f"{type(exc).__name__}: {exc}"
             warnings.warn(f"sengine plugin {ep.name!r} ({ep.value}) failed to load: {exc}", stacklevel=2)
-    if not any(ep.name == "builtin" for ep in eps):  # running from a source tree, not installed
-        from .builtin import load
-
-        load()
+    if not any(ep.name == "builtin" for ep in eps):
+        warnings.warn("sengine's built-in nodes are not registered: install the package (pip install .)",
+                      stacklevel=2)
 
 
 def broken_plugins() -> dict[str, str]:

@@ -18,9 +18,9 @@ from typing import Any
 from lxml import etree
 
 from .errors import ConfigError
-from .network import STANDARD_NETWORKS, Network
+from .network import Network
 from .plan import CityPlan, MapSpec, Rule
-from .registry import load_plugin
+from .registry import load_plugin, network_class
 
 __all__ = ["load_config", "read_network_file", "SCHEMA_PATH"]
 
@@ -160,21 +160,10 @@ def _base_network(el: etree._Element, label: str, folder: Path, depth: int, **kw
         raise ConfigError("<network> takes base= or file=, not both", where=w)
     if depth > _MAX_INCLUDE_DEPTH:
         raise ConfigError("network files include each other too deeply (a loop?)", where=w)
-    if base in STANDARD_NETWORKS:
-        cls = STANDARD_NETWORKS[base]
-        if cls.template is None:  # the plain stdNetwork: associations come from the <node> elements
-            pairs = [(n.get("id"), n.get("type")) for n in el if n.tag == "node" and n.get("id") in cls.STANDARD]
-            net = cls(pairs, where=w, **kw)
-            return net
-        return cls(where=w, **kw)
     if base:
-        from .builtin import data_dir
-
-        path = data_dir("networks") / f"{base}.xml"
-        if not path.exists():
-            names = sorted([*STANDARD_NETWORKS, *(p.stem for p in data_dir("networks").glob("*.xml"))])
-            raise ConfigError(f"unknown network base {base!r} (known: {', '.join(sorted(set(names)))})", where=w)
-        return read_network_file(path, depth=depth + 1, **kw)
+        cls = network_class(base, where=w)
+        pairs = [(n.get("id"), n.get("type")) for n in el if n.tag == "node" and n.get("type")]
+        return cls.from_config(pairs, where=w, **kw)
     if file:
         return read_network_file((folder / file), label=file, depth=depth + 1, **kw)
     return Network(**kw)
@@ -250,15 +239,3 @@ def load_config(
             raise ConfigError(f"--set {item!r} must be NODE.PARAM=VALUE")
         net.set_param(node_id, name, value, where=f"--set {target}")
     return net
-
-
-def validate_file(path: str | Path, **kw: Any) -> Network:
-    """Load and fully validate a configuration; return the network."""
-    net = load_config(path, **kw)
-    net.validate()
-    return net
-
-
-
-
-__all__ += ["validate_file"]

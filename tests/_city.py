@@ -19,7 +19,7 @@ import shapely
 import shapely.affinity
 
 from sengine import Layer
-from sengine.geo import from_lonlat, local_crs
+from sengine.geom.crs import from_lonlat, local_crs
 from sengine.plan import CityPlan, MapSpec
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
 import numpy as np
@@ -11,12 +10,9 @@ import shapely
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import sengine.nodes.blocks.circuits as B
 from sengine import Layer
-from sengine.builtin import load
 from sengine.registry import get
-
-load()
-B = importlib.import_module("sengine_nodes.blocks")
 
 SETTINGS = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 MONACO = Path(__file__).resolve().parent.parent / "configs" / "data" / "monaco.osm.pbf"

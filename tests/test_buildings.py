@@ -9,12 +9,12 @@ from _city import grid_city, monaco_lots
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import sengine.nodes.buildings.extrude as B
 from sengine import Context, Layer
 from sengine.plan import CityPlan
 from sengine.registry import get
 
 Extrude = get("buildings.extrude")
-import sengine_nodes.buildings as B  # noqa: E402  (registered by get())
 
 
 def run(lots, plan=None, seed=7, node_id="buildings", **params):

@@ -16,7 +16,8 @@ from conftest import ROOT, run_cli
 import sengine
 from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import NetworkError, ParameterError, RegistryError
-from sengine.network import LoadMapNetwork, Network, StdNetwork
+from sengine.network import Network
+from sengine.nodes.standard import LoadMapNetwork, StdNetwork
 from sengine.registry import get, load_plugin
 
 PLUGIN = Path(__file__).parent / "fixtures" / "squares_plugin.py"

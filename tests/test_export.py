@@ -14,9 +14,9 @@ from _city import MONACO_ORIGIN, grid_city, monaco_lots
 from PIL import Image
 
 from sengine import Context, Layer
-from sengine.geo import from_lonlat, local_crs, to_lonlat
-from sengine.io import mesh
-from sengine.io.gltf import COLOURS
+from sengine.geom.crs import from_lonlat, local_crs, to_lonlat
+from sengine.nodes.export import mesh
+from sengine.nodes.export.gltf import COLOURS
 from sengine.plan import CityPlan
 from sengine.registry import get
 
@@ -237,7 +237,7 @@ def test_preview_png(city, written):
 
 
 def test_preview_outlines_the_maps_buildings_only():
-    from sengine.io.preview import _FIXED, render
+    from sengine.nodes.export.preview import _FIXED, render
 
     boxes = [shapely.box(20 * i, 0, 20 * i + 12, 12) for i in range(6)]
     source = np.array(["generated", "osm"] * 3, dtype=object)

@@ -1,24 +1,23 @@
-"""sengine.planar and sengine.geometry: faces of plane graphs, planarize, OBB frames, splits."""
+"""sengine.geom.planar and sengine.geom.polygons: faces of plane graphs, planarize, OBB frames, splits."""
 
 from __future__ import annotations
 
 import networkx as nx
 import numpy as np
 import shapely
+from _oracles import boundary_segments, split_by_line
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sengine.geometry import (
-    boundary_segments,
+from sengine.geom.planar import planar_faces, signed_area, trace_faces
+from sengine.geom.polygons import (
     frame_boxes,
     inset,
     obb_frame,
-    split_by_line,
     strtree_query,
     threaded,
 )
-from sengine.planar import planar_faces, signed_area, trace_faces
-from sengine.segments import merge_points, planarize, segments_from_lines
+from sengine.geom.segments import merge_points, planarize, segments_from_lines
 
 SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -183,7 +182,7 @@ def test_trace_with_a_filtered_order_is_the_same_trace():
 
 
 def test_argsort_int_is_a_stable_argsort():
-    from sengine.segments import argsort_int
+    from sengine.geom.segments import argsort_int
 
     rng = np.random.default_rng(0)
     for span in (3, 1000, 70_000, 2**31, 2**47, 2**60):
@@ -192,7 +191,7 @@ def test_argsort_int_is_a_stable_argsort():
 
 
 def test_shared_areas_and_largest_share():
-    from sengine.geometry import largest_share, shared_areas
+    from sengine.geom.polygons import largest_share, shared_areas
 
     lots = np.array([shapely.box(0, 0, 10, 10), shapely.box(10, 0, 20, 10), shapely.box(20, 0, 30, 10)])
     things = np.array([shapely.box(8, 2, 12, 4),    # 4 m2 on each of lots 0 and 1: the lower wins the tie

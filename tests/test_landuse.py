@@ -12,11 +12,8 @@ from hypothesis import strategies as st
 
 import sengine
 from sengine import Context, Layer
-from sengine.builtin import load
+from sengine.nodes.blocks.landuse import cut_blocks
 from sengine.registry import get
-
-load()
-from sengine_nodes.landuse import cut_blocks  # noqa: E402 (registered by load())
 
 ROOT = Path(__file__).resolve().parent.parent
 

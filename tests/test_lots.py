@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
 import numpy as np
@@ -11,13 +10,11 @@ import shapely
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import sengine.nodes.lots.nodes as LOTS
 from sengine import CityPlan, Context, Layer, Rule
-from sengine.builtin import load
 from sengine.errors import ParameterError
 from sengine.registry import get
 
-load()
-LOTS = importlib.import_module("sengine_nodes.lots")
 SETTINGS = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 METHODS = ["lots.manhattan", "lots.recursive", "lots.paris"]
 

@@ -1,4 +1,4 @@
-"""Image maps (sengine.maps): every format samples right, regions form a gap-free coverage, errors name file and pixel."""
+"""Image maps (sengine.geom.raster): every format samples right, regions form a gap-free coverage, errors name file and pixel."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from PIL import Image, ImageDraw
 
 from sengine.errors import InputDataError
-from sengine.maps import classify, colour_hex, parse_colour, read_map, vectorize
+from sengine.geom.raster import classify, colour_hex, parse_colour, read_map, vectorize
 from sengine.plan import MapSpec
 
 EXTENT = (0.0, 0.0, 600.0, 400.0)  # 1 m per pixel for a 600 x 400 image

@@ -12,7 +12,7 @@ import shapely
 
 from sengine import CityPlan, Context, MapSpec
 from sengine.errors import InputDataError, ParameterError
-from sengine.geo import to_lonlat
+from sengine.geom.crs import to_lonlat
 from sengine.registry import get
 
 DATA = Path(__file__).resolve().parent.parent / "configs" / "data"
@@ -125,12 +125,11 @@ def test_path_from_the_plan():
 # -- edge cases of real files ---------------------------------------------------------
 
 def _osm_module():
-    import importlib
 
-    from sengine.builtin import load
 
-    load()
-    return importlib.import_module("sengine_nodes.osm")
+    import sengine.nodes.osm.read as module
+
+    return module
 
 
 def _write_pbf(path, nodes, ways, options=""):
@@ -337,7 +336,7 @@ def test_osm_node_ids_on_request(helsinki):
     # and each id is the OSM node at that place
     import osmium
 
-    from sengine.geo import from_lonlat
+    from sengine.geom.crs import from_lonlat
 
     want = set(ids[:200].tolist())
     loc = {n.id: (n.location.lon, n.location.lat) for n in osmium.FileProcessor(str(HELSINKI), osmium.osm.NODE)

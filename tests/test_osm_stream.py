@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
 import numpy as np
@@ -16,10 +15,10 @@ KEEP = frozenset("primary,secondary,tertiary,unclassified,residential,living_str
 
 @pytest.fixture(scope="module")
 def stream():
-    from sengine.builtin import load
 
-    load()
-    return importlib.import_module("sengine_nodes.osm_stream")
+    import sengine.nodes.osm.stream as module
+
+    return module
 
 
 def _same(a, b):

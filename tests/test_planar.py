@@ -1,4 +1,4 @@
-"""sengine.planar: cutting closed walks into simple cycles, vectorized against the stack walk."""
+"""sengine.geom.planar: cutting closed walks into simple cycles, vectorized against the stack walk."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sengine.planar import _split_walk, planar_faces, split_walks
+from sengine.geom.planar import _split_walk, planar_faces, split_walks
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

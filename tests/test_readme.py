@@ -48,7 +48,7 @@ def test_readme_config_is_valid(tmp_path):
 
 def test_readme_lists_every_builtin_node():
     for name in names():
-        if not get(name).__module__.startswith("sengine_nodes"):
+        if not get(name).__module__.startswith("sengine.nodes."):
             continue  # a plugin another test registered
         assert f"`{name}`" in README, f"node {name} is missing from the README's node reference"
 

@@ -2,21 +2,17 @@
 
 from __future__ import annotations
 
-import importlib
-
 import numpy as np
 import pytest
 import shapely
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import sengine.nodes.roads.minor as MINOR
+import sengine.nodes.roads.patterns as PATTERNS
 from sengine import CityPlan, Context, Layer, Rule
-from sengine.builtin import load
 from sengine.registry import get
 
-load()
-PATTERNS = importlib.import_module("sengine_nodes.patterns")
-MINOR = importlib.import_module("sengine_nodes.minor_roads")
 SETTINGS = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 SIZE = (2400.0, 1600.0)
 

@@ -1,15 +1,15 @@
-"""sengine.split: many polygons cut by lines at once, checked against GEOS."""
+"""sengine.geom.split: many polygons cut by lines at once, checked against GEOS."""
 
 from __future__ import annotations
 
 import numpy as np
 import shapely
+from _oracles import segments_on, split_by_line
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sengine.boundary import ring_segments, segments_on_boundary
-from sengine.geometry import segments_on, split_by_line
-from sengine.split import RingSet, cut_lengths, split
+from sengine.geom.boundary import ring_segments, segments_on_boundary
+from sengine.geom.split import RingSet, cut_lengths, split
 
 SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

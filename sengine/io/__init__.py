@@ -1,6 +1,5 @@
-"""Importers and exporters: glTF, OBJ, GeoJSON, OSM XML, CityJSON, PNG preview.
+"""Layer <-> GeoJSON: the one file format the engine itself knows.
 
-Exporters take :class:`~sengine.layer.Layer` objects in the planar frame and
-write one file each; meshes are built in batches by :mod:`sengine.io.mesh`.
-Every writer is deterministic: the same layers give byte-identical files.
+The city writers (glTF, OBJ, CityJSON, OSM XML, the PNG preview) are part of
+the node library, :mod:`sengine.nodes.export`.
 """

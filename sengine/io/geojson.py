@@ -1,7 +1,7 @@
 """GeoJSON layers (RFC 7946): WGS84 longitude / latitude, every attribute kept.
 
 Each layer is written to ``<name>.geojson`` as one FeatureCollection.  Planar
-coordinates go to WGS84 through :mod:`sengine.geo` from the layer's
+coordinates go to WGS84 through :mod:`sengine.geom.crs` from the layer's
 ``meta["crs"]`` (or the city's geographic origin), are rounded to 7 decimals
 (about 1 cm), and polygon exteriors are counter-clockwise with clockwise holes
 (RFC 7946 §3.1.6).  Properties are the feature's ``id``, ``parent_id`` and
@@ -19,12 +19,13 @@ import json
 import logging
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import shapely
 
-from ..layer import Layer
+if TYPE_CHECKING:
+    from ..layer import Layer
 
 __all__ = ["to_wgs84", "feature_collection_chunks", "feature_collection_text", "write_geojson"]
 

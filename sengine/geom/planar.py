@@ -1,0 +1,508 @@
+"""Faces of plane segment graphs (the minimal circuits of §5.4).
+
+Nothing here knows about cities: these are the faces of the planar
+embedding of a segment graph ``(xy, u, v)``, vectorized over numpy arrays.
+The graphs themselves (merged points, lines exploded into segments,
+crossings split) come from :mod:`sengine.geom.segments`.
+
+Public API
+----------
+:func:`trace_faces` -- the half-edge "next" permutation and its cycles.
+:func:`planar_faces` -- bounded faces of a plane graph as polygons with
+holes; bridges (dead ends) removed; the outer face(s) returned apart.
+:func:`signed_area` -- shoelace area of rings given as grouped vertices.
+:func:`split_walks` -- closed walks that revisit vertices cut into simple cycles.
+
+Half-edge convention: input edge ``e`` (from ``u[e]`` to ``v[e]``) gives
+half-edges ``2 e`` (u -> v) and ``2 e + 1`` (v -> u); each half-edge bounds
+the face on its left, so bounded faces are counter-clockwise (positive
+signed area) and the outer face of each connected component is clockwise.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
+
+from .segments import argsort_int
+
+__all__ = [
+    "trace_faces",
+    "planar_faces",
+    "PlanarFaces",
+    "signed_area",
+    "split_walks",
+]
+
+log = logging.getLogger(__name__)
+
+
+def _angular_order(xy: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Half-edges (``2 e``: u -> v, ``2 e + 1``: v -> u) sorted by origin node, then angle."""
+    org = np.stack([u, v], axis=1).ravel()
+    dst = np.stack([v, u], axis=1).ravel()
+    d = xy[dst] - xy[org]
+    by_angle = np.argsort(np.arctan2(d[:, 1], d[:, 0]), kind="stable")
+    return by_angle[argsort_int(org[by_angle])]  # = np.lexsort((angle, org))
+
+
+def trace_faces(xy: np.ndarray, u: np.ndarray, v: np.ndarray, *, order: np.ndarray | None = None):
+    """Cycles of the half-edge "next" permutation of a plane graph.
+
+    Around each node, outgoing half-edges are sorted by angle (one
+    ``numpy.lexsort``); the successor of half-edge ``h`` (a -> b) is the
+    outgoing half-edge of ``b`` that comes clockwise right after the twin
+    (b -> a): the lowest positive turn, skylineEngine §5.4 / Fig. 8.  Faces
+    are the cycles of that permutation (``scipy`` connected components).
+
+    Parameters
+    ----------
+    xy : ndarray (n, 2)
+        Node coordinates.
+    u, v : ndarray of int (m,)
+        Edges; no self-loops, no duplicates (see :func:`planar_faces`).
+    order : ndarray of int64 (2 m,), optional
+        The half-edges already sorted by origin node, then angle (for
+        example a larger graph's order with the removed edges filtered
+        out, which keeps it sorted); sorted here when None.
+
+    Returns
+    -------
+    nxt : ndarray of int64 (2 m,)
+        Successor of each half-edge in its face.
+    face : ndarray of int64 (2 m,)
+        Face label of each half-edge, ``0 .. nfaces-1``.
+    area : ndarray of float (nfaces,)
+        Signed area of each face walk (m2): positive for bounded faces.
+    """
+    m = len(u)
+    h = np.arange(2 * m, dtype=np.int64)
+    org = np.empty(2 * m, np.int64)
+    org[0::2] = u
+    org[1::2] = v
+    dst = np.empty(2 * m, np.int64)
+    dst[0::2] = v
+    dst[1::2] = u
+    if order is None:
+        order = _angular_order(xy, u, v)
+    so = org[order]
+    # start and size of each node's group in sorted order
+    brk = np.flatnonzero(np.r_[True, so[1:] != so[:-1]])
+    size = np.diff(np.r_[brk, 2 * m])
+    grp = np.repeat(np.arange(len(brk)), size)
+    start = brk[grp]
+    cnt = size[grp]
+    prev_pos = start + (h - start - 1) % cnt  # clockwise neighbour in sorted order
+    cw = np.empty(2 * m, np.int64)
+    cw[order] = order[prev_pos]
+    nxt = cw[h ^ 1]
+    graph = csr_matrix((np.ones(2 * m, np.int8), (h, nxt)), shape=(2 * m, 2 * m))
+    nf, face = connected_components(graph, directed=True, connection="weak")
+    face = face.astype(np.int64)
+    cross = xy[org, 0] * xy[dst, 1] - xy[dst, 0] * xy[org, 1]
+    area = np.bincount(face, weights=cross, minlength=nf) / 2.0
+    return nxt, face, area
+
+
+def _cycle_order(nxt: np.ndarray, face: np.ndarray, nf: int) -> tuple[np.ndarray, np.ndarray]:
+    """Half-edges listed face by face in walk order, and each face's start offset.
+
+    List ranking by pointer jumping: O(n log L) numpy gathers, L the longest
+    face.
+    """
+    n = len(nxt)
+    h = np.arange(n, dtype=np.int64)
+    head = np.full(nf, n, np.int64)
+    np.minimum.at(head, face, h)
+    pred = np.empty(n, np.int64)
+    pred[nxt] = h
+    tail = pred[head]
+    succ = nxt.copy()
+    succ[tail] = tail
+    dist = (succ != h).astype(np.int64)
+    while True:
+        ss = succ[succ]
+        if np.array_equal(ss, succ):
+            break
+        dist = dist + dist[succ]
+        succ = ss
+    size = np.bincount(face, minlength=nf)
+    offset = np.r_[0, np.cumsum(size)[:-1]]
+    rank = size[face] - 1 - dist
+    ordered = np.empty(n, np.int64)
+    ordered[offset[face] + rank] = h
+    return ordered, offset
+
+
+def _split_walk(vids: list[int]) -> list[list[int]]:
+    """Split a closed walk that revisits vertices into simple closed walks (a stack, in Python).
+
+    Going along the walk, a vertex already on the stack closes the cycle
+    from its first visit to here: that cycle is emitted and popped, the
+    vertex stays.  What is left at the end is the last cycle.  Cycles of
+    fewer than three vertices are dropped.
+    """
+    stack: list[int] = []
+    where: dict[int, int] = {}
+    out = []
+    for vid in vids:
+        j = where.get(vid)
+        if j is not None:
+            out.append(stack[j:])
+            for w in stack[j + 1:]:
+                where.pop(w, None)
+            del stack[j + 1:]
+        else:
+            where[vid] = len(stack)
+            stack.append(vid)
+    if len(stack) >= 3:
+        out.append(stack)
+    return [c for c in out if len(c) >= 3]
+
+
+def split_walks(vid: np.ndarray, walk: np.ndarray, nwalk: int):
+    """:func:`_split_walk` of many closed walks at once, vectorized.
+
+    Parameters
+    ----------
+    vid : ndarray of int (n,)
+        Vertex of each position, walk after walk.
+    walk : ndarray of int (n,)
+        Walk of each position (non-decreasing, ``0 .. nwalk-1``).
+    nwalk : int
+
+    Returns
+    -------
+    vertex : ndarray of int64
+        The cycles' vertices, cycle after cycle, each in walk order.
+    cycle : ndarray of int64
+        Cycle of each entry, ``0 .. c-1``, in the order :func:`_split_walk` emits them walk by walk.
+    cycle_walk : ndarray of int64 (c,)
+        Walk of each cycle.
+
+    Notes
+    -----
+    Two consecutive visits ``p < q`` of one vertex enclose an interval; on
+    the boundary of a face of a plane graph these intervals nest (a walk
+    ``a .. b .. a .. b`` would need the face to cross itself).  The cycle
+    closed at ``q`` is its first visit ``p`` and the first visits of other
+    vertices whose innermost enclosing interval is ``(p, q)``; first visits
+    inside no interval make the walk's last cycle.  The innermost interval
+    of each position is found per nesting depth with one ``searchsorted``.
+    Walks that do not nest (not the faces of a plane embedding) go through
+    :func:`_split_walk`.
+    """
+    vid = np.asarray(vid, np.int64)
+    walk = np.asarray(walk, np.int64)
+    n = len(vid)
+    pos = np.arange(n, dtype=np.int64)
+    key = walk * (int(vid.max(initial=0)) + 1) + vid
+    o = argsort_int(key)
+    same = key[o][1:] == key[o][:-1]
+    p, q = o[:-1][same], o[1:][same]  # consecutive visits of one vertex in one walk
+    k = len(p)
+    level, nested = _nesting(p, q, n)
+    if not nested:
+        return _split_walks_python(vid, walk, nwalk)
+    first = np.ones(n, bool)
+    first[q] = False
+    depth = np.cumsum(np.bincount(p + 1, minlength=n + 1) - np.bincount(q, minlength=n + 1))[:n]
+    inner = np.full(n, -1, np.int64)
+    if k:  # the last interval of the position's depth opened before it
+        ikey = level * (n + 1) + p
+        io = argsort_int(ikey)
+        at = np.searchsorted(ikey[io], depth * (n + 1) + pos) - 1
+        inner = np.where(depth > 0, io[np.maximum(at, 0)], -1)
+    # cycles 0..k-1 close at q; cycle k + w is walk w's remainder, emitted at its end
+    wend = np.searchsorted(walk, np.arange(nwalk), side="right")
+    emitted = np.argsort(np.r_[2 * q, 2 * wend - 1], kind="stable")
+    rank = np.empty(k + nwalk, np.int64)
+    rank[emitted] = np.arange(k + nwalk)
+    mpos = np.r_[pos[first], p]
+    mcyc = rank[np.r_[np.where(inner[first] >= 0, inner[first], k + walk[first]), np.arange(k)]]
+    e = np.lexsort((mpos, mcyc))
+    mcyc, mpos = mcyc[e], mpos[e]
+    big = np.bincount(mcyc, minlength=k + nwalk)[mcyc] >= 3
+    used, cycle = np.unique(mcyc[big], return_inverse=True)
+    return vid[mpos[big]], cycle.ravel().astype(np.int64), np.r_[walk[p], np.arange(nwalk)][emitted[used]]
+
+
+def _nesting(p: np.ndarray, q: np.ndarray, n: int) -> tuple[np.ndarray, bool]:
+    """Nesting level of intervals ``[p, q)`` (1 = outermost), and whether they nest properly.
+
+    Read as brackets (a close before an open at the same position), each
+    close must match the last open of its own level.
+    """
+    k = len(p)
+    if np.any(q < p + 2):
+        return np.empty(0, np.int64), False
+    ev = np.r_[2 * p + 1, 2 * q]
+    eo = np.argsort(ev, kind="stable")
+    d = np.cumsum(np.where(eo < k, 1, -1))
+    lev = np.empty(2 * k, np.int64)
+    lev[eo] = np.where(eo < k, d, d + 1)
+    big = 2 * n + 2
+    okey = lev[:k] * big + ev[:k]
+    so = np.argsort(okey, kind="stable")
+    match = np.searchsorted(okey[so], lev[k:] * big + ev[k:]) - 1
+    nested = bool(np.all(match >= 0) and np.array_equal(so[np.maximum(match, 0)], np.arange(k)))
+    return lev[:k], nested
+
+
+def _split_walks_python(vid: np.ndarray, walk: np.ndarray, nwalk: int):
+    """:func:`split_walks` walk by walk with :func:`_split_walk`."""
+    starts = np.searchsorted(walk, np.arange(nwalk + 1))
+    cycles = [(w, c) for w in range(nwalk) for c in _split_walk(vid[starts[w]:starts[w + 1]].tolist())]
+    if not cycles:
+        z = np.empty(0, np.int64)
+        return z, z, z
+    size = [len(c) for _, c in cycles]
+    return (np.fromiter((x for _, c in cycles for x in c), np.int64, sum(size)),
+            np.repeat(np.arange(len(cycles)), size), np.array([w for w, _ in cycles], np.int64))
+
+
+def signed_area(xy: np.ndarray, index: np.ndarray, n: int | None = None) -> np.ndarray:
+    """Shoelace signed area of rings given as grouped, ordered vertices.
+
+    Parameters
+    ----------
+    xy : ndarray (k, 2)
+        Ring vertices, not repeated at the end, grouped contiguously by ring.
+    index : ndarray of int (k,)
+        Ring index of each vertex, non-decreasing.
+    n : int, optional
+        Number of rings (default ``index.max() + 1``).
+
+    Returns
+    -------
+    ndarray (n,)
+        Signed areas (m2), positive for counter-clockwise rings.
+    """
+    index = np.asarray(index)
+    n = int(index.max()) + 1 if n is None else n
+    if len(index) == 0:
+        return np.zeros(n)
+    brk = np.flatnonzero(np.r_[True, index[1:] != index[:-1]])
+    size = np.diff(np.r_[brk, len(index)])
+    start = np.repeat(brk, size)
+    k = np.arange(len(index))
+    nxt = np.where(k + 1 < start + np.repeat(size, size), k + 1, start)
+    cross = xy[:, 0] * xy[nxt, 1] - xy[nxt, 0] * xy[:, 1]
+    return np.bincount(index, weights=cross, minlength=n) / 2.0
+
+
+@dataclass
+class PlanarFaces:
+    """The faces of a plane graph (result of :func:`planar_faces`).
+
+    Attributes
+    ----------
+    polygons : ndarray of shapely.Polygon
+        Bounded faces; a face holding a disconnected component has it as a
+        hole.  Together they partition the area inside the outer rings.
+    edge_faces : ndarray of int64, shape (m, 2)
+        For each input edge, the polygon on its left (u -> v) and on its
+        right; ``-1`` for the outside, for a dropped edge (self-loop,
+        bridge) or a degenerate face.
+    outline : ndarray of shapely.Polygon
+        One polygon per outermost connected component: its outer boundary.
+    bridge : ndarray of bool, shape (m,)
+        Edges removed because the same face lies on both sides (dead ends
+        and connectors between components).
+    counts : dict
+        ``edges``, ``duplicates``, ``self_loops``, ``bridges``, ``faces``,
+        ``holes``, ``degenerate``, ``pinched`` (faces split at a vertex).
+    walk_vertex : ndarray of int64
+        The closed walks traced (cycles of the half-edge permutation of the
+        bridgeless graph, bounded or not), walk after walk: the node id of
+        each half-edge's origin, in walk order from the walk's lowest half-edge.
+    walk_start : ndarray of int64, shape (w + 1,)
+        Walk ``k`` is ``walk_vertex[walk_start[k]:walk_start[k + 1]]``.
+    walk_area : ndarray of float, shape (w,)
+        Signed area of each walk (m2): positive for bounded faces.
+    walk_polygon : ndarray of int64, shape (w,)
+        The polygon whose shell is the walk, vertex for vertex (simple
+        bounded walks), else ``-1``.
+    """
+
+    polygons: np.ndarray
+    edge_faces: np.ndarray
+    outline: np.ndarray
+    bridge: np.ndarray
+    counts: dict = field(default_factory=dict)
+    walk_vertex: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+    walk_start: np.ndarray = field(default_factory=lambda: np.zeros(1, np.int64))
+    walk_area: np.ndarray = field(default_factory=lambda: np.empty(0))
+    walk_polygon: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+
+
+def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
+    """Bounded faces of a plane graph as polygons with holes.
+
+    Parameters
+    ----------
+    xy : array_like (n, 2)
+        Node coordinates (m).
+    u, v : array_like of int (m,)
+        Edge end node ids.  The graph must be plane (edges meet only at
+        nodes; see :func:`sengine.geom.segments.planarize`).  Self-loops are ignored, duplicate
+        edges (either direction) count once.
+    area_eps : float
+        Faces whose absolute signed area is at most this (m2) are degenerate
+        (collinear overlaps) and dropped.
+
+    Returns
+    -------
+    PlanarFaces
+
+    Notes
+    -----
+    1. Half-edges are traced with :func:`trace_faces`.
+    2. An edge with the same face on both sides is a bridge (a dead end, or
+       a path joining two components); all bridges are removed at once and
+       the faces traced again (a bridgeless graph has no new bridges).
+    3. A walk that passes a vertex twice is split there into simple rings:
+       the positive one is the shell, negative ones are holes touching it.
+    4. The clockwise outer walk of each component becomes a hole of the
+       smallest bounded face containing it, or an outline ring when none
+       does.
+    """
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    u0 = np.asarray(u, np.int64).ravel()
+    v0 = np.asarray(v, np.int64).ravel()
+    m0 = len(u0)
+    n = len(xy)
+    counts = {"edges": m0}
+    loop = u0 == v0
+    a = np.minimum(u0, v0)
+    b = np.maximum(u0, v0)
+    key = a[~loop] * n + b[~loop]
+    uniq, inv = np.unique(key, return_inverse=True)
+    emap = np.full(m0, -1, np.int64)
+    emap[~loop] = inv.ravel()
+    flip = u0 > v0
+    eu, ev = uniq // n, uniq % n
+    counts["self_loops"] = int(loop.sum())
+    counts["duplicates"] = int((~loop).sum() - len(uniq))
+    bridge_u = np.zeros(len(uniq), bool)
+    live = np.arange(len(uniq))
+    empty = PlanarFaces(np.empty(0, object), np.full((m0, 2), -1, np.int64), np.empty(0, object),
+                        np.zeros(m0, bool), {**counts, "bridges": 0, "faces": 0, "holes": 0,
+                                             "degenerate": 0, "pinched": 0})
+    if len(uniq) == 0:
+        return empty
+    order = _angular_order(xy, eu, ev)
+    nxt, face, area = trace_faces(xy, eu, ev, order=order)
+    br = face[0::2] == face[1::2]
+    if br.any():
+        bridge_u[br] = True
+        live = np.flatnonzero(~br)
+        if len(live) == 0:
+            empty.bridge = bridge_u[np.maximum(emap, 0)] & (emap >= 0)
+            empty.counts["bridges"] = int(br.sum())
+            return empty
+        renum = np.full(len(uniq), -1, np.int64)
+        renum[live] = np.arange(len(live))
+        e = renum[order >> 1]
+        nxt, face, area = trace_faces(xy, eu[live], ev[live], order=2 * e[e >= 0] + (order[e >= 0] & 1))
+    counts["bridges"] = int(bridge_u.sum())
+    nf = len(area)
+    lu, lv = eu[live], ev[live]
+    org = np.empty(2 * len(live), np.int64)
+    org[0::2] = lu
+    org[1::2] = lv
+    ordered, offset = _cycle_order(nxt, face, nf)
+    fsize = np.bincount(face, minlength=nf)
+    degenerate = np.abs(area) <= area_eps
+    counts["degenerate"] = int(degenerate.sum())
+    # pinched walks: a vertex repeated within one face
+    pair = face * n + org
+    ps = np.sort(pair)
+    rep = ps[1:][ps[1:] == ps[:-1]] // n
+    pinched = np.zeros(nf, bool)
+    pinched[rep] = True
+    pinched &= ~degenerate
+    counts["pinched"] = int(pinched.sum())
+    # ring units: simple faces directly, pinched faces split into simple cycles
+    simple = ~pinched & ~degenerate
+    ovid = org[ordered]
+    oface = np.repeat(np.arange(nf), fsize)
+    take = simple[oface]
+    unit_vid = [ovid[take]]
+    sf = np.flatnonzero(simple)
+    unit_face = [sf]
+    unit_of_entry = [np.repeat(np.arange(len(sf)), fsize[sf])]
+    nunit = len(sf)
+    pf = np.flatnonzero(pinched)
+    if len(pf):
+        sel = pinched[oface]
+        cv, cyc, cwalk = split_walks(ovid[sel], np.searchsorted(pf, oface[sel]), len(pf))
+        unit_vid.append(cv)
+        unit_of_entry.append(nunit + cyc)
+        unit_face.append(pf[cwalk])
+        nunit += len(cwalk)
+    unit_vid = np.concatenate(unit_vid)
+    unit_idx = np.concatenate(unit_of_entry)
+    unit_face = np.concatenate(unit_face)
+    uarea = signed_area(xy[unit_vid], unit_idx, nunit)
+    bounded_face = area > area_eps
+    is_shell = bounded_face[unit_face] & (uarea > area_eps)
+    is_fhole = bounded_face[unit_face] & (uarea < -area_eps)
+    is_outer = (area[unit_face] < -area_eps) & (uarea < -area_eps)
+    # one polygon per shell unit; pinched holes go to their face's largest shell
+    shells = np.flatnonzero(is_shell)
+    poly_of_unit = np.full(nunit, -1, np.int64)
+    poly_of_unit[shells] = np.arange(len(shells))
+    face_poly = np.full(nf, -1, np.int64)
+    sh_face = unit_face[shells]
+    srt = np.argsort(uarea[shells], kind="stable")
+    face_poly[sh_face[srt]] = np.arange(len(shells))[srt]
+    rings_all = shapely.linearrings(xy[unit_vid], indices=unit_idx)
+    shell_polys = shapely.polygons(rings_all[shells])
+    hole_units = np.flatnonzero(is_fhole)
+    hole_poly = face_poly[unit_face[hole_units]]
+    # outer walks: hole of the smallest shell strictly containing a vertex
+    outer_units = np.flatnonzero(is_outer)
+    first_entry = np.r_[0, np.flatnonzero(unit_idx[1:] != unit_idx[:-1]) + 1]
+    pts = shapely.points(xy[unit_vid[first_entry[outer_units]]])
+    host = np.full(len(outer_units), -1, np.int64)
+    if len(shells) and len(outer_units):
+        pi, si = shapely.STRtree(shell_polys).query(pts, predicate="within")
+        if len(pi):
+            o = np.lexsort((np.abs(uarea[shells[si]]), pi))
+            pi, si = pi[o], si[o]
+            firsts = np.r_[True, pi[1:] != pi[:-1]]
+            host[pi[firsts]] = si[firsts]
+    face_host = np.full(nf, -1, np.int64)
+    face_host[unit_face[outer_units]] = host
+    counts["holes"] = int((host >= 0).sum() + len(hole_units))
+    ring_units = np.r_[shells, hole_units, outer_units[host >= 0]]
+    ring_poly = np.r_[np.arange(len(shells)), hole_poly, host[host >= 0]]
+    ring_hole = np.r_[np.zeros(len(shells), bool), np.ones(len(hole_units) + int((host >= 0).sum()), bool)]
+    ok = ring_poly >= 0
+    ring_units, ring_poly, ring_hole = ring_units[ok], ring_poly[ok], ring_hole[ok]
+    o = np.lexsort((ring_hole, ring_poly))
+    polygons = shapely.polygons(rings_all[ring_units[o]], indices=ring_poly[o]) if len(shells) else np.empty(0, object)
+    outline = shapely.polygons(shapely.reverse(rings_all[outer_units[host < 0]]))
+    # per-edge faces
+    hface = np.where(bounded_face[face], face_poly[face], face_host[face])
+    hface = np.where(degenerate[face], -1, hface)
+    ef_live = np.full((len(uniq), 2), -1, np.int64)
+    ef_live[live, 0] = hface[0::2]
+    ef_live[live, 1] = hface[1::2]
+    edge_faces = np.full((m0, 2), -1, np.int64)
+    ok = emap >= 0
+    ef = ef_live[emap[ok]]
+    ef[flip[ok]] = ef[flip[ok]][:, ::-1]
+    edge_faces[ok] = ef
+    bridge = np.zeros(m0, bool)
+    bridge[ok] = bridge_u[emap[ok]]
+    counts["faces"] = int(len(polygons))
+    return PlanarFaces(np.asarray(polygons, dtype=object), edge_faces, np.asarray(outline, dtype=object),
+                       bridge, counts, ovid, np.r_[offset, len(ovid)].astype(np.int64), area,
+                       np.where(simple, face_poly, -1))

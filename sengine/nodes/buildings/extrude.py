@@ -1,0 +1,242 @@
+"""Buildings: one extruded footprint per lot, its height from the height map.
+
+skylineEngine hands each lot to its buildingEngine (paper 002 §5.6) and lets
+a greyscale **height map** control the skyline of the whole city (002 §5.2,
+Fig. 5).  This module is the simple, fast end of that: one building per lot,
+its footprint the lot inset by a setback, a flat roof, a height read from the
+height map at the lot centroid with a seeded random variation, snapped to a
+whole number of floors.  Buildings stay light (footprint plus attributes)
+until an exporter turns them into meshes (``sengine.nodes.export.mesh``).
+
+References
+----------
+.. [1] skylineEngine (paper 002), §5.2 (height map) and §5.6 (buildingEngine).
+.. [2] Prague building regulations (paper 003), §3.2: storey height at least
+   2.6 m.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import shapely
+
+from sengine import Layer, Param, Port, SENode, register
+from sengine.errors import ConfigError
+from sengine.node import stable_hash
+
+__all__ = ["inset_footprints", "feature_uniform", "snap_floors", "sample_height_map", "BuildingsExtrude"]
+
+log = logging.getLogger(__name__)
+
+_M64 = np.uint64(0xFFFFFFFFFFFFFFFF)
+
+
+def _splitmix64(x: np.ndarray) -> np.ndarray:
+    """SplitMix64 finaliser over a uint64 array (wrapping arithmetic)."""
+    x = np.asarray(x, dtype=np.uint64) + np.uint64(0x9E3779B97F4A7C15)
+    x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return x ^ (x >> np.uint64(31))
+
+
+def feature_uniform(seed: int, key: str, ids: np.ndarray) -> np.ndarray:
+    """One uniform number in ``[0, 1)`` per feature id, independent of batching.
+
+    The number is a hash of ``(seed, key, id)`` (SplitMix64), so it depends on
+    the feature's own id only, never on which other features share its chunk
+    or their order: the same seed gives the same buildings however the
+    executor cuts the lots.  It is the vectorized counterpart of drawing one
+    number from ``SENode.rng(feature_id)``, at about 20 ns per feature.
+
+    Parameters
+    ----------
+    seed : int
+        The network seed.
+    key : str
+        Node id (and purpose) separating independent streams.
+    ids : array of int
+        Feature ids.
+    """
+    with np.errstate(over="ignore"):
+        k = _splitmix64(np.array([int(seed) & 0xFFFFFFFFFFFFFFFF], np.uint64))
+        k = _splitmix64(k ^ np.uint64(stable_hash(key)))
+        u = _splitmix64(k ^ _splitmix64(np.asarray(ids, np.int64).astype(np.uint64)))
+    return (u >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
+
+
+def inset_footprints(lots: np.ndarray, setback: float, *, min_area: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Footprints: each lot shrunk by ``setback`` on every side.
+
+    Parameters
+    ----------
+    lots : array of Polygon
+        Lot polygons (m).
+    setback : float
+        Inset distance (m); mitre joins keep rectilinear corners square.
+    min_area : float
+        Footprints smaller than this (m2) are dropped.
+
+    Returns
+    -------
+    footprints : array of Polygon
+        One per kept lot; when the inset splits a lot, its largest part.
+    keep : numpy.ndarray of bool
+        Which lots got a footprint.
+    """
+    lots = np.asarray(lots, dtype=object)
+    if len(lots) == 0:
+        return lots, np.zeros(0, bool)
+    inset = shapely.buffer(lots, -float(setback), join_style="mitre") if setback > 0 else lots
+    parts, idx = shapely.get_parts(inset, return_index=True)
+    polys = shapely.get_type_id(parts) == 3
+    parts, idx = parts[polys], idx[polys]
+    area = shapely.area(parts)
+    # largest part of each lot: sort by (lot, -area), take the first of each lot
+    order = np.lexsort((-area, idx))
+    first = np.ones(len(order), bool)
+    first[1:] = idx[order][1:] != idx[order][:-1]
+    best = order[first]
+    ok = area[best] >= max(min_area, 1e-9)
+    best = best[ok]
+    keep = np.zeros(len(lots), bool)
+    keep[idx[best]] = True
+    footprints = np.empty(len(best), dtype=object)
+    footprints[:] = list(parts[best])
+    return footprints, keep
+
+
+def existing_heights(points: np.ndarray, existing: Layer) -> np.ndarray:
+    """Height (m) of the tallest tagged existing building containing each point; NaN for none.
+
+    Only heights read from the data count (``height_source`` not
+    ``"default"``), so a lot keeps the height map where the map is all there is.
+    """
+    out = np.full(len(points), np.nan)
+    if existing is None or not len(existing) or "height" not in existing.attrs:
+        return out
+    tagged = np.isfinite(existing["height"])
+    if "height_source" in existing.attrs:
+        tagged &= existing["height_source"].astype(str) != "default"
+    if not tagged.any():
+        return out
+    geoms, heights = existing.geometry[tagged], existing["height"][tagged]
+    point_i, building_i = shapely.STRtree(geoms).query(points, predicate="within")
+    np.fmax.at(out, point_i, heights[building_i])
+    return out
+
+
+def snap_floors(height: np.ndarray, floor_height: float, lo: float | None = None, hi: float | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Round heights to whole floors, staying within ``[lo, hi]`` where possible.
+
+    Returns ``height = floors * floor_height`` (m) and ``floors`` (at least 1).
+    """
+    fh = float(floor_height)
+    floors = np.rint(np.asarray(height, np.float64) / fh).astype(np.int64)
+    fmin = 1 if lo is None else max(1, int(np.ceil(lo / fh - 1e-9)))
+    fmax = None if hi is None else max(fmin, int(np.floor(hi / fh + 1e-9)))
+    floors = np.clip(floors, fmin, fmax)
+    return floors * fh, floors
+
+
+def sample_height_map(plan, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float, float] | None:
+    """Heights (m) from ``plan.maps["height"]`` at points, with the map's min and max.
+
+    Black is ``min``, white is ``max`` (bilinear between pixel centres); the
+    map covers the city extent.  ``None`` when the plan has no height map.
+    """
+    spec = getattr(plan, "maps", {}).get("height") if plan is not None else None
+    if spec is None:
+        return None
+    from sengine.geom.raster import read_map
+
+    try:
+        lo = float(spec.attrs.get("min", "nan"))
+        hi = float(spec.attrs.get("max", "nan"))
+    except ValueError:
+        lo = hi = float("nan")
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0 <= lo <= hi):
+        raise ConfigError(
+            f"height map needs min and max in metres with 0 <= min <= max; got min={spec.attrs.get('min')!r} "
+            f"max={spec.attrs.get('max')!r}", where=spec.where or None)
+    img = read_map(spec, plan.extent, colour=False)
+    return img.scaled(x, y, lo, hi), lo, hi
+
+
+@register
+class BuildingsExtrude(SENode):
+    """One flat-roofed building per lot: lot inset by a setback, height from the height map.
+
+    Height: the tagged height of an existing building (optional input
+    ``existing``, e.g. OSM buildings) containing the lot centroid; else the
+    height map at the lot centroid (or ``height`` when the plan has none), times ``1 + variation * (2u - 1)`` with ``u`` a uniform number
+    hashed from (seed, node id, lot id), kept within the map's range and
+    snapped to whole floors of ``floor_height``.  Lots whose inset footprint
+    is under ``min_area`` get no building; the count is reported as
+    ``skipped``.  Lots marked ``inner`` (the courtyards of Paris blocks,
+    §5.5) stay open unless ``courtyards`` is set; their count is reported as
+    ``courtyards``.  Building ids are the lot ids.
+    """
+
+    name = "buildings.extrude"
+    inputs = {
+        "lots": Port("lots", "lots to build on"),
+        "existing": Port("buildings", "buildings already there (OSM): a lot inside one takes its tagged height",
+                         required=False),
+    }
+    outputs = {"buildings": Port("buildings", "footprints with height, floors, roof, lot, district")}
+    params = {
+        "setback": Param("float", 2.0, min=0.0, max=50.0, unit="m",
+                         doc="inset of the footprint from every lot edge"),
+        "height": Param("float", 15.0, min=1.0, max=1000.0, unit="m",
+                        doc="building height when the city has no height map"),
+        "variation": Param("float", 0.2, min=0.0, max=0.95, unit="1",
+                           doc="random height variation, a fraction of the mapped height (+/-)"),
+        "floor_height": Param("float", 3.2, min=2.6, max=10.0, unit="m",
+                              doc="storey height; heights snap to whole floors (at least 2.6 m, paper 003)"),
+        "min_area": Param("float", 20.0, min=0.0, unit="m2",
+                          doc="footprints smaller than this are not built"),
+        "courtyards": Param("bool", False, doc="also build on inner lots (courtyards with no street frontage)"),
+    }
+    maps_features = True
+
+    def run(self, *, lots: Layer, existing: Layer | None = None) -> dict[str, Layer]:
+        p = self.p
+        footprints, keep = inset_footprints(lots.geometry, p.setback, min_area=p.min_area)
+        open_court = np.zeros(len(lots), bool)
+        if not p.courtyards and "inner" in lots.attrs:
+            open_court = lots["inner"].astype(bool) & keep
+            footprints = footprints[~open_court[keep]]
+            keep = keep & ~open_court
+        ids = lots.ids[keep]
+        skipped = int(len(lots) - keep.sum() - open_court.sum())
+        c = shapely.centroid(lots.geometry[keep]) if len(ids) else np.empty(0, object)
+        sampled = sample_height_map(self.context.plan, shapely.get_x(c), shapely.get_y(c)) if len(ids) else None
+        if sampled is None:
+            base, lo, hi = np.full(len(ids), p.height), None, None
+        else:
+            base, lo, hi = sampled
+        u = feature_uniform(self.context.seed, f"{self.id}/height", ids)
+        raw = base * (1.0 + p.variation * (2.0 * u - 1.0))
+        if lo is not None:
+            raw = np.clip(raw, lo, hi)
+        known = existing_heights(c, existing) if existing is not None and len(ids) else np.full(len(ids), np.nan)
+        surveyed = np.isfinite(known)
+        height, floors = snap_floors(raw, p.floor_height, lo, hi)
+        if surveyed.any():  # a surveyed height is kept as it is, whatever the map's range
+            height[surveyed], floors[surveyed] = snap_floors(known[surveyed], p.floor_height)
+        district = lots["district"][keep] if "district" in lots.attrs else np.full(len(ids), -1, np.int64)
+        out = Layer(
+            footprints, ids.copy(), ids.copy(),
+            {"height": height.astype(np.float64), "floors": floors.astype(np.int64),
+             "roof": np.full(len(ids), "flat"), "lot": ids.astype(np.int64), "district": np.asarray(district)},
+            dict(lots.meta),
+        )
+        self.report = {"buildings": int(len(ids)), "skipped": skipped, "courtyards": int(open_court.sum()),
+                       "surveyed_heights": int(surveyed.sum())}
+        if skipped:
+            log.info("%s: %d lots too small for a %.3g m setback and %.3g m2 footprint", self.where, skipped,
+                     p.setback, p.min_area)
+        return {"buildings": out}

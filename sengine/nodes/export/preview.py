@@ -1,0 +1,234 @@
+"""``preview.png``: a plan view of the city, buildings coloured by height.
+
+Drawn with Pillow's ImageDraw into 8-bit index layers that are composited
+with numpy, then saved as a palette PNG (small, and no time chunk: the same
+layers give the same bytes).  Layers from bottom to top: water, streets,
+sidewalks, blocks, lots (with their outlines), parks, buildings (a colour
+ramp over height; those of the map, ``source`` ``"osm"``, outlined), roads
+(centre lines).  A footer holds the height legend, a scale bar and the layer
+swatches.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import shapely
+from PIL import Image, ImageDraw, ImageFont
+
+from sengine.layer import Layer
+
+from .gltf import COLOURS
+from .mesh import ring_arrays
+
+__all__ = ["render", "write_preview", "PALETTE", "ROADS_INDEX", "ramp"]
+
+log = logging.getLogger(__name__)
+
+_ORDER = ("water", "streets", "sidewalks", "blocks", "lots", "parks", "buildings", "roads")
+_BACKGROUND = (250, 250, 247)
+_INK = (30, 30, 30)
+_LOT_EDGE = (196, 188, 170)
+_MAP_EDGE = (70, 70, 70)
+# palette: 0 background, 1 ink, 2 white, 3 lot edges, 4 map buildings' edges, 8.. layers, 64..127 height ramp
+_FIXED = {"background": 0, "ink": 1, "white": 2, "lot_edge": 3, "map_edge": 4}
+_LAYER_INDEX = {name: 8 + i for i, name in enumerate(_ORDER)}
+ROADS_INDEX = _LAYER_INDEX["roads"]
+_RAMP0, _RAMP_N = 64, 64
+_RAMP_STOPS = np.array([(255, 240, 170), (253, 190, 90), (240, 110, 50), (190, 40, 70), (100, 20, 90)], float)
+
+
+def ramp(t: np.ndarray) -> np.ndarray:
+    """Colours (uint8 RGB) of the height ramp at ``t`` in ``[0, 1]``."""
+    t = np.clip(np.asarray(t, float), 0.0, 1.0) * (len(_RAMP_STOPS) - 1)
+    i = np.minimum(t.astype(int), len(_RAMP_STOPS) - 2)
+    f = (t - i)[..., None]
+    return np.rint(_RAMP_STOPS[i] * (1 - f) + _RAMP_STOPS[i + 1] * f).astype(np.uint8)
+
+
+def _palette() -> np.ndarray:
+    pal = np.zeros((256, 3), np.uint8)
+    pal[0], pal[1], pal[2], pal[3], pal[4] = _BACKGROUND, _INK, (255, 255, 255), _LOT_EDGE, _MAP_EDGE
+    for name, idx in _LAYER_INDEX.items():
+        pal[idx] = COLOURS[name]
+    pal[_RAMP0:_RAMP0 + _RAMP_N] = ramp(np.linspace(0, 1, _RAMP_N))
+    return pal
+
+
+PALETTE = _palette()
+
+
+def _nice(x: float) -> float:
+    """The largest 1, 2 or 5 times a power of ten not above ``x``."""
+    if x <= 0:
+        return 1.0
+    e = 10.0 ** np.floor(np.log10(x))
+    return float(max(m * e for m in (1, 2, 5) if m * e <= x))
+
+
+def _draw_polygons(draw: ImageDraw.ImageDraw, rings, to_px, values, outline: int | None = None) -> None:
+    """Fill polygons (holes filled with 0) with a per-feature index value."""
+    if rings.n_polys == 0:
+        return
+    pix = np.rint(to_px(rings.xy)).astype(np.int64).ravel().tolist()
+    rs = rings.ring_start.tolist()
+    pr = rings.poly_ring.tolist()
+    vals = np.asarray(values)
+    vals = (vals[rings.feature] if vals.ndim else np.full(rings.n_polys, int(vals))).tolist()
+    polygon = draw.polygon
+    for p in range(rings.n_polys):
+        r0, r1 = pr[p], pr[p + 1]
+        polygon(pix[2 * rs[r0]:2 * rs[r0 + 1]], fill=vals[p], outline=outline)
+        for r in range(r0 + 1, r1):
+            polygon(pix[2 * rs[r]:2 * rs[r + 1]], fill=0, outline=outline)
+
+
+def _draw_lines(draw: ImageDraw.ImageDraw, geoms: np.ndarray, to_px, value: int, widths) -> None:
+    geoms = np.asarray(geoms, dtype=object)
+    parts, feat = shapely.get_parts(geoms, return_index=True)
+    polys = shapely.get_type_id(parts) == 3
+    if polys.any():  # polygon outlines
+        rings, ri = shapely.get_rings(parts[polys], return_index=True)
+        parts = np.concatenate([parts[~polys], rings])
+        feat = np.concatenate([feat[~polys], feat[polys][ri]])
+    coords, idx = shapely.get_coordinates(parts, return_index=True)
+    if len(coords) == 0:
+        return
+    pix = np.rint(to_px(coords)).astype(np.int64).ravel().tolist()
+    starts = np.concatenate([[0], np.cumsum(np.bincount(idx, minlength=len(parts)))]).tolist()
+    w = np.broadcast_to(np.asarray(widths), (len(geoms),))[feat].tolist()
+    line = draw.line
+    for k in range(len(parts)):
+        a, b = starts[k], starts[k + 1]
+        if b - a >= 2:
+            line(pix[2 * a:2 * b], fill=value, width=int(w[k]))
+
+
+def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Image.Image:
+    """The plan view as a palette image, ``size`` px on its long side (plus a footer).
+
+    Parameters
+    ----------
+    layers : mapping of str to Layer
+        Layers by name (``roads``, ``streets``, ``sidewalks``, ``blocks``,
+        ``lots``, ``parks``, ``buildings``, ``water``); unknown names are ignored.
+    size : int
+        Pixels along the longer side of the map.
+    extent : tuple of float, optional
+        ``(xmin, ymin, xmax, ymax)`` (m) to show at least (the city extent);
+        the view also covers every layer's bounds.
+    """
+    layers = {k: v for k, v in layers.items() if v is not None and len(v)}
+    bounds = [shapely.total_bounds(v.geometry) for v in layers.values()]
+    if extent is not None:
+        bounds.append(np.asarray(extent, float))
+    bounds = [b for b in bounds if np.all(np.isfinite(b))]
+    if bounds:
+        b = np.array(bounds)
+        extent = (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max())
+    else:
+        extent = (0.0, 0.0, 1.0, 1.0)
+    xmin, ymin, xmax, ymax = (float(v) for v in extent)
+    span = max(xmax - xmin, ymax - ymin, 1e-9)
+    pad = 10
+    scale = (size - 2 * pad) / span
+    w = int(np.ceil((xmax - xmin) * scale)) + 2 * pad
+    h = int(np.ceil((ymax - ymin) * scale)) + 2 * pad
+
+    def to_px(xy: np.ndarray) -> np.ndarray:
+        return np.column_stack([(xy[:, 0] - xmin) * scale + pad, (ymax - xy[:, 1]) * scale + pad])
+
+    canvas = Image.new("L", (w, h), 0)
+    hmin = hmax = 0.0
+    has_map = False
+    for name in _ORDER:
+        lay = layers.get(name)
+        if lay is None:
+            continue
+        geoms = lay.geometry
+        types = shapely.get_type_id(geoms)
+        polys = np.isin(types, (3, 6))
+        lines = np.isin(types, (1, 2, 5))
+        if polys.any():
+            rings = ring_arrays(geoms[polys])
+            holes = len(rings.ring_start) - 1 > rings.n_polys
+            # polygons with holes go through their own layer so the holes show what lies below
+            img = Image.new("L", (w, h), 0) if holes else canvas
+            draw = ImageDraw.Draw(img)
+            if name == "buildings" and "height" in lay.attrs:
+                hts = np.nan_to_num(np.asarray(lay["height"], float))
+                hmin, hmax = float(hts.min()), float(hts.max())
+                t = (hts - hmin) / (hmax - hmin) if hmax > hmin else np.full(len(hts), 0.5)
+                vals = _RAMP0 + np.minimum((t * _RAMP_N).astype(int), _RAMP_N - 1)
+                mapped = np.asarray(lay.get("source", np.full(len(lay), ""))).astype(str) == "osm"
+                if mapped.any():  # the map's own buildings outlined, over the generated ones
+                    has_map = True
+                    for sel, edge in ((polys & ~mapped, None), (polys & mapped, _FIXED["map_edge"])):
+                        _draw_polygons(draw, ring_arrays(geoms[sel]), to_px, vals[sel], outline=edge)
+                else:
+                    _draw_polygons(draw, rings, to_px, vals[polys])
+            else:
+                edge = _FIXED["lot_edge"] if name == "lots" else None
+                _draw_polygons(draw, rings, to_px, _LAYER_INDEX.get(name, _FIXED["ink"]), outline=edge)
+            if holes:
+                canvas.paste(img, mask=img.point(lambda v: 255 if v else 0))
+        if lines.any():
+            if name == "roads" and "streets" not in layers and "width" in lay.attrs:
+                widths = np.maximum(1, np.rint(np.nan_to_num(np.asarray(lay["width"], float))[lines] * scale))
+            elif "major" in lay.attrs:
+                widths = np.where(np.asarray(lay["major"], bool)[lines], 2, 1)
+            else:
+                widths = 1
+            _draw_lines(ImageDraw.Draw(canvas), geoms[lines], to_px, _LAYER_INDEX.get(name, _FIXED["ink"]), widths)
+    canvas = np.asarray(canvas)
+    image = Image.fromarray(np.vstack([canvas, np.zeros((64, w), np.uint8)]), "P")
+    image.putpalette(PALETTE.ravel().tolist())
+    _footer(image, h, w, scale, hmin, hmax, [n for n in _ORDER if n in layers], map_buildings=has_map)
+    return image
+
+
+def _footer(image: Image.Image, top: int, w: int, scale: float, hmin: float, hmax: float, present: list, *,
+            map_buildings: bool = False) -> None:
+    draw = ImageDraw.Draw(image)
+    font = ImageFont.load_default(size=13)
+    ink = _FIXED["ink"]
+    draw.line([(0, top), (w, top)], fill=ink)
+    y = top + 14
+    x = 12
+    # scale bar: a round length about a sixth of the width
+    metres = _nice((w / 6) / scale)
+    px = int(round(metres * scale))
+    draw.rectangle([x, y + 10, x + px, y + 16], fill=ink)
+    label = f"{metres:g} m" if metres < 1000 else f"{metres / 1000:g} km"
+    draw.text((x, y + 20), label, fill=ink, font=font)
+    x += max(px, 60) + 30
+    if "buildings" in present:
+        bar = 160
+        for i in range(bar):
+            draw.line([(x + i, y + 8), (x + i, y + 18)], fill=_RAMP0 + min(_RAMP_N - 1, i * _RAMP_N // bar))
+        draw.rectangle([x, y + 8, x + bar, y + 18], outline=ink)
+        draw.text((x, y + 20), f"{hmin:.0f} m", fill=ink, font=font)
+        draw.text((x + bar, y + 20), f"{hmax:.0f} m", fill=ink, font=font, anchor="ra")
+        draw.text((x, y - 8), "building height", fill=ink, font=font)
+        x += bar + 30
+        if map_buildings:
+            draw.rectangle([x, y + 8, x + 14, y + 20], fill=_RAMP0 + _RAMP_N // 4, outline=_FIXED["map_edge"], width=2)
+            draw.text((x + 18, y + 7), "from the map", fill=ink, font=font)
+            x += 24 + int(draw.textlength("from the map", font=font)) + 12
+    for name in present:
+        if name == "buildings" or x > w - 90:
+            continue
+        draw.rectangle([x, y + 8, x + 14, y + 20], fill=_LAYER_INDEX[name], outline=ink)
+        draw.text((x + 18, y + 7), name, fill=ink, font=font)
+        x += 24 + int(draw.textlength(name, font=font)) + 12
+
+
+def write_preview(path: str | Path, layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> tuple[int, int]:
+    """Render and save ``preview.png``; return its pixel size."""
+    image = render(layers, size=size, extent=extent)
+    image.save(Path(path), format="PNG", optimize=False, compress_level=1)
+    log.info("wrote %s: %dx%d px", path, *image.size)
+    return image.size

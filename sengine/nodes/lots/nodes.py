@@ -1,0 +1,407 @@
+"""Lots: partitions of a block into parcels (skylineEngine §5.5, Fig. 9).
+
+Three methods, as in the paper, each in its own module:
+
+* **Manhattan** (:mod:`.lots_manhattan`; §5.5, Fig. 9 right): two rows of
+  lots along the main axis of the block's oriented bounding box.
+* **Paris** (:mod:`.lots_paris`; §5.5, Fig. 9 left): the contour split into
+  equal segments, each displaced inwards by a random depth; a courtyard in
+  the middle.
+* **Recursive** (:mod:`.lots_recursive`; Parish and Müller [13]): cut across
+  the longest edge until lots are under ``max_area``, keeping street access.
+
+This module holds what they share: the street-facing attributes of a lot
+(frontage, street edges, corner) and the node classes.  Every block edge
+faces a street (blocks are faces of the street graph), so a lot's
+*frontage* is the length of its boundary lying on its block's boundary.
+
+References
+----------
+skylineEngine §5.5.  [13] Parish, Müller, "Procedural modeling of cities",
+SIGGRAPH 2001.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import shapely
+
+from sengine import Layer, Param, Port, SENode, register
+from sengine.errors import ParameterError
+from sengine.geom.boundary import ring_segments, segments_on_boundary
+
+from .manhattan import manhattan_lots
+from .paris import paris_lots
+from .recursive import mix64, recursive_lots
+
+__all__ = ["lot_attributes", "frontage", "manhattan_lots", "recursive_lots", "paris_lots",
+           "LotsManhattan", "LotsParis", "LotsRecursive", "LotsDistrict"]
+
+log = logging.getLogger(__name__)
+
+ON_TOL = 1e-5  # m: a segment within this of the block boundary lies on it
+
+
+# -- frontage and lot attributes ---------------------------------------------------
+
+def frontage(geoms, owner, blocks) -> np.ndarray:
+    """Length (m) of each geometry's boundary lying on its owner's boundary.
+
+    Parameters
+    ----------
+    geoms : array_like of shapely.Polygon (k,)
+    owner : array_like of int (k,)
+        Index into ``blocks`` for each geometry.
+    blocks : array_like of shapely.Polygon
+    """
+    geoms = np.asarray(geoms, dtype=object)
+    if len(geoms) == 0:
+        return np.zeros(0)
+    p0, p1, idx, _, on = segments_on_boundary(geoms, owner, blocks, tol=ON_TOL)
+    ln = np.hypot(*(p1 - p0).T)
+    return np.bincount(idx[on], weights=ln[on], minlength=len(geoms))
+
+
+def lot_attributes(lots, owner, blocks, *, corner_angle: float = 30.0, edge_angle: float = 15.0, on=None,
+                   known=None) -> dict:
+    """Street-facing facts of each lot, from its block's boundary.
+
+    Parameters
+    ----------
+    lots : array_like of shapely.Polygon (k,)
+    owner : array_like of int (k,)
+        Index into ``blocks`` of each lot's block.
+    blocks : array_like of shapely.Polygon
+    corner_angle : float
+        Two frontage edges turning by more than this (deg) make a corner lot.
+    edge_angle : float
+        Consecutive frontage segments turning by less than this (deg) count as
+        one street edge.
+    on, known : ndarray of bool, optional
+        Which boundary segment of each lot lies on its block's boundary, as
+        the method knows it (one per segment of :func:`sengine.geom.boundary.ring_segments`
+        of ``lots``), and for which lots it knows (default all when ``on`` is
+        given); the others are measured (within ``ON_TOL``).
+
+    Returns
+    -------
+    dict of ndarray
+        ``frontage`` (m), ``street_edges`` (int: maximal straight runs of
+        boundary on the block boundary), ``corner`` (bool) and
+        ``front_angle`` (deg in [0, 180): direction of the longest frontage
+        segment, ``nan`` for none).
+    """
+    lots = np.asarray(lots, dtype=object)
+    k = len(lots)
+    out = {"frontage": np.zeros(k), "street_edges": np.zeros(k, np.int64), "corner": np.zeros(k, bool),
+           "front_angle": np.full(k, np.nan)}
+    if k == 0:
+        return out
+    owner = np.asarray(owner, np.int64)
+    if on is None:
+        p0, p1, idx, ring, on = segments_on_boundary(lots, owner, blocks, tol=ON_TOL)
+    else:
+        p0, p1, idx, ring = ring_segments(lots)
+        on = np.asarray(on, bool).copy()
+        if len(on) != len(idx):
+            raise ValueError(f"lot_attributes: {len(on)} segment flags for {len(idx)} segments")
+        unknown = np.flatnonzero(~np.asarray(known, bool)) if known is not None else np.zeros(0, np.int64)
+        if len(unknown):
+            _, _, uidx, _, uon = segments_on_boundary(lots[unknown], owner[unknown], blocks, tol=ON_TOL)
+            mine = np.isin(idx, unknown)
+            on[mine] = uon  # segments of a subset come in the same order
+    if len(idx) == 0:
+        return out
+    d = p1 - p0
+    ln = np.hypot(d[:, 0], d[:, 1])
+    on &= ln > 1e-9
+    dirn = d / np.maximum(ln, 1e-300)[:, None]
+    out["frontage"] = np.bincount(idx[on], weights=ln[on], minlength=k)
+    # previous segment within the same ring (cyclic)
+    s = np.arange(len(idx))
+    start = np.r_[True, ring[1:] != ring[:-1]]
+    first = np.maximum.accumulate(np.where(start, s, 0))
+    end = np.r_[start[1:], True]
+    last_of = np.zeros(len(idx), np.int64)
+    last_of[first[end]] = s[end]
+    prev = np.where(start, last_of[first], s - 1)
+    # skip zero-length predecessors is not needed for straight runs: treat as breaks
+    turn = np.abs(_cross(dirn, dirn[prev])) > np.sin(np.radians(edge_angle))
+    turn |= np.einsum("ij,ij->i", dirn, dirn[prev]) < 0
+    new_edge = on & (~on[prev] | turn)
+    # a ring whose every segment is frontage and never turns still counts one edge
+    out["street_edges"] = np.bincount(idx[new_edge], minlength=k)
+    allon = np.bincount(idx, weights=(~on).astype(float), minlength=k) == 0
+    out["street_edges"] = np.where(allon & (out["street_edges"] == 0) & (out["frontage"] > 0), 1,
+                                   out["street_edges"])
+    # longest frontage segment per lot and its direction
+    cand = np.flatnonzero(on)
+    if len(cand):
+        o = np.lexsort((ln[cand], idx[cand]))
+        c = cand[o]
+        lastmask = np.r_[idx[c][1:] != idx[c][:-1], True]
+        best = c[lastmask]
+        bl = idx[best]
+        d0 = np.zeros((k, 2))
+        d0[bl] = dirn[best]
+        out["front_angle"][bl] = np.degrees(np.arctan2(dirn[best, 1], dirn[best, 0])) % 180.0
+        big = on & (ln > 0.5)
+        crossv = np.abs(_cross(dirn, d0[idx]))
+        out["corner"] = np.bincount(idx[big & (crossv > np.sin(np.radians(corner_angle)))], minlength=k) > 0
+    return out
+
+
+def _cross(a, b):
+    return a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+
+
+# -- nodes ---------------------------------------------------------------------------
+
+_METHODS = ("manhattan", "paris", "recursive")
+
+
+def _check_partition(blocks, lots, owner, report):
+    """Blocks whose lots miss more than 0.1 % of their area are kept whole (counted)."""
+    n = len(blocks)
+    barea = shapely.area(blocks)
+    larea = np.bincount(owner, weights=shapely.area(lots), minlength=n) if len(lots) else np.zeros(n)
+    bad = np.abs(larea - barea) > 1e-3 * np.maximum(barea, 1e-12)
+    bad &= barea > 0
+    if bad.any():
+        report["kept_whole"] = report.get("kept_whole", 0) + int(bad.sum())
+        keep = ~bad[owner]
+        whole = np.flatnonzero(bad)
+        return np.r_[lots[keep], blocks[whole]], np.r_[owner[keep], whole], keep, len(whole)
+    return lots, owner, np.ones(len(lots), bool), 0
+
+
+class _SegmentFlags:
+    """Per-segment 'lies on the block boundary' flags of lots, as far as the method knows them."""
+
+    def __init__(self, lots, on=None, known=None):
+        self.count = shapely.get_num_coordinates(lots) - 1 - shapely.get_num_interior_rings(lots)
+        self.count = np.maximum(self.count, 0)
+        self.on = np.zeros(int(self.count.sum()), bool) if on is None else np.asarray(on, bool)
+        self.known = np.zeros(len(lots), bool) if on is None else np.asarray(known, bool)
+        if len(self.on) != self.count.sum():  # not aligned with the lots: measure them all
+            self.on, self.known = np.zeros(int(self.count.sum()), bool), np.zeros(len(lots), bool)
+
+    def take(self, idx) -> _SegmentFlags:
+        idx = np.asarray(idx, np.int64)
+        start = np.cumsum(self.count) - self.count
+        c = self.count[idx]
+        seg = np.repeat(start[idx], c) + np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+        out = _SegmentFlags.__new__(_SegmentFlags)
+        out.count, out.on, out.known = c, self.on[seg], self.known[idx]
+        return out
+
+    def append(self, lots) -> _SegmentFlags:
+        """These flags, then unknown ones for ``lots``."""
+        return self.join(_SegmentFlags(lots))
+
+    def join(self, more: _SegmentFlags) -> _SegmentFlags:
+        out = _SegmentFlags.__new__(_SegmentFlags)
+        out.count = np.r_[self.count, more.count]
+        out.on, out.known = np.r_[self.on, more.on], np.r_[self.known, more.known]
+        return out
+
+
+class _Lots(SENode):
+    """Shared body of the lot nodes: attributes, partition check, layer."""
+
+    inputs = {"blocks": Port("blocks", "blocks to divide")}
+    outputs = {"lots": Port("lots", "lots; parent = block id")}
+    maps_features = True
+    method = ""
+
+    def split(self, blocks: Layer, report: dict):
+        """-> lots, owner (non-decreasing), method names, inner flags, and the method's
+        knowledge of frontage: segment flags and which lots they cover (or None, None)."""
+        raise NotImplementedError
+
+    def run(self, *, blocks: Layer) -> dict[str, Layer]:
+        report: dict = {"blocks": len(blocks)}
+        geoms = blocks.geometry
+        if len(blocks) == 0:
+            self.report = report
+            return {"lots": Layer.from_geoms([], meta=blocks.meta, block=np.empty(0, np.int64),
+                                             district=np.empty(0, np.int64), corner=np.empty(0, bool),
+                                             frontage=np.empty(0), street_edges=np.empty(0, np.int64),
+                                             method=np.empty(0, "<U9"), inner=np.empty(0, bool),
+                                             front_angle=np.empty(0))}
+        empty = shapely.is_empty(geoms) | (shapely.area(geoms) <= 0)
+        report["skipped_empty"] = int(empty.sum())
+        lots, owner, method, inner, on, known = self.split(blocks, report)
+        flags = _SegmentFlags(lots, on, known)
+        ok = np.flatnonzero(~shapely.is_empty(lots) & (shapely.get_type_id(lots) == 3))
+        lots, owner, method, inner, flags = lots[ok], owner[ok], method[ok], inner[ok], flags.take(ok)
+        lots, owner, keep, nwhole = _check_partition(geoms, lots, owner, report)
+        method = np.r_[method[keep], np.full(nwhole, "whole")]
+        inner = np.r_[inner[keep], np.zeros(nwhole, bool)]
+        flags = flags.take(np.flatnonzero(keep)).append(lots[len(lots) - nwhole:])
+        o = np.lexsort((np.arange(len(owner)), owner))
+        lots, owner, method, inner, flags = lots[o], owner[o], method[o], inner[o], flags.take(o)
+        att = lot_attributes(lots, owner, geoms, on=flags.on, known=flags.known)
+        district = np.asarray(blocks["district"], np.int64)[owner] if "district" in blocks \
+            else np.full(len(lots), -1, np.int64)
+        report["lots"] = int(len(lots))
+        report["no_frontage"] = int(((att["frontage"] <= 0) & ~inner).sum())
+        self.report = report
+        lay = Layer.from_geoms(lots, parent=blocks.ids[owner], meta=blocks.meta, block=blocks.ids[owner],
+                               district=district, corner=att["corner"], frontage=att["frontage"],
+                               street_edges=att["street_edges"], method=method.astype(str), inner=inner,
+                               front_angle=att["front_angle"])
+        return {"lots": lay}
+
+
+def _manhattan(self, geoms, report, *, count, width, min_depth):
+    lots, owner = manhattan_lots(geoms, count=count, width=width, min_depth=min_depth)
+    o = np.argsort(owner, kind="stable")
+    return lots[o], owner[o], np.full(len(lots), "manhattan"), np.zeros(len(lots), bool), None, None
+
+
+def _seeds(self, ids) -> np.ndarray:
+    """One seed per block, from (network seed, node id, block id): independent of batching."""
+    base = self.rng().integers(0, 2**63, dtype=np.uint64)
+    return mix64(base, np.asarray(ids).astype(np.uint64))
+
+
+def _recursive(self, geoms, ids, report, *, max_area, min_frontage, jitter):
+    lots, owner, on = recursive_lots(geoms, max_area=max_area, min_frontage=min_frontage, jitter=jitter,
+                                     seeds=_seeds(self, ids), report=report, street=True)
+    over = int((shapely.area(lots) > max_area).sum())
+    report["over_max_area"] = report.get("over_max_area", 0) + over
+    return lots, owner, np.full(len(lots), "recursive"), np.zeros(len(lots), bool), on, np.ones(len(lots), bool)
+
+
+def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage):
+    lots, owner, inner, on, known = paris_lots(geoms, segment=segment, depth=depth, deviation=deviation,
+                                               seeds=_seeds(self, ids), min_frontage=min_frontage, report=report,
+                                               street=True)
+    return lots, owner, np.full(len(lots), "paris"), inner, on, known
+
+
+_P_MANHATTAN = {
+    "count": Param("int", 0, min=0, max=1000, unit="1", doc="lots per side of the main axis; 0 = from width"),
+    "width": Param("float", 65.0, min=0.5, unit="m",
+                   doc="target lot width along the main axis (65 m: ~8 lots per 80 x 270 m block, as in the paper)"),
+    "min_depth": Param("float", 10.0, min=0.0, unit="m", doc="blocks narrower than twice this get one row"),
+}
+_P_RECURSIVE = {
+    "max_area": Param("float", 800.0, min=1.0, unit="m2", doc="split lots until they are under this area"),
+    "min_frontage": Param("float", 4.0, min=0.0, unit="m", doc="street frontage every lot must keep"),
+    "jitter": Param("float", 0.25, min=0.0, max=0.9, unit="1", doc="cut position spread, fraction of the extent"),
+}
+_P_PARIS = {
+    "segment": Param("float", 20.0, min=1.0, unit="m", doc="contour segment length (one perimeter lot each)"),
+    "depth": Param("float", 15.0, min=0.5, unit="m", doc="mean lot depth (inward displacement)"),
+    "deviation": Param("float", 3.0, min=0.0, unit="m", doc="standard deviation of the lot depth"),
+    "min_frontage": Param("float", 2.0, min=0.0, unit="m", doc="perimeter pieces with less frontage join a neighbouring lot"),
+}
+
+
+@register
+class LotsManhattan(_Lots):
+    """Manhattan lots: two rows along the block's main axis, ``count`` or ``width`` per side (§5.5)."""
+
+    name = "lots.manhattan"
+    params = dict(_P_MANHATTAN)
+
+    def split(self, blocks, report):
+        return _manhattan(self, blocks.geometry, report, count=self.p.count, width=self.p.width,
+                          min_depth=self.p.min_depth)
+
+
+@register
+class LotsRecursive(_Lots):
+    """Recursive lots (Parish and Müller): split across the longest edge until under max_area (§5.5)."""
+
+    name = "lots.recursive"
+    params = dict(_P_RECURSIVE)
+
+    def split(self, blocks, report):
+        return _recursive(self, blocks.geometry, blocks.ids, report, max_area=self.p.max_area,
+                          min_frontage=self.p.min_frontage, jitter=self.p.jitter)
+
+
+@register
+class LotsParis(_Lots):
+    """Paris lots: contour segments displaced inwards by a random depth, core courtyard (§5.5, Fig. 9)."""
+
+    name = "lots.paris"
+    params = dict(_P_PARIS)
+
+    def split(self, blocks, report):
+        return _paris(self, blocks.geometry, blocks.ids, report, segment=self.p.segment, depth=self.p.depth,
+                      deviation=self.p.deviation, min_frontage=self.p.min_frontage)
+
+
+# district rule attribute -> node parameter
+_RULE_ATTRS = {
+    "lot-count": "count", "lot-width": "width", "lot-min-depth": "min_depth",
+    "lot-area": "max_area", "lot-frontage": "min_frontage", "lot-jitter": "jitter",
+    "lot-segment": "segment", "lot-depth": "depth", "lot-deviation": "deviation",
+}
+
+
+@register
+class LotsDistrict(_Lots):
+    """Per-district lots: the method and sizes from each district rule (``lots``, ``lot-width`` ...)."""
+
+    name = "lots.district"
+    params = {
+        "default": Param("str", "manhattan", choices=_METHODS, doc="method for blocks of no or unset district"),
+        **_P_MANHATTAN, **_P_RECURSIVE,
+        "segment": _P_PARIS["segment"], "depth": _P_PARIS["depth"], "deviation": _P_PARIS["deviation"],
+    }
+
+    def _rule_params(self, district: int) -> tuple[str, dict]:
+        plan = self.context.plan
+        rules = plan.rules_of("district") if plan is not None else []
+        values = dict(self.p)
+        method = self.p.default
+        if 0 <= district < len(rules):
+            rule = rules[district]
+            method = rule.get("lots", method) or method
+            if method not in _METHODS:
+                raise ParameterError(f"district rule lots={method!r} is not one of {', '.join(_METHODS)}",
+                                     where=rule.where or self.where)
+            for attr, pname in _RULE_ATTRS.items():
+                if rule.get(attr) is not None:
+                    values[pname] = self.params[pname].coerce(rule.get(attr), rule.where or self.where, attr)
+        return method, values
+
+    def split(self, blocks, report):
+        geoms = blocks.geometry
+        district = np.asarray(blocks["district"], np.int64) if "district" in blocks \
+            else np.full(len(blocks), -1, np.int64)
+        out_l, out_o, out_m, out_i, out_f = [], [], [], [], []
+        for dist in np.unique(district):
+            sel = np.flatnonzero(district == dist)
+            method, v = self._rule_params(int(dist))
+            if method == "manhattan":
+                res = _manhattan(self, geoms[sel], report, count=v["count"], width=v["width"],
+                                 min_depth=v["min_depth"])
+            elif method == "recursive":
+                res = _recursive(self, geoms[sel], blocks.ids[sel], report, max_area=v["max_area"],
+                                 min_frontage=v["min_frontage"], jitter=v["jitter"])
+            else:
+                res = _paris(self, geoms[sel], blocks.ids[sel], report, segment=v["segment"], depth=v["depth"],
+                             deviation=v["deviation"], min_frontage=min(v["min_frontage"], 2.0))
+            lots, owner, meth, inner, on, known = res
+            out_l.append(lots)
+            out_o.append(sel[owner])
+            out_m.append(meth)
+            out_i.append(inner)
+            out_f.append(_SegmentFlags(lots, on, known))
+            report[f"blocks_{method}"] = report.get(f"blocks_{method}", 0) + len(sel)
+        flags = out_f[0]
+        for f in out_f[1:]:
+            flags = flags.join(f)
+        owner = np.concatenate(out_o)
+        o = np.argsort(owner, kind="stable")
+        flags = flags.take(o)
+        return (np.concatenate(out_l)[o], owner[o], np.concatenate(out_m)[o], np.concatenate(out_i)[o],
+                flags.on, flags.known)

@@ -1,0 +1,399 @@
+"""Paris lots (skylineEngine §5.5, Fig. 9 left).
+
+The contour of the block is split into equal segments; at each segment end
+the inner normal is computed; each segment is split into three rectilinear
+sub-segments whose ends are displaced inwards along their inner normals by a
+random depth (mean ``depth``, deviation ``deviation``).  Lots are the
+regions between the contour segments and the displaced inner line; the
+remaining core is an inner lot (courtyard).
+
+How it is computed, for all blocks at once and without polygon overlay:
+
+1. Sample points, inner normals (the contour's direction averaged over two
+   lot depths, so that lots fan out around corners and curves instead of
+   crossing) and displaced points come from numpy interpolation along the
+   exterior rings (:mod:`.lots_contour`); depths are clamped to 0.3 of the
+   block's typical width (2 area / perimeter) so that thin blocks keep a
+   courtyard.
+2. Each candidate lot is the polygon "contour segment, then its displaced
+   points backwards"; the core is the polygon through all displaced points.
+   Their boundaries add up to the block's contour (radial edges and the inner
+   line cancel out), so when each of them is a simple counter-clockwise
+   polygon they partition the block exactly: the winding numbers of the
+   pieces add up to the block's and none is negative.  Vectorized
+   ``is_valid`` calls check that.
+3. Candidates that are not simple, or overlap a neighbour (tested on windows
+   of three consecutive candidates, whose union must be simple too, where
+   the displaced line folds or bunches up), are
+   merged run by run into one corner lot closed by a straight back edge.
+   Candidates with some street but less than ``min_frontage`` join such a
+   run too (with their street-side neighbour).  Only candidates without
+   street (along a cut edge, step 4) join the core, so the core, the inner
+   lot, never reaches a street; a polygon with no candidate of
+   ``min_frontage`` is one lot, inner only if it has no street at all.
+4. A block whose core is still not simple (thin arms, holes outside the
+   core), or with a corner lot still not simple after growing twice by a
+   candidate on each side, is cut in two across its main axis
+   (:func:`sengine.geom.split.split`; the cut edges are not streets, so no lot
+   faces them, and only lots without street are inner) and the halves start
+   again, a few times; what remains is kept whole and counted.
+
+Randomness is a hash of (block seed, piece, sample), so results do not depend
+on the order blocks are processed in.
+
+References
+----------
+skylineEngine §5.5, Fig. 9.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import shapely
+
+from sengine.geom.boundary import polygon_parts
+from sengine.geom.polygons import threaded
+from sengine.geom.split import RingSet, split
+
+from .contour import Contour, Marks, ramp
+from .recursive import hash01
+
+__all__ = ["paris_lots"]
+
+log = logging.getLogger(__name__)
+
+
+def _normal(seed, key):
+    """Standard normal numbers from (seed, key) uint64 pairs (Box-Muller on two hashes)."""
+    key = np.asarray(key, np.uint64)
+    with np.errstate(over="ignore"):
+        u1 = hash01(seed, key * np.uint64(2) + np.uint64(1))
+        u2 = hash01(seed, key * np.uint64(2) + np.uint64(2))
+    return np.sqrt(-2.0 * np.log(np.maximum(u1, 1e-300))) * np.cos(2.0 * np.pi * u2)
+
+
+def _clean(geoms, area):
+    """Simple, counter-clockwise polygons (the partition certificate's test)."""
+    ok = np.asarray(area) > 0
+    ok[ok] = threaded(shapely.is_valid, np.asarray(geoms, dtype=object)[ok])  # GEOS runs without the GIL
+    return ok
+
+
+# -- one pass over a set of polygons ------------------------------------------------------------
+
+RISK = 0.5  # an inner segment shorter than this share of its contour segment (or reversed) is risky
+TOUCH = 1e-3  # m: less street than this is none (an inner lot may touch a street by less)
+
+
+def cstart_of(C):
+    """Index of each polygon's first candidate."""
+    return np.cumsum(C.nseg) - C.nseg
+
+
+def _runs(flag, cp, ci, nseg):
+    """Maximal cyclic runs of flagged candidates, in polygons with an unflagged one.
+
+    Returns the run's polygon, first candidate and length.
+    """
+    P = len(nseg)
+    cstart = np.cumsum(nseg) - nseg
+    has_other = np.bincount(cp, weights=~flag, minlength=P) > 0
+    gi = np.flatnonzero(~flag)
+    g0 = np.zeros(P, np.int64)
+    if len(gi):
+        first = gi[np.r_[True, cp[gi][1:] != cp[gi][:-1]]]
+        g0[cp[first]] = ci[first]
+    # rotate each polygon to start at an unflagged candidate: runs do not wrap any more
+    rb = np.zeros(len(cp), bool)
+    rb[cstart[cp] + np.mod(ci - g0[cp], nseg[cp])] = flag
+    rb &= has_other[cp]
+    prev = np.r_[False, rb[:-1]]
+    prev[cstart[nseg > 0]] = False
+    nxt = np.r_[rb[1:], False]
+    nxt[(cstart + nseg - 1)[nseg > 0]] = False
+    s_pos, e_pos = np.flatnonzero(rb & ~prev), np.flatnonzero(rb & ~nxt)
+    run_p = cp[s_pos]
+    return run_p, np.mod(s_pos - cstart[run_p] + g0[run_p], nseg[run_p]), e_pos - s_pos + 1
+
+
+def _pass(rs, depth, segment, min_frontage, C):
+    """Paris lots of the polygons of ``rs`` that the certificate accepts.
+
+    Returns lots, their polygon, inner flags, the accepted polygons and the
+    number of corner lots.
+    """
+    P = rs.n
+    nseg = C.nseg
+    cp = np.repeat(np.arange(P), nseg)
+    ci = ramp(nseg)
+    ja = 3 * ci
+    one = np.ones(len(cp), np.int64)
+    q, qa, front, qm = C.chains(cp, ja, ja + 3, one)
+    merge = front < TOUCH  # no street (a cut edge): part of the core
+    # no candidate with enough street: the polygon is one lot (inner if it has no street)
+    merge |= (np.bincount(cp, weights=front >= min_frontage, minlength=P) == 0)[cp]
+    short = (front < min_frontage) & ~merge  # too little street: joins a neighbour (a corner lot)
+    bad = ~_clean(q, np.where(merge | short, 0.0, qa)) & ~merge  # short ones are bad untested
+    # windows of w consecutive candidates: their union must be simple too,
+    # otherwise two of them overlap (winding numbers add up)
+    # (only where the inner line folds or bunches up: elsewhere neighbours cannot meet)
+    w = np.minimum(3, nseg - 1)[cp]
+    di = C.inner[C.mstart[C.sp] + np.mod(C.sj + 1, C.m[C.sp])] - C.inner
+    dp = C.pts[C.mstart[C.sp] + np.mod(C.sj + 1, C.m[C.sp])] - C.pts
+    fold = np.einsum("ij,ij->i", di, dp) < RISK * np.einsum("ij,ij->i", dp, dp)
+    risky = np.bincount((cstart_of(C)[C.sp] + C.sj // 3)[fold],
+                        minlength=len(cp)) > 0
+    near = risky.copy()
+    for k in (1, 2):  # a window starting at i covers i .. i + 2
+        near |= risky[cstart_of(C)[cp] + np.mod(ci + k, nseg[cp])]
+    wsel = np.flatnonzero(near)
+    bad_win = np.zeros(len(cp), bool)
+    if len(wsel):
+        win, wa, _, _ = C.chains(cp[wsel], ja[wsel], ja[wsel] + 3 * w[wsel], one[wsel])
+        bad_win[wsel] = ~_clean(win, wa)
+    cstart = np.cumsum(nseg) - nseg
+    for k in range(3):
+        sel = bad_win & (k < w)
+        bad[cstart[cp[sel]] + np.mod(ci[sel] + k, nseg[cp[sel]])] = True
+    bad &= ~merge
+    # runs of bad candidates become corner lots; a run whose corner lot is
+    # not simple (or has too little street) grows by one candidate on each
+    # side, twice; one still refused refuses its polygon (which is cut)
+    for it in range(3):
+        run_p, s_i, n_i = _runs(bad, cp, ci, nseg)
+        corner, ca, cfront, cm = C.chains(run_p, 3 * s_i, 3 * (s_i + n_i), 3 * n_i)
+        f = ~(_clean(corner, ca) & (cfront >= min_frontage))
+        if not f.any() or it == 2:
+            break
+        base, first, cnt, nn = cstart[run_p[f]], s_i[f], n_i[f], nseg[run_p[f]]
+        for at in (base + np.mod(first - 1, nn), base + np.mod(first + cnt, nn)):
+            bad[at] |= ~merge[at]
+    merge_runs = _runs(merge, cp, ci, nseg)
+    good = ~bad & ~merge
+    # the core, unit after unit in ring order
+    gi = np.flatnonzero(good)
+    mp, ms_, mn = merge_runs
+    up = np.r_[cp[gi], run_p, mp]
+    ua = np.r_[ja[gi], 3 * s_i, 3 * ms_]
+    ub = np.r_[ja[gi] + 3, 3 * (s_i + n_i), 3 * (ms_ + mn)]
+    uk = np.r_[np.zeros(len(gi), np.int64), np.ones(len(run_p), np.int64), np.full(len(mp), 2, np.int64)]
+    o = np.lexsort((np.mod(ua, C.m[up]), up))
+    core, core_a, cpoly, corem = C.core(up[o], ua[o], ub[o], uk[o])
+    all_merged = np.bincount(cp, weights=~merge, minlength=P) == 0
+    done = np.zeros(P, bool)
+    done[cpoly] = _clean(core, core_a)
+    core_of = np.full(P, None, dtype=object)
+    core_of[cpoly] = core
+    core_mark = np.full(P, -1, np.int64)  # index into corem, -1: unknown marks
+    core_mark[cpoly] = np.arange(len(cpoly))
+    done &= np.bincount(run_p, weights=f, minlength=P) == 0
+    # holes must lie inside the core
+    nring = np.bincount(rs.poly, minlength=P)
+    holed = np.flatnonzero(done & (nring > 1))
+    if len(holed):
+        sub = rs.take(holed).polygons()
+        for k, hi in enumerate(holed):
+            holes = [shapely.Polygon(r) for r in sub[k].interiors]
+            if shapely.contains_properly(core_of[hi], holes).all():
+                core_of[hi] = shapely.Polygon(core_of[hi].exterior, [r.coords for r in sub[k].interiors])
+                core_mark[hi] = -1
+            else:
+                done[hi] = False
+    whole = np.flatnonzero(all_merged)  # no street worth a lot: the polygon is one lot
+    done[whole] = True
+    wsub = rs.take(whole)
+    whole_inner = np.zeros(P, bool)
+    whole_inner[whole] = wsub.flagged_length() < TOUCH
+    whole_m = Marks.of(wsub)
+    if len(whole):
+        core_of[whole] = wsub.polygons()
+        core_mark[whole] = len(cpoly) + np.arange(len(whole))
+    corem = Marks.concat([corem, whole_m])
+    # lots: good candidates, corner lots, cores (small cores join their longest neighbour)
+    gsel = good & done[cp]
+    csel = done[run_p]
+    lots = np.r_[q[gsel], corner[csel]]
+    lpoly = np.r_[cp[gsel], run_p[csel]]
+    shared = np.r_[_back_length(C, cp[gsel], ja[gsel], ja[gsel] + 3, 1),
+                   _back_length(C, run_p[csel], 3 * s_i[csel], 3 * (s_i + n_i)[csel], 3 * n_i[csel])]
+    has_core = np.flatnonzero(done)
+    small = np.zeros(P, bool)
+    small[has_core] = shapely.area(core_of[has_core]) < 0.5 * depth * segment
+    small &= ~all_merged
+    merged = np.zeros(P, bool)
+    cand = np.flatnonzero(small[lpoly])
+    if len(cand):
+        o = np.lexsort((-shared[cand], lpoly[cand]))
+        j = cand[o[np.r_[True, lpoly[cand][o][1:] != lpoly[cand][o][:-1]]]]
+        u = _union(lots[j], core_of[lpoly[j]])
+        a_sum = shapely.area(lots[j]) + shapely.area(core_of[lpoly[j]])
+        oku = (shapely.get_type_id(u) == 3) & (np.abs(shapely.area(u) - a_sum) <= 1e-6 * a_sum)
+        lots = lots.copy()
+        lots[j[oku]] = u[oku]
+        merged[lpoly[j[oku]]] = True
+        replaced = j[oku]
+    else:
+        replaced = np.zeros(0, np.int64)
+    kc = np.flatnonzero(done & ~merged)
+    lots = np.r_[lots, core_of[kc]]
+    lpoly = np.r_[lpoly, kc]
+    inner = np.r_[np.zeros(len(lots) - len(kc), bool), ~all_merged[kc] | whole_inner[kc]]
+    # segment marks, where the construction knows them (not for GEOS-made lots)
+    nq, nc = int(gsel.sum()), int(csel.sum())
+    src = Marks.concat([qm.take(np.flatnonzero(gsel)), cm.take(np.flatnonzero(csel)), corem])
+    pick = np.r_[np.arange(nq + nc), nq + nc + core_mark[kc]]
+    known = np.r_[np.ones(nq + nc, bool), core_mark[kc] >= 0]
+    known[replaced] = False
+    unk = np.flatnonzero(~known)
+    src = Marks.concat([src, Marks.unknown(lots[unk])])
+    pick[unk] = src.counts.size - len(unk) + np.arange(len(unk))
+    return lots, lpoly, inner, done, nc, src.take(pick), known
+
+
+def _union(a, b):
+    """Element-wise union; a pair GEOS cannot unite gives None (that lot and core stay apart)."""
+    try:
+        return shapely.union(a, b)
+    except shapely.errors.GEOSException:
+        out = np.empty(len(a), dtype=object)
+        for i in range(len(a)):
+            try:
+                out[i] = shapely.union(a[i], b[i])
+            except shapely.errors.GEOSException:
+                out[i] = None
+        return out
+
+
+def _back_length(C, p, ja, jb, step):
+    """Length (m) of the way back through the inner points of samples jb, jb - step, ..., ja."""
+    p, ja, jb = (np.asarray(x, np.int64) for x in (p, ja, jb))
+    step = np.broadcast_to(np.asarray(step, np.int64), p.shape)
+    nb = (jb - ja) // np.maximum(step, 1)
+    row = np.repeat(np.arange(len(p)), nb)
+    r = ramp(nb)
+    m, ms = C.m[p][row], C.mstart[p][row]
+    a = C.inner[ms + np.mod(jb[row] - r * step[row], m)]
+    b = C.inner[ms + np.mod(jb[row] - (r + 1) * step[row], m)]
+    return np.bincount(row, weights=np.hypot(*(a - b).T), minlength=len(p))
+
+
+# -- all blocks -------------------------------------------------------------------------------
+
+def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, rngs=None, min_frontage=2.0,
+               max_cuts=8, report=None, street=False):
+    """Paris lots (§5.5, Fig. 9 left).
+
+    Parameters
+    ----------
+    blocks : array_like of shapely.Polygon (n,)
+    segment : float
+        Length of the contour segments (m); each becomes one perimeter lot.
+    depth, deviation : float
+        Mean and standard deviation (m) of the inward displacement of the
+        three sub-segments' ends (clipped to [0.2, 3] x depth, and to 0.3 of
+        the block's typical width 2 area / perimeter).
+    seeds : array_like of uint64 (n,), optional
+        One seed per block; else drawn from ``rngs``; else 0.
+    rngs : sequence of numpy.random.Generator (n,), optional
+        One generator per block (``SENode.rng(block_id)``).
+    min_frontage : float
+        Perimeter pieces with less street frontage (m) join a neighbouring
+        perimeter lot; only pieces without street join the core.
+    max_cuts : int
+        How many times a block the partition test refuses may be cut in
+        two before its pieces are kept whole.
+    report : dict, optional
+        Receives ``paris_inner`` (inner lots: cores, and pieces without
+        street kept whole), ``paris_corner`` (corner lots
+        merged from overlapping candidates), ``paris_cut`` (cuts made) and
+        ``paris_fallback`` (pieces kept whole).
+
+    street : bool
+        Also return which boundary segment of each lot lies on its block's
+        boundary, where the construction knows it.
+
+    Returns
+    -------
+    lots, owner : ndarray of shapely.Polygon, ndarray of int64 (non-decreasing)
+    inner : ndarray of bool
+        True for the core lot(s) (courtyards), which touch no street (less
+        than ``TOUCH`` = 1 mm of the polygon's street edges).
+    on, known : ndarray of bool, only with ``street``
+        One mark per boundary segment of the lots (order of
+        :func:`sengine.geom.boundary.ring_segments`), and per lot whether the marks
+        are known (lots made by GEOS unions are not).
+    """
+    blocks = np.asarray(blocks, dtype=object).ravel()
+    n = len(blocks)
+    if seeds is None:
+        seeds = np.array([r.integers(0, 2**63, dtype=np.uint64) for r in rngs], np.uint64) if rngs is not None \
+            else np.zeros(n, np.uint64)
+    seeds = np.asarray(seeds, np.uint64)
+    parts, own = polygon_parts(blocks, np.arange(n))
+    rs = RingSet.from_polygons(parts, flag=True)  # every block edge faces a street
+    keep = np.bincount(rs.poly, minlength=rs.n) > 0
+    rs, own = rs.take(keep), own[keep]
+    # piece key: 1 + the part's rank in its block (then 2 k + side after cuts): batch independent
+    key = (np.arange(rs.n) - np.searchsorted(own, own) + 1).astype(np.uint64)
+    out_l, out_o, out_i, out_m, out_k = [], [], [], [], []
+    corners = cuts = 0
+    for level in range(max_cuts + 1):
+        if rs.n == 0:
+            break
+        C = Contour(rs, segment)
+        width = 2.0 * rs.areas() / np.maximum(C.perim, 1e-12)
+        with np.errstate(over="ignore"):
+            z = _normal(seeds[own][C.sp], key[C.sp] * np.uint64(1_000_003) + C.sj.astype(np.uint64))
+        d = np.clip(depth + deviation * z, 0.2 * depth, 3.0 * depth)
+        d = np.minimum(d, 0.3 * width[C.sp])
+        C.smooth(np.minimum(2.0 * np.minimum(depth, 0.3 * width), C.perim / 8.0))
+        C.inner = C.pts + d[:, None] * C.nrm
+        lots, lpoly, inner, done, nc, marks, known = _pass(rs, depth, segment, min_frontage, C)
+        corners += nc
+        out_l.append(lots)
+        out_o.append(own[lpoly])
+        out_i.append(inner)
+        out_m.append(marks)
+        out_k.append(known)
+        fail = np.flatnonzero(~done)
+        if len(fail) == 0 or level == max_cuts:
+            break
+        # cut the refused polygons in two across their main axis, and try again
+        sub = rs.take(fail)
+        axis = sub.min_rect_axis()
+        ref, lo, hi = sub.extent_along(axis)
+        point = ref + (0.5 * (lo + hi))[:, None] * axis
+        pieces, parent, side, failed = split(sub, point, np.stack([-axis[:, 1], axis[:, 0]], axis=1))
+        cuts += len(fail) - int(failed.sum())
+        stuck = np.flatnonzero(failed)  # could not cut (should not happen): keep whole
+        if len(stuck):
+            out_l.append(sub.take(stuck).polygons())
+            out_o.append(own[fail[stuck]])
+            out_i.append(sub.take(stuck).flagged_length() < TOUCH)
+            out_m.append(Marks.of(sub.take(stuck)))
+            out_k.append(np.ones(len(stuck), bool))
+        rs, own, key = pieces, own[fail[parent]], key[fail[parent]] * np.uint64(2) + side.astype(np.uint64)
+    fallback = 0
+    if rs.n and not done.all():
+        rest = np.flatnonzero(~done)
+        sub = rs.take(rest)
+        fallback = len(rest)
+        out_l.append(sub.polygons())
+        out_o.append(own[rest])
+        out_i.append(sub.flagged_length() < TOUCH)
+        out_m.append(Marks.of(sub))
+        out_k.append(np.ones(len(rest), bool))
+    lots = np.concatenate(out_l) if out_l else np.empty(0, object)
+    owner = np.concatenate(out_o).astype(np.int64) if out_o else np.empty(0, np.int64)
+    inner = np.concatenate(out_i).astype(bool) if out_i else np.empty(0, bool)
+    o = np.argsort(owner, kind="stable")
+    lots, owner, inner = lots[o], owner[o], inner[o]
+    marks = Marks.concat(out_m).take(o)
+    known = np.concatenate(out_k)[o] if out_k else np.zeros(0, bool)
+    if report is not None:
+        for k, v in (("paris_inner", int(inner.sum())), ("paris_corner", corners), ("paris_cut", cuts),
+                     ("paris_fallback", fallback)):
+            report[k] = report.get(k, 0) + v
+    return (lots, owner, inner) + ((marks.flat, known) if street else ())

@@ -1,0 +1,140 @@
+"""Parks at block level: skylineEngine §4 (one park module, wired at several levels).
+
+"There are cities which have a park so large that it can be considered as a
+district by itself ... Other parks are much smaller, having sizes ranging from
+a few blocks to the space equivalent to a single building."  District-level
+parks come from the land-use map (``roads.districts``' ``parks`` output);
+this module turns chosen blocks into parks before they are cut into lots,
+and hands the other blocks on.  It also passes upstream parks through, so
+one ``parks`` stream reaches the exporter.
+
+References
+----------
+.. [1] skylineEngine (paper 002), §4 (Parks module at district, block and lot
+   level) and Fig. 3.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import shapely
+
+from sengine import Layer, Param, Port, SENode, register
+
+__all__ = ["choose_park_blocks", "ParksBlock"]
+
+log = logging.getLogger(__name__)
+
+MODES = ("every", "random", "largest", "inside")
+
+
+def choose_park_blocks(geoms, ids, *, mode: str, every: int = 12, share: float = 0.05,
+                       min_area: float = 0.0, rng_of=None, zones=None) -> np.ndarray:
+    """Which blocks become parks.
+
+    Parameters
+    ----------
+    geoms : array_like of shapely.Polygon
+        The blocks (m).
+    ids : array_like of int
+        Their stable ids.
+    mode : {"every", "random", "largest", "inside"}
+        ``every``: the blocks whose id is a multiple of ``every``;
+        ``random``: each block with probability ``share``, drawn from
+        ``rng_of(block id)`` so the choice does not depend on the batch;
+        ``largest``: the ``share`` largest blocks;
+        ``inside``: blocks whose inner point lies in ``zones``.
+    every : int
+        Period for ``every``.
+    share : float
+        Fraction of blocks for ``random`` and ``largest``.
+    min_area : float
+        Blocks smaller than this never become parks (m2).
+    rng_of : callable, optional
+        ``rng_of(id)`` -> numpy.random.Generator (``random`` mode).
+    zones : shapely.Geometry, optional
+        Park zones (``inside`` mode).
+
+    Returns
+    -------
+    numpy.ndarray of bool
+    """
+    geoms = np.asarray(geoms, dtype=object)
+    ids = np.asarray(ids, np.int64)
+    n = len(geoms)
+    area = shapely.area(geoms) if n else np.zeros(0)
+    if mode == "every":
+        pick = (ids % max(int(every), 1)) == 0
+    elif mode == "random":
+        pick = np.array([rng_of(int(i)).random() < share for i in ids], dtype=bool) if n else np.zeros(0, bool)
+    elif mode == "largest":
+        k = int(round(share * n))
+        pick = np.zeros(n, bool)
+        if k > 0:
+            order = np.lexsort((ids, -area))
+            pick[order[:k]] = True
+    elif mode == "inside":
+        pick = np.zeros(n, bool)
+        if zones is not None and n and not zones.is_empty:
+            pick = shapely.within(shapely.point_on_surface(geoms), zones)
+    else:  # pragma: no cover - guarded by the parameter's choices
+        raise ValueError(f"mode {mode!r} is not one of {', '.join(MODES)}")
+    return pick & (area >= min_area)
+
+
+@register
+class ParksBlock(SENode):
+    """Block-level parks: turn chosen blocks into parks and hand the rest on to the lots (paper 002 §4).
+
+    Upstream parks (district level, from the land-use map) connected to
+    ``parks`` are passed through with the new ones, so one stream reaches the
+    exporter.
+    """
+
+    name = "parks.block"
+    maps_features = False
+    inputs = {
+        "blocks": Port("blocks", "blocks to choose from"),
+        "parks": Port("parks", "parks made upstream (district level), passed through", required=False),
+    }
+    outputs = {
+        "parks": Port("parks", "upstream parks plus the new block-level parks (column level)"),
+        "blocks": Port("blocks", "the blocks that did not become parks"),
+    }
+    params = {
+        "mode": Param("str", "every", choices=MODES, doc="how blocks are chosen (every Nth id, random, largest, "
+                                                          "inside the land-use park class)"),
+        "every": Param("int", 12, min=1, max=1_000_000, unit="1", doc="every Nth block id becomes a park"),
+        "share": Param("float", 0.05, min=0.0, max=1.0, unit="1", doc="fraction of blocks (random, largest)"),
+        "min_area": Param("float", 0.0, min=0.0, unit="m2", doc="smaller blocks never become parks"),
+    }
+
+    def run(self, *, blocks: Layer, parks: Layer | None = None) -> dict[str, Layer]:
+        zones = None
+        if self.p.mode == "inside":
+            zones = _park_zones(self.context.plan)
+        pick = choose_park_blocks(blocks.geometry, blocks.ids, mode=self.p.mode, every=self.p.every,
+                                  share=self.p.share, min_area=self.p.min_area,
+                                  rng_of=lambda i: self.rng(i), zones=zones)
+        chosen = blocks.take(pick)
+        district = chosen["district"] if "district" in chosen else np.full(len(chosen), -1, np.int64)
+        new = Layer.from_geoms(chosen.geometry, parent=chosen.ids, meta=dict(blocks.meta),
+                               level=np.full(len(chosen), "block"), district=np.asarray(district, np.int64),
+                               area=shapely.area(chosen.geometry) if len(chosen) else np.zeros(0))
+        out = Layer.concat([parks, new]) if parks is not None and len(parks) else new
+        self.report = {"block_parks": int(pick.sum()), "park_area_m2": round(float(new.area()), 1)}
+        log.info("parks.block: %d of %d blocks become parks", int(pick.sum()), len(blocks))
+        return {"parks": out, "blocks": blocks.take(~pick)}
+
+
+def _park_zones(plan):
+    """The land-use map's park class as one geometry (empty without a map)."""
+    if plan is None or "landuse" not in getattr(plan, "maps", {}):
+        return shapely.Polygon()
+    from .roads.districts import city_regions, district_styles
+
+    _, landuse, _ = city_regions(plan, district_styles(plan))
+    parks = [g for cls, _, g in landuse if cls == "park"]
+    return shapely.union_all(parks) if parks else shapely.Polygon()

@@ -1,0 +1,519 @@
+"""Districts and major roads: skylineEngine §5.3.1, Fig. 7.
+
+The district map says where each district lies (one colour per district),
+the configuration's ``<district>`` rules say how each is styled (street
+pattern, widths, lot method), and the optional land-use map says where
+nothing may be built.  Fig. 7 of the paper::
+
+    currMap = empty
+    for each pattern in districtMap:
+        generate pattern; position and orient it
+        bounds = Bounds(pattern, districtMap)
+        finalP = Clip(pattern, bounds)
+        finalP = Merge(finalP, bounds)
+        currMap = Merge(finalP, currMap)
+    if land-use map: currMap = Clip(currMap, landUseMap)
+
+Here ``Bounds`` is the district's region vectorized from the map
+(:func:`sengine.geom.raster.vectorize`: all regions come from one coverage, so
+neighbours share their border exactly), the land-use clip is applied to each
+region before the merge (the cut-out borders become roads too), and the
+merge is one noding of every region border and clipped pattern line followed
+by a polygonization (:func:`patterns.split_cells`).  Cells smaller than
+``merge`` times the pattern's cell are dissolved into a neighbour of the same
+district, so pattern lines that graze a border leave no slivers.
+
+``<district>`` attributes (all optional except ``color`` with a district map):
+
+=================  =====================================================  ==========
+name               meaning                                                 default
+=================  =====================================================  ==========
+``name``           label of the district                                  ``d<i>``
+``pattern``        ``grid``, ``radial`` or ``organic``                    ``grid``
+``spacing``        grid: ``"dx dy"`` between major roads (m)              ``400 400``
+``angle``          grid / radial: rotation (deg, counter-clockwise)       ``0``
+``offset``         grid: ``"x y"`` of one grid crossing (m)               ``0 0``
+``center``         radial: ``"x y"`` (m)                                  centroid
+``rings``          radial: number of rings                                ``4``
+``ring-spacing``   radial: distance between rings (m), overrides rings    --
+``spokes``         radial: number of spokes                               ``8``
+``sites``          organic: number of Voronoi sites                       ``30``
+``relax``          organic: Lloyd iterations                              ``3``
+``weights``        organic: density variation (0 = uniform)               ``0``
+``major-width``    street width of the major roads (m)                    ``20``
+``minor-spacing``  ``"dx dy"`` of the minor grid (m), see ``roads.minor`` ``100 100``
+``minor-angle``    deg, ``follow`` (the major angle) or ``random``        ``follow``
+``minor-width``    street width of the minor roads (m)                    ``12``
+``lots``           lot method for ``lots.district``                       ``manhattan``
+=================  =====================================================  ==========
+
+``<landuse color=... class=...>``: classes ``water`` and ``park`` (and any
+class other than ``buildable``, ``residential``, ``commercial``,
+``industrial``, ``office``, ``mixed``) are cut out of the city; set
+``buildable="true"`` or ``"false"`` to decide explicitly.  The ``park`` class
+becomes the district-level parks (paper §4: Central Park).
+
+References
+----------
+.. [1] skylineEngine (paper 002), §4 (parks at district level), §5.2 (image
+   maps), §5.3.1 and Fig. 7 (districts and patterns).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+from shapely import STRtree
+
+from sengine import Layer, Param, Port, SENode, register
+from sengine.errors import ConfigError, InputDataError
+from sengine.geom.raster import classify, parse_colour, read_map, vectorize
+
+from .patterns import (
+    cell_edges,
+    clip_lines,
+    grid_lines,
+    merge_small_cells,
+    organic_lines,
+    organic_sites,
+    radial_lines,
+    side_points,
+    split_cells,
+)
+
+__all__ = [
+    "DistrictStyle",
+    "district_styles",
+    "landuse_classes",
+    "city_regions",
+    "pattern_lines",
+    "major_network",
+    "plan_meta",
+    "RoadsDistricts",
+]
+
+log = logging.getLogger(__name__)
+
+PATTERNS = ("grid", "radial", "organic")
+BUILDABLE_CLASSES = frozenset({"buildable", "residential", "commercial", "industrial", "office", "mixed"})
+
+
+@dataclass(frozen=True)
+class DistrictStyle:
+    """One ``<district>`` rule, checked and converted (lengths in m, angles in deg)."""
+
+    index: int
+    name: str
+    colour: tuple[int, int, int] | None
+    pattern: str = "grid"
+    spacing: tuple[float, float] = (400.0, 400.0)
+    angle: float = 0.0
+    offset: tuple[float, float] = (0.0, 0.0)
+    center: tuple[float, float] | None = None
+    rings: int = 4
+    ring_spacing: float | None = None
+    spokes: int = 8
+    sites: int = 30
+    relax: int = 3
+    weights: float = 0.0
+    major_width: float = 20.0
+    minor_spacing: tuple[float, float] = (100.0, 100.0)
+    minor_angle: float | str = "follow"
+    minor_width: float = 12.0
+    lots: str = "manhattan"
+    where: str = ""
+    attrs: dict = field(default_factory=dict)
+
+    def cell_size(self) -> tuple[float, float] | None:
+        """Area (m2) and width (m) of a typical major cell, when the pattern fixes them."""
+        if self.pattern == "grid" and self.spacing[0] > 0 and self.spacing[1] > 0:
+            return self.spacing[0] * self.spacing[1], min(self.spacing)
+        if self.pattern == "grid":
+            return None
+        return None
+
+
+def _numbers(rule, key: str, n: int, default, *, positive: bool = False, integer: bool = False):
+    text = rule.get(key)
+    if text is None:
+        return default
+    try:
+        vals = [float(v) for v in str(text).replace(",", " ").split()]
+    except ValueError:
+        vals = []
+    ok = len(vals) == n and all(math.isfinite(v) for v in vals)
+    if ok and positive:
+        ok = all(v >= 0 for v in vals) and any(v > 0 for v in vals)
+    if ok and integer:
+        ok = all(v == int(v) for v in vals)
+    if not ok:
+        want = f"{n} {'whole ' if integer else ''}number{'s' if n > 1 else ''}"
+        sign = " (>= 0, not all 0)" if positive else ""
+        raise ConfigError(f"<{rule.tag}> {key}={text!r} is not {want}{sign}", where=rule.where or None)
+    if integer:
+        vals = [int(v) for v in vals]
+    return tuple(vals) if n > 1 else vals[0]
+
+
+def parse_district(rule, index: int) -> DistrictStyle:
+    """Check one ``<district>`` rule; errors name the rule's file and line."""
+    where = rule.where or None
+    pattern = (rule.get("pattern") or "grid").strip().lower()
+    if pattern not in PATTERNS:
+        raise ConfigError(f"<district> pattern={pattern!r} is not one of {', '.join(PATTERNS)}", where=where)
+    colour = parse_colour(rule.get("color"), where=rule.where) if rule.get("color") else None
+    minor_angle = (rule.get("minor-angle") or "follow").strip().lower()
+    if minor_angle not in ("follow", "random"):
+        minor_angle = _numbers(rule, "minor-angle", 1, 0.0)
+    center = _numbers(rule, "center", 2, None)
+    style = DistrictStyle(
+        index=index,
+        name=rule.get("name") or f"d{index}",
+        colour=colour,
+        pattern=pattern,
+        spacing=_numbers(rule, "spacing", 2, (400.0, 400.0), positive=True),
+        angle=_numbers(rule, "angle", 1, 0.0),
+        offset=_numbers(rule, "offset", 2, (0.0, 0.0)),
+        center=center,
+        rings=_numbers(rule, "rings", 1, 4, integer=True),
+        ring_spacing=_numbers(rule, "ring-spacing", 1, None, positive=True),
+        spokes=_numbers(rule, "spokes", 1, 8, integer=True),
+        sites=_numbers(rule, "sites", 1, 30, integer=True),
+        relax=_numbers(rule, "relax", 1, 3, integer=True),
+        weights=_numbers(rule, "weights", 1, 0.0),
+        major_width=_numbers(rule, "major-width", 1, 20.0, positive=True),
+        minor_spacing=_numbers(rule, "minor-spacing", 2, (100.0, 100.0), positive=True),
+        minor_angle=minor_angle,
+        minor_width=_numbers(rule, "minor-width", 1, 12.0, positive=True),
+        lots=(rule.get("lots") or "manhattan").strip().lower(),
+        where=rule.where,
+        attrs=dict(rule.attrs),
+    )
+    for key, val, lo in (("rings", style.rings, 0), ("spokes", style.spokes, 0), ("sites", style.sites, 1),
+                         ("relax", style.relax, 0)):
+        if val < lo:
+            raise ConfigError(f"<district> {key}={val} is below the minimum {lo}", where=where)
+    if style.weights < 0:
+        raise ConfigError(f"<district> weights={style.weights} is below the minimum 0", where=where)
+    return style
+
+
+def district_styles(plan) -> list[DistrictStyle]:
+    """The plan's district rules as styles; one default style when there are none."""
+    rules = plan.rules_of("district") if plan is not None else []
+    if not rules:
+        return [DistrictStyle(index=0, name="city", colour=None)]
+    return [parse_district(r, i) for i, r in enumerate(rules)]
+
+
+def landuse_classes(plan) -> list[tuple[tuple[int, int, int], str, bool, str]]:
+    """``(colour, class, buildable, where)`` for each ``<landuse>`` rule."""
+    out = []
+    for rule in plan.rules_of("landuse"):
+        if not rule.get("color"):
+            raise ConfigError("<landuse> needs a color attribute", where=rule.where or None)
+        cls = (rule.get("class") or "buildable").strip().lower()
+        flag = rule.get("buildable")
+        if flag is None:
+            buildable = cls in BUILDABLE_CLASSES
+        elif flag.strip().lower() in ("true", "yes", "1", "false", "no", "0"):
+            buildable = flag.strip().lower() in ("true", "yes", "1")
+        else:
+            raise ConfigError(f"<landuse> buildable={flag!r} is not true or false", where=rule.where or None)
+        out.append((parse_colour(rule.get("color"), where=rule.where), cls, buildable, rule.where))
+    return out
+
+
+def plan_meta(plan) -> dict:
+    """Layer meta of a synthetic city: its planar CRS, origin and extent."""
+    try:
+        from sengine.geom.crs import local_crs
+
+        crs = local_crs(plan.origin)
+    except Exception:  # pragma: no cover - geo helper missing
+        lat, lon = plan.origin
+        crs = f"+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs"
+    return {"crs": crs, "origin": tuple(plan.origin), "extent": tuple(plan.extent)}
+
+
+def city_regions(plan, styles: list[DistrictStyle], *, simplify: float = 1.0, grid_size: float = 1e-3):
+    """Vectorize the plan's maps into district regions and land-use regions.
+
+    Parameters
+    ----------
+    plan : CityPlan
+    styles : list of DistrictStyle
+    simplify : float
+        Coverage simplification tolerance (pixels).
+    grid_size : float
+        Snap grid (m).
+
+    Returns
+    -------
+    districts : list of shapely.Geometry
+        Region of each style (may be empty), before the land-use clip.
+    landuse : list of (str, bool, shapely.Geometry)
+        Class, buildable flag and region of each land-use class present.
+    buildable : shapely.Geometry
+        The extent minus every non-buildable land-use region.
+    """
+    extent = plan.extent
+    frame = shapely.box(*extent)
+    spec = plan.maps.get("district")
+    if spec is None:
+        districts = [frame] + [shapely.Polygon()] * (len(styles) - 1)
+    else:
+        img = read_map(spec, extent, colour=True)
+        missing = [s for s in styles if s.colour is None]
+        if missing:
+            raise ConfigError("<district> needs a color attribute when the plan has a district map",
+                              where=missing[0].where or None)
+        labels = classify(img, [s.colour for s in styles], tolerance=_tolerance(spec),
+                          names=[s.name for s in styles], what="district rules")
+        regions = vectorize(img, labels, simplify=simplify, grid_size=grid_size)
+        districts = [regions.get(s.index, shapely.Polygon()) for s in styles]
+    landuse: list[tuple[str, bool, shapely.Geometry]] = []
+    buildable = frame
+    spec = plan.maps.get("landuse")
+    if spec is not None:
+        legend = landuse_classes(plan)
+        if not legend:
+            raise ConfigError("the plan has a land-use map but no <landuse color=... class=...> rules",
+                              where=spec.where or None)
+        img = read_map(spec, extent, colour=True)
+        labels = classify(img, [c for c, *_ in legend], tolerance=_tolerance(spec),
+                          names=[c for _, c, *_ in legend], what="land-use rules")
+        regions = vectorize(img, labels, simplify=simplify, grid_size=grid_size)
+        by_class: dict[str, list] = {}
+        flags: dict[str, bool] = {}
+        for k, geom in regions.items():
+            _, cls, ok, _ = legend[k]
+            by_class.setdefault(cls, []).append(geom)
+            flags[cls] = ok
+        landuse = [(cls, flags[cls], shapely.union_all(g, grid_size=grid_size)) for cls, g in by_class.items()]
+        cut = [g for _, ok, g in landuse if not ok]
+        if cut:
+            buildable = shapely.difference(frame, shapely.union_all(cut, grid_size=grid_size), grid_size=grid_size)
+    return districts, landuse, buildable
+
+
+def _tolerance(spec) -> float | None:
+    t = spec.attrs.get("tolerance") if spec.attrs else None
+    if t is None:
+        return None
+    try:
+        return float(t)
+    except ValueError:
+        raise InputDataError(f"map '{spec.src.name}': tolerance={t!r} is not a number",
+                             where=spec.where or None) from None
+
+
+def pattern_lines(style: DistrictStyle, district, region, rng: np.random.Generator) -> np.ndarray:
+    """Generate, position and orient one district's pattern (Fig. 7 lines 3-4).
+
+    Parameters
+    ----------
+    style : DistrictStyle
+    district : shapely.Geometry
+        The district's region as drawn in the map (m).
+    region : shapely.Geometry
+        Its buildable part (organic sites are seeded there).
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    numpy.ndarray of shapely.LineString
+        Unclipped pattern lines covering the district.
+    """
+    bounds = district.bounds
+    if style.pattern == "grid":
+        return grid_lines(bounds, style.spacing, style.angle, style.offset)
+    if style.pattern == "radial":
+        centre = style.center or tuple(shapely.centroid(district).coords[0])
+        reach = shapely.hausdorff_distance(shapely.points(centre), shapely.boundary(district))
+        reach = max(shapely.distance(shapely.points(centre), shapely.boundary(district)), reach)
+        return radial_lines(bounds, centre, rings=style.rings, ring_spacing=style.ring_spacing,
+                            spokes=style.spokes, angle=style.angle, max_radius=reach)
+    seeds = organic_sites(region, style.sites, rng, relax=style.relax, weights=style.weights)
+    return organic_lines(region, seeds)
+
+
+def major_network(styles, districts, buildable, rngs, *, merge: float = 0.3, grid_size: float = 1e-3):
+    """Fig. 7: the areas enclosed by major roads and the major road segments.
+
+    Parameters
+    ----------
+    styles : list of DistrictStyle
+    districts : list of shapely.Geometry
+        Region of each district (from the map), aligned with ``styles``.
+    buildable : shapely.Geometry
+        Where the city may be built (m).
+    rngs : callable
+        ``rngs(i)`` -> numpy.random.Generator of district ``i``.
+    merge : float
+        Cells smaller than ``merge`` times the district's typical cell (area,
+        and width) dissolve into a neighbour.
+    grid_size : float
+        Snap-rounding grid (m).
+
+    Returns
+    -------
+    dict
+        ``cells`` (Polygons), ``cell_district`` (int), ``edges`` (LineStrings),
+        ``edge_class`` (str), ``edge_district`` (int), ``edge_width`` (float),
+        ``outline`` (Polygon or MultiPolygon), ``merged`` (int).
+    """
+    used = [i for i, g in enumerate(districts) if not g.is_empty]
+    raw = np.array([districts[i] for i in used], dtype=object)
+    regions = shapely.intersection(raw, buildable, grid_size=grid_size)
+    keep = ~shapely.is_empty(regions) & (shapely.area(regions) > 0)
+    used = [u for u, k in zip(used, keep) if k]
+    raw, regions = raw[keep], regions[keep]
+    lines, owner = [], []
+    for k, i in enumerate(used):
+        pat = pattern_lines(styles[i], raw[k], regions[k], rngs(i))
+        along = 0.1 * min(v for v in styles[i].spacing if v > 0) if styles[i].pattern == "grid" else 1.0
+        pieces, _ = clip_lines(pat, regions[k], along=along)
+        lines.append(pieces)
+        owner.append(np.full(len(pieces), k))
+    lines_arr = np.concatenate(lines) if lines else np.empty(0, object)
+    cells, region, noded = split_cells(regions, lines_arr, grid_size=grid_size)
+    # thresholds: the grid cell when the pattern fixes it, else the median cell
+    min_area = np.zeros(len(cells))
+    min_width = np.zeros(len(cells))
+    areas = shapely.area(cells)
+    widths = 2 * areas / np.maximum(shapely.length(cells), 1e-12)
+    for k, i in enumerate(used):
+        sel = region == k
+        size = styles[i].cell_size()
+        if size is None and sel.any():
+            size = (float(np.median(areas[sel])), float(np.median(widths[sel])) * 2)
+        if size is not None:
+            min_area[sel] = merge * size[0]
+            min_width[sel] = merge * size[1] * 0.5
+    cells, region, merged = merge_small_cells(cells, region, min_area, min_width, grid_size=grid_size)
+    cell_district = np.asarray(used, dtype=np.int64)[region] if len(cells) else np.empty(0, np.int64)
+    edges = cell_edges(cells, grid_size=grid_size, noded=noded)
+    cls, dist, width = classify_edges(edges, cells, cell_district,
+                                      {s.index: s.major_width for s in styles})
+    outline = shapely.union_all(regions, grid_size=grid_size)
+    log.info("major roads: %d districts, %d pattern lines, %d areas (%d slivers merged), %d road segments",
+             len(used), len(lines_arr), len(cells), merged, len(edges))
+    return {"cells": cells, "cell_district": cell_district, "edges": edges, "edge_class": cls,
+            "edge_district": dist, "edge_width": width, "outline": outline, "merged": merged}
+
+
+def classify_edges(edges, cells, cell_district, widths: dict, *, offset: float = 0.05):
+    """Class, district and width of each major road segment from the cells on its two sides.
+
+    A segment with the same district on both sides is ``major``; one between
+    two districts, or on the city's outline, is ``boundary`` and takes the
+    wider of its districts' widths.
+    """
+    n = len(edges)
+    if n == 0:
+        return np.empty(0, dtype="<U8"), np.empty(0, np.int64), np.empty(0, float)
+    left, right = side_points(edges, offset)
+    tree = STRtree(cells)
+    sides = []
+    for pts in (left, right):
+        d = np.full(n, -1, np.int64)
+        pi, ci = tree.query(pts, predicate="within")
+        d[pi] = cell_district[ci]
+        sides.append(d)
+    dl, dr = sides
+    cls = np.where(dl == dr, "major", "boundary").astype("<U8")
+    dist = np.where(dl >= 0, dl, dr)
+    wl = np.array([widths.get(int(d), 0.0) for d in dl])
+    wr = np.array([widths.get(int(d), 0.0) for d in dr])
+    return cls, dist, np.maximum(wl, wr)
+
+
+@register
+class RoadsDistricts(SENode):
+    """Districts and major roads from the district and land-use maps (paper 002 §5.3.1, Fig. 7).
+
+    Each district's pattern (grid, radial or organic) is generated,
+    positioned, clipped to the district's region and merged with the
+    district borders; the land-use map cuts out water and parks, whose
+    borders become roads too.  Without a district map the whole extent is
+    one district styled by the first ``<district>`` rule.
+    """
+
+    name = "roads.districts"
+    inputs = {}
+    outputs = {
+        "areas": Port("areas", "polygons enclosed by major roads, with their district"),
+        "roads": Port("roads", "major road segments between junctions (class major / boundary)"),
+        "outline": Port("outline", "the buildable city: extent minus land-use cut-outs"),
+        "parks": Port("parks", "district-level parks from the land-use map's park class"),
+        "landuse": Port("polygons", "non-buildable land-use regions (water ...), column kind"),
+    }
+    params = {
+        "merge": Param("float", 0.3, min=0.0, max=1.0, unit="1",
+                       doc="areas under this share of the district's typical area merge into a neighbour"),
+        "simplify": Param("float", 1.0, min=0.0, max=20.0, unit="px",
+                          doc="simplification of the map regions' pixel staircase"),
+        "grid": Param("float", 0.001, min=1e-6, max=1.0, unit="m", doc="snap-rounding grid of the noding"),
+    }
+
+    def run(self) -> dict[str, Layer]:
+        plan = self.context.plan
+        if plan is None:
+            from sengine.plan import CityPlan
+
+            plan = CityPlan()
+        styles = district_styles(plan)
+        districts, landuse, buildable = city_regions(plan, styles, simplify=self.p.simplify, grid_size=self.p.grid)
+        net = major_network(styles, districts, buildable, lambda i: self.rng(i),
+                            merge=self.p.merge, grid_size=self.p.grid)
+        meta = plan_meta(plan)
+        names = np.array([s.name for s in styles])
+        pats = np.array([s.pattern for s in styles])
+        cd = net["cell_district"]
+        areas = Layer.from_geoms(net["cells"], meta=meta, district=cd,
+                                 name=names[cd] if len(cd) else np.empty(0, "<U1"),
+                                 pattern=pats[cd] if len(cd) else np.empty(0, "<U1"),
+                                 area=shapely.area(net["cells"]))
+        roads = Layer.from_geoms(net["edges"], meta=meta, **{"class": net["edge_class"]},
+                                 major=np.ones(len(net["edges"]), bool), width=net["edge_width"],
+                                 district=net["edge_district"])
+        outline = Layer.from_geoms([net["outline"]], meta=meta, kind="outline")
+        park_geoms = [g for cls, _, g in landuse if cls == "park"]
+        parks_parts = shapely.get_parts(np.array(park_geoms, dtype=object)) if park_geoms else np.empty(0, object)
+        parks = Layer.from_geoms(parks_parts, meta=meta, level=np.full(len(parks_parts), "district"),
+                                 district=_district_at(parks_parts, districts),
+                                 area=shapely.area(parks_parts) if len(parks_parts) else np.empty(0))
+        cut = [(cls, g) for cls, ok, g in landuse if not ok and cls != "park"]
+        lu_geoms, lu_kind = [], []
+        for cls, g in cut:
+            parts = shapely.get_parts(g)
+            lu_geoms += list(parts)
+            lu_kind += [cls] * len(parts)
+        lu = Layer.from_geoms(lu_geoms, meta=meta, kind=np.array(lu_kind, dtype=object).astype(str)
+                              if lu_kind else np.empty(0, "<U1"))
+        self.report = {
+            "districts": int(sum(not g.is_empty for g in districts)),
+            "areas": len(areas),
+            "merged_slivers": int(net["merged"]),
+            "major_roads_km": round(float(shapely.length(net["edges"]).sum()) / 1000.0, 3),
+            "buildable_km2": round(float(net["outline"].area) / 1e6, 4),
+            "parks": len(parks),
+        }
+        return {"areas": areas, "roads": roads, "outline": outline, "parks": parks, "landuse": lu}
+
+
+def _district_at(geoms, districts) -> np.ndarray:
+    """District index under each geometry's inner point (-1 none)."""
+    out = np.full(len(geoms), -1, np.int64)
+    if len(geoms) == 0:
+        return out
+    pts = shapely.point_on_surface(np.asarray(geoms, dtype=object))
+    for i, d in enumerate(districts):
+        if not d.is_empty:
+            out[shapely.within(pts, d)] = i
+    return out

@@ -1,0 +1,191 @@
+"""Statistics: shape columns, and the planning indicators of what was built.
+
+:class:`StatsShape` adds area, perimeter, frontage and depth columns.
+``frontage`` is the street-facing boundary length: the lots' own
+``frontage`` column when present (computed against their block by the lot
+nodes), else the exterior length (a block faces the street all round).
+``depth`` is the extent perpendicular to the street: across the lot's
+``front_angle`` direction when present, else the short side of the
+oriented bounding box.
+
+:class:`StatsPlanning` reports what a planner asks of a city (papers-digest
+§10; paper 000 §5.2.4, paper 003 §5.2): per lot, block, district and for
+the whole city the built footprint, the gross floor area (GFA: footprint
+times floors), the floor area ratio (FAR = GFA / site area), the coverage
+(footprint / site area) and the residents the floor area would house.
+A building is counted on the lots it stands on, in proportion to the area
+it covers there: a real building across two lots counts on each with its
+part.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import shapely
+
+from sengine import Layer, Param, Port, SENode, register
+from sengine.geom.polygons import obb_frame, shared_areas, threaded
+
+__all__ = ["shape_stats", "building_shares", "built_on_sites", "planning_columns", "StatsShape", "StatsPlanning"]
+
+log = logging.getLogger(__name__)
+
+
+def shape_stats(geoms, *, frontage=None, front_angle=None) -> dict:
+    """Area (m2), perimeter (m), frontage (m) and depth (m) of each polygon.
+
+    Parameters
+    ----------
+    geoms : array_like of shapely.Polygon
+    frontage : array_like of float, optional
+        Known street frontage (m); defaults to the exterior length.
+    front_angle : array_like of float, optional
+        Direction of the street front (deg); ``nan`` entries fall back to
+        the oriented bounding box.
+    """
+    geoms = np.asarray(geoms, dtype=object)
+    n = len(geoms)
+    area = shapely.area(geoms) if n else np.zeros(0)
+    perim = shapely.length(geoms) if n else np.zeros(0)
+    if frontage is None:
+        frontage = shapely.length(shapely.get_exterior_ring(shapely.get_geometry(geoms, 0))) if n else np.zeros(0)
+    _, _, _, depth = obb_frame(geoms)
+    if front_angle is not None and n:
+        ang = np.radians(np.asarray(front_angle, np.float64))
+        ok = np.isfinite(ang)
+        if ok.any():
+            c, ci = shapely.get_coordinates(geoms[ok], return_index=True)
+            nrm = np.stack([-np.sin(ang[ok]), np.cos(ang[ok])], axis=1)
+            proj = np.einsum("ij,ij->i", c, nrm[ci])
+            hi = np.full(int(ok.sum()), -np.inf)
+            lo = np.full(int(ok.sum()), np.inf)
+            np.maximum.at(hi, ci, proj)
+            np.minimum.at(lo, ci, proj)
+            depth = depth.copy()
+            depth[ok] = hi - lo
+    return {"area": area, "perimeter": perim, "frontage": np.asarray(frontage, np.float64), "depth": depth}
+
+
+@register
+class StatsShape(SENode):
+    """Add area (m2), perimeter, frontage and depth (m) columns."""
+
+    name = "stats.shape"
+    inputs = {"input": Port("any", "polygons: blocks, lots ...")}
+    outputs = {"output": Port("any", "the same features with the new columns")}
+    params = {}
+    maps_features = True
+
+    def run(self, *, input: Layer) -> dict[str, Layer]:
+        st = shape_stats(input.geometry, frontage=input.get("frontage"), front_angle=input.get("front_angle"))
+        self.report = {"features": len(input), "area": float(st["area"].sum()),
+                       "frontage": float(st["frontage"].sum())}
+        return {"output": input.with_columns(**st)}
+
+
+def building_shares(sites: Layer, buildings: Layer) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Which building stands on which site, and with how much of its footprint (m2).
+
+    Returns ``(building, site, area)`` index and area arrays, one entry per
+    (building, site) pair that share ground.  A building inside the site its
+    ``lot`` column names (every generated one) takes one ``covers`` test; the
+    others (real buildings across lots, or on none) are intersected with
+    every site they touch.
+    """
+    geoms = buildings.geometry
+    site = sites.rows_of(buildings["lot"]) if "lot" in buildings else np.full(len(buildings), -1, np.int64)
+    inside = site >= 0
+    inside[inside] = threaded(shapely.covers, sites.geometry[site[inside]], geoms[inside])
+    named, rest = np.flatnonzero(inside), np.flatnonzero(~inside)
+    ri, rsi, shared = shared_areas(geoms[rest], sites.geometry)
+    return np.r_[named, rest[ri]], np.r_[site[named], rsi], np.r_[shapely.area(geoms[named]), shared]
+
+
+def built_on_sites(sites: Layer, buildings: Layer, shares=None) -> tuple[np.ndarray, np.ndarray]:
+    """Built footprint (m2) and gross floor area (m2, footprint times ``floors``) on each site.
+
+    ``shares`` are :func:`building_shares` of the two layers (computed when not given).
+    """
+    bi, si, part = building_shares(sites, buildings) if shares is None else shares
+    n = len(sites)
+    return np.bincount(si, weights=part, minlength=n), np.bincount(si, weights=part * _floors(buildings)[bi], minlength=n)
+
+
+def _floors(buildings: Layer) -> np.ndarray:
+    return np.asarray(buildings.get("floors", np.ones(len(buildings))), np.float64)
+
+
+def planning_columns(site_area: np.ndarray, foot: np.ndarray, gfa: np.ndarray) -> dict[str, np.ndarray]:
+    """``footprint`` and ``floor_area`` (m2), ``far`` and ``coverage`` (1) of sites of the given areas."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        far = np.where(site_area > 0, gfa / site_area, 0.0)
+        coverage = np.where(site_area > 0, foot / site_area, 0.0)
+    return {"footprint": foot, "floor_area": gfa, "far": far, "coverage": coverage}
+
+
+def _summary(site_area, foot, gfa, m2_per_resident: float) -> dict:
+    a, f, g = float(np.sum(site_area)), float(np.sum(foot)), float(np.sum(gfa))
+    return {"site_area_m2": round(a, 1), "footprint_m2": round(f, 1), "floor_area_m2": round(g, 1),
+            "far": round(g / a, 4) if a > 0 else 0.0, "coverage": round(f / a, 4) if a > 0 else 0.0,
+            "residents": int(g // m2_per_resident)}
+
+
+@register
+class StatsPlanning(SENode):
+    """Footprint, gross floor area, FAR, coverage and residents per lot, block, district and city."""
+
+    name = "stats.planning"
+    inputs = {
+        "lots": Port("lots", "lots: the sites"),
+        "buildings": Port("buildings", "buildings with a floors column"),
+        "blocks": Port("blocks", "blocks, for block-level figures (a lot's 'block' column names its block)",
+                       required=False),
+    }
+    outputs = {
+        "lots": Port("lots", "the lots with footprint, floor_area (m2), far and coverage columns"),
+        "blocks": Port("blocks", "the blocks with the same columns, for what stands on their lots (empty without blocks)"),
+    }
+    params = {
+        "m2_per_resident": Param("float", 50.0, min=1.0, max=1000.0, unit="m2",
+                                 doc="gross floor area per resident (all floor area counted as housing)"),
+    }
+
+    def run(self, *, lots: Layer, buildings: Layer, blocks: Layer | None = None) -> dict[str, Layer]:
+        per_resident = self.p.m2_per_resident
+        lot_area = shapely.area(lots.geometry) if len(lots) else np.zeros(0)
+        shares = building_shares(lots, buildings)
+        foot, gfa = built_on_sites(lots, buildings, shares)
+        out_lots = lots.with_columns(**planning_columns(lot_area, foot, gfa))
+        all_foot = float(shapely.area(buildings.geometry).sum()) if len(buildings) else 0.0
+        report = {"city": _summary(lot_area, foot, gfa, per_resident), "buildings": len(buildings),
+                  "footprint_off_lots_m2": round(max(all_foot - float(foot.sum()), 0.0), 1)}
+        if "district" in lots and len(lots):
+            district = np.asarray(lots["district"], np.int64)
+            report["districts"] = {
+                str(d): _summary(lot_area[district == d], foot[district == d], gfa[district == d], per_resident)
+                for d in np.unique(district)}
+        if "source" in buildings and len(buildings):  # e.g. the map's buildings beside the generated ones
+            src = np.asarray(buildings["source"]).astype(str)
+            bi, _, part = shares
+            floor_area = part * _floors(buildings)[bi]
+            for kind in np.unique(src):
+                mine = src[bi] == kind
+                report[f"{kind}_buildings"] = {"footprint_m2": round(float(part[mine].sum()), 1),
+                                               "floor_area_m2": round(float(floor_area[mine].sum()), 1)}
+        out_blocks = Layer.empty(meta=lots.meta)
+        if blocks is not None:
+            if "block" in lots:  # the lots' sums: every building on a lot is on its block
+                owner = blocks.rows_of(lots["block"])
+                has = owner >= 0
+                bf = np.bincount(owner[has], weights=foot[has], minlength=len(blocks))
+                bg = np.bincount(owner[has], weights=gfa[has], minlength=len(blocks))
+            else:
+                bf, bg = built_on_sites(blocks, buildings)
+            out_blocks = blocks.with_columns(**planning_columns(shapely.area(blocks.geometry), bf, bg))
+        self.report = report
+        c = report["city"]
+        log.info("%s: FAR %.2f, coverage %.0f %%, %.0f m2 of floor area on %.0f m2 of lots", self.where, c["far"],
+                 100 * c["coverage"], c["floor_area_m2"], c["site_area_m2"])
+        return {"lots": out_lots, "blocks": out_blocks}
