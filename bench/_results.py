@@ -34,9 +34,15 @@ def reference_seconds(repeat: int = 3) -> float:
 
 def environment() -> dict:
     """The versions and machine the figures were measured with, and its speed at the time."""
-    return {"python": platform.python_version(), "machine": platform.machine(), "cpus": os.cpu_count(),
-            "numpy": np.__version__, "shapely": shapely.__version__, "geos": shapely.geos_version_string,
-            "reference_seconds": reference_seconds()}
+    return {
+        "python": platform.python_version(),
+        "machine": platform.machine(),
+        "cpus": os.cpu_count(),
+        "numpy": np.__version__,
+        "shapely": shapely.__version__,
+        "geos": shapely.geos_version_string,
+        "reference_seconds": reference_seconds(),
+    }
 
 
 def write(out: Path, benchmark: str, results) -> Path:

@@ -40,9 +40,14 @@ from _results import write  # bench/ is on sys.path when run as a script
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
-LIEGE = next((p for p in (ROOT / "configs/data/liege_streets.osm.pbf",
-                          ROOT.parent / "shared/data/liege_streets.osm.pbf") if p.exists()),
-             ROOT / "configs/data/liege_streets.osm.pbf")
+LIEGE = next(
+    (
+        p
+        for p in (ROOT / "configs/data/liege_streets.osm.pbf", ROOT.parent / "shared/data/liege_streets.osm.pbf")
+        if p.exists()
+    ),
+    ROOT / "configs/data/liege_streets.osm.pbf",
+)
 
 
 def _peak_mb() -> float:
@@ -118,11 +123,17 @@ def case_grid(n: int, repeat: int) -> dict:
     t_node, out = _best(lambda: node.run(roads=roads), repeat)
     traced = _traced(lambda: B.find_blocks(lines))
     return {
-        "case": f"grid {n}x{n}", "segments": int(len(lines)), "faces": int(len(bf.faces)),
-        "blocks": int(len(out["blocks"])), "expected_faces": n * n,
-        "find_blocks_s": round(t_find, 4), "node_s": round(t_node, 4),
-        "segments_per_s": round(len(lines) / t_find), "peak_traced_mb": round(traced, 1),
-        "peak_rss_mb": round(_peak_mb(), 1), "report": node.report,
+        "case": f"grid {n}x{n}",
+        "segments": int(len(lines)),
+        "faces": int(len(bf.faces)),
+        "blocks": int(len(out["blocks"])),
+        "expected_faces": n * n,
+        "find_blocks_s": round(t_find, 4),
+        "node_s": round(t_node, 4),
+        "segments_per_s": round(len(lines) / t_find),
+        "peak_traced_mb": round(traced, 1),
+        "peak_rss_mb": round(_peak_mb(), 1),
+        "report": node.report,
     }
 
 
@@ -141,21 +152,34 @@ def case_liege(path: Path, repeat: int) -> dict:
     lots_node = get("lots.manhattan")("lots", {})
     t_lots, lots = _best(lambda: lots_node.run(blocks=out["blocks"]), repeat)
     # reference: GEOS noding + polygonize on the same segments
-    t_poly, ref = _best(lambda: shapely.get_parts(shapely.polygonize(
-        shapely.get_parts(shapely.node(shapely.multilinestrings(lines))))), 1)
+    t_poly, ref = _best(
+        lambda: shapely.get_parts(shapely.polygonize(shapely.get_parts(shapely.node(shapely.multilinestrings(lines))))),
+        1,
+    )
     ref_area = float(shapely.area(ref).sum())
     area = float(shapely.area(bf.faces).sum())
     return {
-        "case": "liege", "file": path.name, "ways": int(nways), "segments": int(len(u)),
-        "read_s": round(t_read, 3), "find_blocks_s": round(t_find, 4),
+        "case": "liege",
+        "file": path.name,
+        "ways": int(nways),
+        "segments": int(len(u)),
+        "read_s": round(t_read, 3),
+        "find_blocks_s": round(t_find, 4),
         "file_to_faces_s": round(t_read + t_find, 3),
-        "node_s": round(t_node, 4), "lots_manhattan_s": round(t_lots, 4),
-        "segments_per_s": round(len(u) / t_find), "faces": int(len(bf.faces)), "blocks": int(len(out["blocks"])),
-        "lots": int(len(lots["lots"])), "lots_per_s": round(len(lots["lots"]) / t_lots),
-        "polygonize_s": round(t_poly, 3), "polygonize_faces": int(len(ref)),
+        "node_s": round(t_node, 4),
+        "lots_manhattan_s": round(t_lots, 4),
+        "segments_per_s": round(len(u) / t_find),
+        "faces": int(len(bf.faces)),
+        "blocks": int(len(out["blocks"])),
+        "lots": int(len(lots["lots"])),
+        "lots_per_s": round(len(lots["lots"]) / t_lots),
+        "polygonize_s": round(t_poly, 3),
+        "polygonize_faces": int(len(ref)),
         "area_rel_diff_vs_polygonize": abs(area - ref_area) / ref_area,
-        "find_blocks_counts": bf.counts, "node_report": node.report,
-        "peak_traced_mb": round(traced, 1), "peak_rss_mb": round(_peak_mb(), 1),
+        "find_blocks_counts": bf.counts,
+        "node_report": node.report,
+        "peak_traced_mb": round(traced, 1),
+        "peak_rss_mb": round(_peak_mb(), 1),
     }
 
 
@@ -178,9 +202,23 @@ def main(argv=None) -> int:
         if case == "liege" and not args.osm.exists():
             print(f"skip liege: {args.osm} not found", file=sys.stderr)
             continue
-        proc = subprocess.run([sys.executable, __file__, "--case", case, "--grid", str(args.grid),
-                               "--repeat", str(args.repeat), "--osm", str(args.osm)],
-                              capture_output=True, text=True, check=True)
+        proc = subprocess.run(
+            [
+                sys.executable,
+                __file__,
+                "--case",
+                case,
+                "--grid",
+                str(args.grid),
+                "--repeat",
+                str(args.repeat),
+                "--osm",
+                str(args.osm),
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
         res = json.loads(proc.stdout.strip().splitlines()[-1])
         print(json.dumps(res, indent=1), file=sys.stderr)
         results.append(res)

@@ -39,9 +39,14 @@ from _results import write  # bench/ is on sys.path when run as a script
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
-LIEGE = next((p for p in (ROOT / "configs/data/liege_streets.osm.pbf",
-                          ROOT.parent / "shared/data/liege_streets.osm.pbf") if p.exists()),
-             ROOT / "configs/data/liege_streets.osm.pbf")
+LIEGE = next(
+    (
+        p
+        for p in (ROOT / "configs/data/liege_streets.osm.pbf", ROOT.parent / "shared/data/liege_streets.osm.pbf")
+        if p.exists()
+    ),
+    ROOT / "configs/data/liege_streets.osm.pbf",
+)
 METHODS = ("lots.manhattan", "lots.recursive", "lots.paris")
 
 
@@ -120,11 +125,17 @@ def run_method(case: str, method: str, repeat: int) -> dict:
     larea = np.bincount(np.searchsorted(blocks.ids, out["block"]), weights=shapely.area(g), minlength=len(blocks))
     rel = np.abs(larea - barea) / np.maximum(barea, 1e-12)
     return {
-        "case": case, "method": method, "blocks": int(len(blocks)), "lots": int(len(out)),
-        "seconds": round(best, 3), "lots_per_s": round(len(out) / best), "peak_rss_mb": round(_peak_mb(), 1),
+        "case": case,
+        "method": method,
+        "blocks": int(len(blocks)),
+        "lots": int(len(out)),
+        "seconds": round(best, 3),
+        "lots_per_s": round(len(out) / best),
+        "peak_rss_mb": round(_peak_mb(), 1),
         "max_partition_error": float(rel.max()) if len(rel) else 0.0,
         "no_frontage": int(((out["frontage"] <= 0) & ~out["inner"]).sum()),
-        "invalid": int((~shapely.is_valid(g)).sum()), "report": node.report,
+        "invalid": int((~shapely.is_valid(g)).sum()),
+        "report": node.report,
     }
 
 
@@ -137,7 +148,6 @@ def main(argv=None) -> int:
     ap.add_argument("--prepare", metavar="CASE", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.prepare:
-
         blocks, dt = blocks_of(args.prepare)
         print(json.dumps({"case": args.prepare, "blocks": int(len(blocks)), "blocks_s": round(dt, 2)}))
         return 0
@@ -156,8 +166,12 @@ def main(argv=None) -> int:
             continue
         print(prep.stdout.strip(), file=sys.stderr)
         for method in METHODS:
-            proc = subprocess.run([sys.executable, __file__, "--run", case, method, "--repeat", str(args.repeat)],
-                                  capture_output=True, text=True, check=True)
+            proc = subprocess.run(
+                [sys.executable, __file__, "--run", case, method, "--repeat", str(args.repeat)],
+                capture_output=True,
+                text=True,
+                check=True,
+            )
             res = json.loads(proc.stdout.strip().splitlines()[-1])
             print(json.dumps({k: v for k, v in res.items() if k != "report"}), file=sys.stderr)
             results.append(res)

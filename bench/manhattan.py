@@ -65,8 +65,13 @@ def case(name: str, seed: int, repeat: int, workers: int) -> dict:
             _, stats = net.run(seed=seed, out=Path(tmp) / "out", workers=workers)
             wall = time.perf_counter() - t
         if best is None or wall < best["wall_seconds"]:
-            best = {"wall_seconds": round(wall, 4), "seconds": stats.get("seconds", {}),
-                    "counts": stats.get("counts", {}), "size_m": list(net.plan.size), "workers": workers}
+            best = {
+                "wall_seconds": round(wall, 4),
+                "seconds": stats.get("seconds", {}),
+                "counts": stats.get("counts", {}),
+                "size_m": list(net.plan.size),
+                "workers": workers,
+            }
     best["peak_rss_mb"] = round(_peak_mb(), 1)
     return best
 
@@ -78,16 +83,25 @@ def cli(seed: int, repeat: int, workers: int, exe: list[str]) -> dict:
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "out"
             t = time.perf_counter()
-            proc = subprocess.run([*exe, "run", str(CONFIG), "-o", str(out), "--seed", str(seed),
-                                   "--workers", str(workers), "--quiet"], capture_output=True, text=True, cwd=ROOT)
+            proc = subprocess.run(
+                [*exe, "run", str(CONFIG), "-o", str(out), "--seed", str(seed), "--workers", str(workers), "--quiet"],
+                capture_output=True,
+                text=True,
+                cwd=ROOT,
+            )
             wall = time.perf_counter() - t
             if proc.returncode != 0:
                 return {"error": proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else proc.returncode}
             files = sorted(p.name for p in out.iterdir())
         times.append(wall)
-    return {"wall_seconds": round(min(times), 4), "median_seconds": round(statistics.median(times), 4),
-            "all_seconds": [round(t, 3) for t in times], "workers": workers, "command": " ".join(exe),
-            "files": files}
+    return {
+        "wall_seconds": round(min(times), 4),
+        "median_seconds": round(statistics.median(times), 4),
+        "all_seconds": [round(t, 3) for t in times],
+        "workers": workers,
+        "command": " ".join(exe),
+        "files": files,
+    }
 
 
 def main() -> None:
@@ -95,11 +109,16 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--seed", type=int, default=7)
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results" / "manhattan.json")
-    ap.add_argument("--workers", type=int, default=available_cores(),
-                    help="processes per run (default: every core, as the CLI)")
-    ap.add_argument("--sengine", dest="exe", default=None,
-                    help="the sengine command to time in the cli case, e.g. the one of a venv made with "
-                         "`pip install .` (compiled bytecode, as users run it); default: python -m sengine")
+    ap.add_argument(
+        "--workers", type=int, default=available_cores(), help="processes per run (default: every core, as the CLI)"
+    )
+    ap.add_argument(
+        "--sengine",
+        dest="exe",
+        default=None,
+        help="the sengine command to time in the cli case, e.g. the one of a venv made with "
+        "`pip install .` (compiled bytecode, as users run it); default: python -m sengine",
+    )
     ap.add_argument("--case", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.case:
@@ -107,9 +126,23 @@ def main() -> None:
         return
     results = {}
     for name in ("api", "scale10"):
-        proc = subprocess.run([sys.executable, __file__, "--case", name, "--seed", str(args.seed),
-                               "--repeat", str(args.repeat if name == "api" else 1), "--workers", str(args.workers)],
-                              capture_output=True, text=True, cwd=ROOT)
+        proc = subprocess.run(
+            [
+                sys.executable,
+                __file__,
+                "--case",
+                name,
+                "--seed",
+                str(args.seed),
+                "--repeat",
+                str(args.repeat if name == "api" else 1),
+                "--workers",
+                str(args.workers),
+            ],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+        )
         if proc.returncode != 0:
             results[name] = {"error": proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else "failed"}
         else:
@@ -120,15 +153,26 @@ def main() -> None:
     print("cli", json.dumps(results["cli"]))
     api = results.get("api", {})
     if "counts" in api:
-        results["paper"] = {k: {"paper": v, "sengine": api["counts"].get(k),
-                                "ratio": round(api["counts"].get(k, 0) / v, 3)} for k, v in PAPER.items()}
+        results["paper"] = {
+            k: {"paper": v, "sengine": api["counts"].get(k), "ratio": round(api["counts"].get(k, 0) / v, 3)}
+            for k, v in PAPER.items()
+        }
     if "counts" in api and "counts" in results.get("scale10", {}):
-        results["scaling"] = {k: {"counts_ratio": round(results["scale10"]["counts"].get(k, 0) / max(v, 1), 2),
-                                  "seconds_ratio": round(results["scale10"]["seconds"].get(k, 0)
-                                                         / max(api["seconds"].get(k, 1e-9), 1e-9), 2)}
-                              for k, v in api["counts"].items()}
-    results["meta"] = {**environment(), "seed": args.seed, "repeat": args.repeat,
-                       "config": str(CONFIG.relative_to(ROOT))}
+        results["scaling"] = {
+            k: {
+                "counts_ratio": round(results["scale10"]["counts"].get(k, 0) / max(v, 1), 2),
+                "seconds_ratio": round(
+                    results["scale10"]["seconds"].get(k, 0) / max(api["seconds"].get(k, 1e-9), 1e-9), 2
+                ),
+            }
+            for k, v in api["counts"].items()
+        }
+    results["meta"] = {
+        **environment(),
+        "seed": args.seed,
+        "repeat": args.repeat,
+        "config": str(CONFIG.relative_to(ROOT)),
+    }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(results, indent=2) + "\n")
     print(f"wrote {args.out}")

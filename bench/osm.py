@@ -99,15 +99,23 @@ def route_sengine(path: str) -> dict:
         "cpu_seconds": c4 - c0,
         "cpu_seconds_to_faces": c3 - c0,
         "seconds_to_faces": t3 - t0,
-        "stages": {"osm.read": t1 - t0, "roads.clean (traces the faces too)": t2 - t1,
-                   "faces >= min_area": t3 - t2,
-                   "blocks.circuits (node: faces taken over + sidewalk inset + street polygons)": t4 - t3},
+        "stages": {
+            "osm.read": t1 - t0,
+            "roads.clean (traces the faces too)": t2 - t1,
+            "faces >= min_area": t3 - t2,
+            "blocks.circuits (node: faces taken over + sidewalk inset + street polygons)": t4 - t3,
+        },
         "circuits": int(len(circuits)),
-        "peak_rss_mb": _peak_mb(), "rss_before_mb": base,
-        "ways": read.report["ways"], "segments": len(roads),
-        "faces": int(len(faces)), "faces_area_m2": float(shapely.area(faces).sum()),
-        "blocks": int(len(out["blocks"])), "clean_report": clean.report,
-        "crs": roads.meta["crs"], "_check": int(np.sum(shapely.is_valid(faces))),
+        "peak_rss_mb": _peak_mb(),
+        "rss_before_mb": base,
+        "ways": read.report["ways"],
+        "segments": len(roads),
+        "faces": int(len(faces)),
+        "faces_area_m2": float(shapely.area(faces).sum()),
+        "blocks": int(len(out["blocks"])),
+        "clean_report": clean.report,
+        "crs": roads.meta["crs"],
+        "_check": int(np.sum(shapely.is_valid(faces))),
     }
 
 
@@ -159,8 +167,11 @@ def route_library(path: str) -> dict:
         "seconds": t3 - t0,
         "cpu_seconds": c3 - c0,
         "stages": {"read+project": t1 - t0, "shapely.node": t2 - t1, "shapely.polygonize": t3 - t2},
-        "peak_rss_mb": _peak_mb(), "rss_before_mb": base,
-        "ways": len(lines), "faces": int(len(faces)), "faces_area_m2": float(area[area >= MIN_AREA].sum()),
+        "peak_rss_mb": _peak_mb(),
+        "rss_before_mb": base,
+        "ways": len(lines),
+        "faces": int(len(faces)),
+        "faces_area_m2": float(area[area >= MIN_AREA].sum()),
         "crs": f"EPSG:{epsg}",
     }
 
@@ -169,8 +180,9 @@ ROUTES = {"sengine": route_sengine, "library": route_library}
 
 
 def _child(route: str, path: str) -> dict:
-    proc = subprocess.run([sys.executable, __file__, "--route", route, path], capture_output=True, text=True,
-                          cwd=ROOT, timeout=600)
+    proc = subprocess.run(
+        [sys.executable, __file__, "--route", route, path], capture_output=True, text=True, cwd=ROOT, timeout=600
+    )
     if proc.returncode:
         raise RuntimeError(f"{route} failed:\n{proc.stderr}")
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -200,8 +212,10 @@ def main(argv: list[str] | None = None) -> int:
         d.pop("_check", None)
     s, lib = best["sengine"], best["library"]
     ratio = {"faces": s["seconds_to_faces"] / lib["seconds"], "blocks": s["seconds"] / lib["seconds"]}
-    median = {k: statistics.median(s[f"all_{key}"]) / statistics.median(lib["all_seconds"])
-              for k, key in (("faces", "seconds_to_faces"), ("blocks", "seconds"))}
+    median = {
+        k: statistics.median(s[f"all_{key}"]) / statistics.median(lib["all_seconds"])
+        for k, key in (("faces", "seconds_to_faces"), ("blocks", "seconds"))
+    }
     result = {
         "file": Path(args.path).name,
         "min_area_m2": MIN_AREA,
@@ -218,11 +232,13 @@ def main(argv: list[str] | None = None) -> int:
     }
     write(args.out, "osm", result)
     verdict = {k: "meets" if v else "misses" for k, v in result["meets_target"].items()}
-    print(f"{result['file']}: library {lib['seconds']:.2f} s ({lib['faces']} faces); sengine "
-          f"file->faces {s['seconds_to_faces']:.2f} s = {ratio['faces']:.2f} x library ({verdict['faces']} "
-          f"the {TARGET:.2f} target), file->blocks {s['seconds']:.2f} s = {ratio['blocks']:.2f} x library "
-          f"({verdict['blocks']} it; {s['faces']} faces, {s['blocks']} blocks); "
-          f"faces {result['faces_diff_pct']:+.2f} %, area {result['area_diff_pct']:+.2f} %")
+    print(
+        f"{result['file']}: library {lib['seconds']:.2f} s ({lib['faces']} faces); sengine "
+        f"file->faces {s['seconds_to_faces']:.2f} s = {ratio['faces']:.2f} x library ({verdict['faces']} "
+        f"the {TARGET:.2f} target), file->blocks {s['seconds']:.2f} s = {ratio['blocks']:.2f} x library "
+        f"({verdict['blocks']} it; {s['faces']} faces, {s['blocks']} blocks); "
+        f"faces {result['faces_diff_pct']:+.2f} %, area {result['area_diff_pct']:+.2f} %"
+    )
     return 0
 
 

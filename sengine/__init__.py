@@ -12,8 +12,20 @@ from .node import Context, Param, Port, SENode  # noqa: E402
 from .plan import CityPlan, MapSpec, Rule  # noqa: E402
 from .registry import register  # noqa: E402
 
-__all__ = ["Layer", "SENode", "Param", "Port", "Context", "CityPlan", "MapSpec", "Rule", "register",
-           "SEngineError", "load", "__version__"]
+__all__ = [
+    "Layer",
+    "SENode",
+    "Param",
+    "Port",
+    "Context",
+    "CityPlan",
+    "MapSpec",
+    "Rule",
+    "register",
+    "SEngineError",
+    "load",
+    "__version__",
+]
 
 
 def load(path, **overrides):

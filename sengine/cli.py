@@ -33,8 +33,13 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--plugin", action="append", default=[], metavar="P",
-                   help="load a plugin module or .py path before reading the config (repeatable)")
+    p.add_argument(
+        "--plugin",
+        action="append",
+        default=[],
+        metavar="P",
+        help="load a plugin module or .py path before reading the config (repeatable)",
+    )
     p.add_argument("--debug", action="store_true", help="show tracebacks")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress on stderr")
 
@@ -42,13 +47,28 @@ def _common(p: argparse.ArgumentParser) -> None:
 def _run_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--out", required=True, type=Path, help="output folder")
     p.add_argument("--seed", type=int, help="network seed (overrides the config's)")
-    p.add_argument("--set", dest="sets", action="append", default=[], metavar="NODE.PARAM=VALUE",
-                   help="set a node parameter (repeatable)")
-    p.add_argument("--workers", type=_workers, default=available_cores(), metavar="N",
-                   help="worker processes: chunks of nodes that map features one by one, exporters' files, "
-                   "batch seeds (default: every core, %(default)s here; the result is the same for any N)")
-    p.add_argument("--format", dest="formats", default="",
-                   help="comma list of outputs: glb,geojson,osm,png,obj,cityjson (default: the exporter's)")
+    p.add_argument(
+        "--set",
+        dest="sets",
+        action="append",
+        default=[],
+        metavar="NODE.PARAM=VALUE",
+        help="set a node parameter (repeatable)",
+    )
+    p.add_argument(
+        "--workers",
+        type=_workers,
+        default=available_cores(),
+        metavar="N",
+        help="worker processes: chunks of nodes that map features one by one, exporters' files, "
+        "batch seeds (default: every core, %(default)s here; the result is the same for any N)",
+    )
+    p.add_argument(
+        "--format",
+        dest="formats",
+        default="",
+        help="comma list of outputs: glb,geojson,osm,png,obj,cityjson (default: the exporter's)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -59,15 +79,22 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("run", help="run a city config and write its outputs")
     p.add_argument("config", type=Path)
     _run_options(p)
-    p.add_argument("--map", dest="maps", action="append", default=[], metavar="KIND=PATH",
-                   help="replace the config's map of a kind (district, landuse, height, osm ...)")
+    p.add_argument(
+        "--map",
+        dest="maps",
+        action="append",
+        default=[],
+        metavar="KIND=PATH",
+        help="replace the config's map of a kind (district, landuse, height, osm ...)",
+    )
     _common(p)
 
     p = sub.add_parser("batch", help="run a config once per seed into OUT/seed-N")
     p.add_argument("config", type=Path)
     _run_options(p)
-    p.add_argument("--seeds", default="1-4", help="seeds as a list or range, e.g. 1,2,5 or 1-10 "
-                   "(--workers N runs N seeds at once)")
+    p.add_argument(
+        "--seeds", default="1-4", help="seeds as a list or range, e.g. 1,2,5 or 1-10 (--workers N runs N seeds at once)"
+    )
     p.add_argument("--map", dest="maps", action="append", default=[], metavar="KIND=PATH")
     _common(p)
 
@@ -152,8 +179,10 @@ def cmd_batch(args: argparse.Namespace) -> int:
         stats = run_jobs(jobs, args.workers)
     else:
         stats = [_batch_run(net, seed, args.out, formats, _progress(args), args.workers) for seed in seeds]
-    rows = [{"seed": seed, "counts": st["counts"], "areas": st["areas"], "report": st["report"]}
-            for seed, st in zip(seeds, stats)]
+    rows = [
+        {"seed": seed, "counts": st["counts"], "areas": st["areas"], "report": st["report"]}
+        for seed, st in zip(seeds, stats)
+    ]
     if not args.quiet:
         for row in rows:
             print(f"seed {row['seed']}: " + ", ".join(f"{k} {v:,}" for k, v in row["counts"].items()))
@@ -173,8 +202,10 @@ def cmd_osm(args: argparse.Namespace) -> int:
         raise SEngineError(f"{args.file}: file not found")
     with tempfile.TemporaryDirectory() as tmp:
         config = Path(tmp) / "osm.xml"
-        config.write_text(f'<sengine version="1">\n  <city name="{_xml_attr(args.file.name)}"/>\n'
-                          '  <network base="loadmap"/>\n</sengine>\n')
+        config.write_text(
+            f'<sengine version="1">\n  <city name="{_xml_attr(args.file.name)}"/>\n'
+            '  <network base="loadmap"/>\n</sengine>\n'
+        )
         net = load_config(config, sets=args.sets, plugins=args.plugin, seed=args.seed)
         # errors about the file name the command, not the temporary config
         net.plan.maps["osm"] = MapSpec("osm", args.file.resolve(), {}, where="sengine osm")
@@ -241,8 +272,14 @@ def cmd_graph(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMANDS = {"run": cmd_run, "batch": cmd_batch, "osm": cmd_osm, "validate": cmd_validate,
-            "nodes": cmd_nodes, "graph": cmd_graph}
+COMMANDS = {
+    "run": cmd_run,
+    "batch": cmd_batch,
+    "osm": cmd_osm,
+    "validate": cmd_validate,
+    "nodes": cmd_nodes,
+    "graph": cmd_graph,
+}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -250,8 +287,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
     except SystemExit as done:  # --help, --version, or a usage error already printed
         return int(done.code or 0)
-    logging.basicConfig(level=logging.DEBUG if args.debug else logging.WARNING,
-                        format="sengine: %(levelname)s: %(message)s")
+    logging.basicConfig(
+        level=logging.DEBUG if args.debug else logging.WARNING, format="sengine: %(levelname)s: %(message)s"
+    )
     try:
         return COMMANDS[args.command](args)
     except SEngineError as err:

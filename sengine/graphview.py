@@ -23,11 +23,15 @@ BOX_W, BOX_H, GAP_X, GAP_Y, MARGIN = 190, 46, 80, 26, 20
 def to_dot(net: Network) -> str:
     """The network as Graphviz text (left to right, ports on the edges)."""
     g = net.graph()
-    lines = ["digraph sengine {", "  rankdir=LR;", '  node [shape=box, style="rounded,filled", fillcolor="#eef3fb", fontname="Helvetica"];']
+    lines = [
+        "digraph sengine {",
+        "  rankdir=LR;",
+        '  node [shape=box, style="rounded,filled", fillcolor="#eef3fb", fontname="Helvetica"];',
+    ]
     for node, data in g.nodes(data=True):
         lines.append(f'  "{node}" [label="{node}\\n{data["type"]}"];')
     for u, v, data in g.edges(data=True):
-        label = f'{data.get("src_port", "")} → {data.get("dst_port", "")}'.strip(" →")
+        label = f"{data.get('src_port', '')} → {data.get('dst_port', '')}".strip(" →")
         lines.append(f'  "{u}" -> "{v}" [label="{label}", fontsize=10];')
     lines.append("}")
     return "\n".join(lines) + "\n"
@@ -52,7 +56,9 @@ def layout(net: Network) -> tuple[dict[str, tuple[int, int]], list[tuple[list[tu
     except nx.NetworkXUnfeasible:  # a cycle: one column per node in file order
         generations = [[n] for n in order]
     column = {node: col for col, gen in enumerate(generations) for node in gen}
-    edges = sorted(g.edges(data=True), key=lambda e: (column[e[1]] - column[e[0]], order.index(e[0]), order.index(e[1])))
+    edges = sorted(
+        g.edges(data=True), key=lambda e: (column[e[1]] - column[e[0]], order.index(e[0]), order.index(e[1]))
+    )
     long_edges = [e for e in edges if column[e[1]] - column[e[0]] != 1]
     top = MARGIN + LANE * len(long_edges)
     pos = {}
@@ -86,20 +92,28 @@ def layout(net: Network) -> tuple[dict[str, tuple[int, int]], list[tuple[list[tu
 def _svg(net: Network) -> str:
     pos, routes, width, height = layout(net)
     g = net.graph()
-    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" font-family="Helvetica" font-size="12">',
-           '<defs><marker id="a" markerWidth="8" markerHeight="8" refX="8" refY="4" orient="auto">'
-           '<path d="M0,0 L8,4 L0,8 z" fill="#555"/></marker></defs>',
-           f'<rect width="{width}" height="{height}" fill="white"/>']
+    out = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" font-family="Helvetica" font-size="12">',
+        '<defs><marker id="a" markerWidth="8" markerHeight="8" refX="8" refY="4" orient="auto">'
+        '<path d="M0,0 L8,4 L0,8 z" fill="#555"/></marker></defs>',
+        f'<rect width="{width}" height="{height}" fill="white"/>',
+    ]
     for points, label in routes:
         pts = " ".join(f"{x},{y}" for x, y in points)
-        out.append(f'<polyline points="{pts}" fill="none" stroke="#667" marker-end="url(#a)"><title>{escape(label)}</title></polyline>')
+        out.append(
+            f'<polyline points="{pts}" fill="none" stroke="#667" marker-end="url(#a)"><title>{escape(label)}</title></polyline>'
+        )
         (x, y) = points[1]
         out.append(f'<text x="{x + 3}" y="{y - 3}" font-size="9" fill="#556">{escape(label)}</text>')
     for node, (x, y) in pos.items():
         out.append(f'<rect x="{x}" y="{y}" width="{BOX_W}" height="{BOX_H}" rx="8" fill="#eef3fb" stroke="#3a5a8c"/>')
-        out.append(f'<text x="{x + BOX_W // 2}" y="{y + 19}" text-anchor="middle" font-weight="bold">{escape(node)}</text>')
-        out.append(f'<text x="{x + BOX_W // 2}" y="{y + 36}" text-anchor="middle" fill="#445">'
-                   f'{escape(g.nodes[node]["type"])}</text>')
+        out.append(
+            f'<text x="{x + BOX_W // 2}" y="{y + 19}" text-anchor="middle" font-weight="bold">{escape(node)}</text>'
+        )
+        out.append(
+            f'<text x="{x + BOX_W // 2}" y="{y + 36}" text-anchor="middle" fill="#445">'
+            f"{escape(g.nodes[node]['type'])}</text>"
+        )
     out.append("</svg>")
     return "\n".join(out) + "\n"
 
@@ -133,8 +147,9 @@ def write_graph(net: Network, path: Path) -> None:
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".dot", ".gv", ".svg", ".png"):
-        raise SEngineError(f"{path}: cannot draw a graph as {suffix or 'a file without suffix'!r}; "
-                           "use .dot, .svg or .png")
+        raise SEngineError(
+            f"{path}: cannot draw a graph as {suffix or 'a file without suffix'!r}; use .dot, .svg or .png"
+        )
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")
     if suffix in (".dot", ".gv"):

@@ -180,9 +180,7 @@ class Layer:
         return float(shapely.area(self.geometry).sum()) if len(self) else 0.0
 
     # -- GeoJSON --------------------------------------------------------------
-    def to_geojson(
-        self, transform: Callable[[np.ndarray], np.ndarray] | None = None, *, precision: int = 7
-    ) -> dict:
+    def to_geojson(self, transform: Callable[[np.ndarray], np.ndarray] | None = None, *, precision: int = 7) -> dict:
         """A GeoJSON FeatureCollection with every attribute as a property.
 
         ``transform`` maps an (n, 2) array of planar coordinates to the output

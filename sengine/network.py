@@ -135,8 +135,9 @@ class Network:
         """Add a node; a duplicate id is an error."""
         if node_id in self.specs:
             old = self.specs[node_id]
-            raise NetworkError(f"node id {node_id!r} is defined twice (first at {old.where or 'an earlier line'})",
-                               where=where or None)
+            raise NetworkError(
+                f"node id {node_id!r} is defined twice (first at {old.where or 'an earlier line'})", where=where or None
+            )
         spec = NodeSpec(node_id, type, dict(params or {}), where, {k: where for k in (params or {})})
         self.specs[node_id] = spec
         return spec
@@ -160,9 +161,16 @@ class Network:
     def disconnect(self, src: str, dst: str, *, where: str = "") -> None:
         """Remove the connections from ``src`` to ``dst`` (a port left out matches any)."""
         want = Connection.parse(src, dst)
-        keep = [c for c in self.connections if not (
-            c.src == want.src and c.dst == want.dst
-            and want.src_port in (None, c.src_port) and want.dst_port in (None, c.dst_port))]
+        keep = [
+            c
+            for c in self.connections
+            if not (
+                c.src == want.src
+                and c.dst == want.dst
+                and want.src_port in (None, c.src_port)
+                and want.dst_port in (None, c.dst_port)
+            )
+        ]
         if len(keep) == len(self.connections):
             raise NetworkError(f"there is no connection from {src!r} to {dst!r} to remove", where=where or None)
         self.connections = keep
@@ -172,7 +180,9 @@ class Network:
             return self.specs[node_id]
         except KeyError:
             known = ", ".join(self.specs) or "none"
-            raise NetworkError(f"no node with id {node_id!r} in the network (nodes: {known})", where=where or None) from None
+            raise NetworkError(
+                f"no node with id {node_id!r} in the network (nodes: {known})", where=where or None
+            ) from None
 
     def merge(self, other: Network) -> None:
         """Add every node and connection of ``other`` (ids must not clash)."""
@@ -214,18 +224,26 @@ class Network:
         for node_id, node in nodes.items():
             for port_name, port in node.inputs.items():
                 if port.required and (node_id, port_name) not in taken:
-                    problems.append(NetworkError(
-                        f"required input {port_name!r} (kind {port.kind!r}) is not connected",
-                        where=self.specs[node_id].label()))
+                    problems.append(
+                        NetworkError(
+                            f"required input {port_name!r} (kind {port.kind!r}) is not connected",
+                            where=self.specs[node_id].label(),
+                        )
+                    )
         order: list[str] = []
         try:
             order = _run_order(list(self.specs), [(e[0], e[2]) for e in edges])
         except CycleError as cycle:
-            problems.append(NetworkError(f"the network has a cycle: {' -> '.join(cycle.args[1])}",
-                                         where=self.source or None))
+            problems.append(
+                NetworkError(f"the network has a cycle: {' -> '.join(cycle.args[1])}", where=self.source or None)
+            )
         if problems:
             first = problems[0]
-            more = f" (and {len(problems) - 1} more problem{'s' if len(problems) > 2 else ''})" if len(problems) > 1 else ""
+            more = (
+                f" (and {len(problems) - 1} more problem{'s' if len(problems) > 2 else ''})"
+                if len(problems) > 1
+                else ""
+            )
             raise type(first)(first.message + more, where=first.where)
         return _Bound(nodes, edges, order)
 
@@ -236,8 +254,9 @@ class Network:
                 return f"{where}: node '{spec.id}' ({spec.type})"
         return None
 
-    def _resolve(self, conn: Connection, nodes: Mapping[str, SENode],
-                 taken: Mapping[tuple[str, str], Connection]) -> tuple[str, str, str, str] | None:
+    def _resolve(
+        self, conn: Connection, nodes: Mapping[str, SENode], taken: Mapping[tuple[str, str], Connection]
+    ) -> tuple[str, str, str, str] | None:
         where = conn.where or None
         for end in (conn.src, conn.dst):
             if end not in self.specs:
@@ -247,11 +266,17 @@ class Network:
         if src is None or dst is None:
             return None  # the node itself is already reported
         if conn.src_port is not None and conn.src_port not in src.outputs:
-            raise NetworkError(f"node '{conn.src}' ({src.name}) has no output {conn.src_port!r}"
-                               f" (outputs: {', '.join(src.outputs) or 'none'})", where=where)
+            raise NetworkError(
+                f"node '{conn.src}' ({src.name}) has no output {conn.src_port!r}"
+                f" (outputs: {', '.join(src.outputs) or 'none'})",
+                where=where,
+            )
         if conn.dst_port is not None and conn.dst_port not in dst.inputs:
-            raise NetworkError(f"node '{conn.dst}' ({dst.name}) has no input {conn.dst_port!r}"
-                               f" (inputs: {', '.join(dst.inputs) or 'none'})", where=where)
+            raise NetworkError(
+                f"node '{conn.dst}' ({dst.name}) has no input {conn.dst_port!r}"
+                f" (inputs: {', '.join(dst.inputs) or 'none'})",
+                where=where,
+            )
         if not src.outputs:
             raise NetworkError(f"node '{conn.src}' ({src.name}) has no outputs to connect", where=where)
         if not dst.inputs:
@@ -263,23 +288,35 @@ class Network:
                 if dst.inputs[dp].accepts(src.outputs[sp].kind):
                     if (conn.dst, dp) in taken:
                         first = taken[(conn.dst, dp)]
-                        raise NetworkError(f"input '{conn.dst}.{dp}' is connected twice "
-                                           f"(also from '{first.src}' at {first.where or 'another line'})", where=where)
+                        raise NetworkError(
+                            f"input '{conn.dst}.{dp}' is connected twice "
+                            f"(also from '{first.src}' at {first.where or 'another line'})",
+                            where=where,
+                        )
                     return (conn.src, sp, conn.dst, dp)
                 if not conn.src_port:
                     continue
         out_kinds = ", ".join(f"{p}:{src.outputs[p].kind}" for p in src_ports)
         in_kinds = ", ".join(f"{p}:{dst.inputs[p].kind}" for p in dst_ports) or "none free"
-        raise NetworkError(f"port kind mismatch: '{conn.src}' gives {out_kinds} but '{conn.dst}' takes {in_kinds}",
-                           where=where)
+        raise NetworkError(
+            f"port kind mismatch: '{conn.src}' gives {out_kinds} but '{conn.dst}' takes {in_kinds}", where=where
+        )
 
     # -- running --------------------------------------------------------------
     def _context(self, seed: int, out: Path | None = None, formats: Iterable[str] = (), workers: int = 1) -> Context:
-        return Context(seed=int(seed), plan=self.plan, base_dir=self.base_dir, out=out, formats=frozenset(formats),
-                       workers=workers)
+        return Context(
+            seed=int(seed), plan=self.plan, base_dir=self.base_dir, out=out, formats=frozenset(formats), workers=workers
+        )
 
-    def run(self, seed: int | None = None, out: Any = None, *, formats: Iterable[str] = (),
-            progress: ProgressFn | None = None, workers: int = 1) -> Result:
+    def run(
+        self,
+        seed: int | None = None,
+        out: Any = None,
+        *,
+        formats: Iterable[str] = (),
+        progress: ProgressFn | None = None,
+        workers: int = 1,
+    ) -> Result:
         """Validate, then run every node in topological order.
 
         Parameters
@@ -315,8 +352,9 @@ class Network:
             if tmp is not None and tmp.exists():
                 shutil.rmtree(tmp, ignore_errors=True)
 
-    def _run(self, seed: int, tmp: Path | None, formats: Iterable[str], progress: ProgressFn | None,
-             workers: int) -> Result:
+    def _run(
+        self, seed: int, tmp: Path | None, formats: Iterable[str], progress: ProgressFn | None, workers: int
+    ) -> Result:
         t_start = time.perf_counter()
         context = self._context(seed, tmp, formats, workers)
         bound = self.validate(context)
@@ -340,8 +378,9 @@ class Network:
             missing = [p for p in node.outputs if p not in outputs]
             extra = [p for p in outputs if p not in node.outputs]
             if missing or extra or not all(isinstance(v, Layer) for v in outputs.values()):
-                raise TypeError(f"node '{node_id}' ({node.name}) returned ports {sorted(outputs)}, "
-                                f"declared {sorted(node.outputs)}")
+                raise TypeError(
+                    f"node '{node_id}' ({node.name}) returned ports {sorted(outputs)}, declared {sorted(node.outputs)}"
+                )
             layers[node_id] = {p: outputs[p] for p in node.outputs}
             first = next(iter(layers[node_id].values()), None)
             count = len(first) if first is not None else 0
@@ -439,8 +478,10 @@ def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> di
     else:
         n_chunks = max(1, min(workers * 4, rest // MIN_CHUNK))
         bounds = np.linspace(MIN_CHUNK, len(layer), n_chunks + 1).astype(int)
-        jobs = [partial(_call_run, node, {**kwargs, first: layer.take(np.arange(a, b))})
-                for a, b in zip(bounds[:-1], bounds[1:])]
+        jobs = [
+            partial(_call_run, node, {**kwargs, first: layer.take(np.arange(a, b))})
+            for a, b in zip(bounds[:-1], bounds[1:])
+        ]
         parts += run_jobs(jobs, workers)  # forked workers inherit the registry and plugins
     reports = [r for _, r in parts if r]
     if reports:

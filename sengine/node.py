@@ -106,9 +106,7 @@ class Param:
             else:
                 value = _TYPES[self.type](value)
         except (TypeError, ValueError):
-            raise ParameterError(
-                f"{name}={value!r} is not a valid {self.type}", where=where
-            ) from None
+            raise ParameterError(f"{name}={value!r} is not a valid {self.type}", where=where) from None
         if self.type in ("float", "int"):
             if value != value:
                 raise ParameterError(f"{name} is NaN", where=where)
@@ -117,9 +115,7 @@ class Param:
             if self.max is not None and value > self.max:
                 raise ParameterError(f"{name}={value}{unit} is above the maximum {self.max}{unit}", where=where)
         if self.choices is not None and value not in self.choices:
-            raise ParameterError(
-                f"{name}={value!r} is not one of {', '.join(self.choices)}", where=where
-            )
+            raise ParameterError(f"{name}={value!r} is not one of {', '.join(self.choices)}", where=where)
         return value
 
     def describe(self, name: str) -> dict:
@@ -207,8 +203,14 @@ class SENode:
     params: ClassVar[Mapping[str, Param]] = {}
     maps_features: ClassVar[bool] = False
 
-    def __init__(self, node_id: str, values: Mapping[str, Any] | None = None,
-                 context: Context | None = None, *, where: str | None = None):
+    def __init__(
+        self,
+        node_id: str,
+        values: Mapping[str, Any] | None = None,
+        context: Context | None = None,
+        *,
+        where: str | None = None,
+    ):
         self.id = node_id
         self.context = context or Context()
         self.where = where or f"node '{node_id}' ({self.name})"
@@ -267,7 +269,9 @@ class SENode:
         return {
             "name": cls.name,
             "doc": (inspect.getdoc(cls) or "").split("\n\n")[0].replace("\n", " "),
-            "inputs": [{"name": k, "kind": p.kind, "required": p.required, "doc": p.doc} for k, p in cls.inputs.items()],
+            "inputs": [
+                {"name": k, "kind": p.kind, "required": p.required, "doc": p.doc} for k, p in cls.inputs.items()
+            ],
             "outputs": [{"name": k, "kind": p.kind, "doc": p.doc} for k, p in cls.outputs.items()],
             "params": [p.describe(k) for k, p in cls.params.items()],
             "maps_features": cls.maps_features,

@@ -27,8 +27,17 @@ from typing import TypeVar
 from .errors import RegistryError
 from .node import SENode, stable_hash
 
-__all__ = ["REGISTRY", "register", "get", "load_plugin", "load_entry_points", "broken_plugins",
-           "register_network", "network_class", "network_names"]
+__all__ = [
+    "REGISTRY",
+    "register",
+    "get",
+    "load_plugin",
+    "load_entry_points",
+    "broken_plugins",
+    "register_network",
+    "network_class",
+    "network_names",
+]
 
 log = logging.getLogger(__name__)
 
@@ -61,9 +70,7 @@ def register(cls: N | None = None, *, name: str | None = None, replace: bool = F
         c.check_declaration()
         old = REGISTRY.get(c.name)
         if old is not None and old is not c and not replace and _qualname(old) != _qualname(c):
-            raise RegistryError(
-                f"node name {c.name!r} is registered twice: {_qualname(old)} and {_qualname(c)}"
-            )
+            raise RegistryError(f"node name {c.name!r} is registered twice: {_qualname(old)} and {_qualname(c)}")
         REGISTRY[c.name] = c
         return c
 
@@ -116,8 +123,9 @@ def network_class(name: str, *, where: str | None = None) -> type:
     except KeyError:
         close = difflib.get_close_matches(name, NETWORKS, n=1, cutoff=0.5)
         hint = f"; did you mean {close[0]!r}?" if close else ""
-        raise RegistryError(f"unknown network base {name!r} (known: {', '.join(sorted(NETWORKS))}){hint}",
-                            where=where) from None
+        raise RegistryError(
+            f"unknown network base {name!r} (known: {', '.join(sorted(NETWORKS))}){hint}", where=where
+        ) from None
 
 
 def network_names() -> list[str]:
@@ -147,8 +155,7 @@ def load_entry_points() -> None:
             _broken[ep.name] = f"{type(exc).__name__}: {exc}"
             warnings.warn(f"sengine plugin {ep.name!r} ({ep.value}) failed to load: {exc}", stacklevel=2)
     if not any(ep.name == "builtin" for ep in eps):
-        warnings.warn("sengine's built-in nodes are not registered: install the package (pip install .)",
-                      stacklevel=2)
+        warnings.warn("sengine's built-in nodes are not registered: install the package (pip install .)", stacklevel=2)
 
 
 def broken_plugins() -> dict[str, str]:
@@ -181,7 +188,9 @@ def load_plugin(spec: str, *, base_dir: Path | None = None, where: str | None = 
     except RegistryError:
         raise
     except Exception as exc:
-        raise RegistryError(f"plugin module {spec!r} failed to import: {type(exc).__name__}: {exc}", where=where) from None
+        raise RegistryError(
+            f"plugin module {spec!r} failed to import: {type(exc).__name__}: {exc}", where=where
+        ) from None
     _loaded[spec] = spec
     return spec
 
@@ -215,7 +224,9 @@ def load_path(path: Path, *, module_name: str | None = None, where: str | None =
         raise
     except Exception as exc:
         del sys.modules[module_name]
-        raise RegistryError(f"plugin {str(path)!r} failed to import: {type(exc).__name__}: {exc}", where=where) from None
+        raise RegistryError(
+            f"plugin {str(path)!r} failed to import: {type(exc).__name__}: {exc}", where=where
+        ) from None
     _loaded[key] = module_name
     log.debug("loaded plugin %s as %s", path, module_name)
     return module_name

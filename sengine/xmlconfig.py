@@ -29,8 +29,15 @@ _MAX_INCLUDE_DEPTH = 8
 
 
 def _parser() -> etree.XMLParser:
-    return etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, dtd_validation=False,
-                           huge_tree=False, remove_comments=True, remove_pis=True)
+    return etree.XMLParser(
+        resolve_entities=False,
+        no_network=True,
+        load_dtd=False,
+        dtd_validation=False,
+        huge_tree=False,
+        remove_comments=True,
+        remove_pis=True,
+    )
 
 
 @lru_cache(maxsize=1)
@@ -49,8 +56,9 @@ def parse(path: Path, label: str) -> etree._Element:
     doctype = data.find(b"<!DOCTYPE")
     if doctype >= 0:  # refuse before parsing: no DTD, no entity, no network
         line = data.count(b"\n", 0, doctype) + 1
-        raise ConfigError("DOCTYPE declarations (DTDs and entities) are not allowed in sengine files",
-                          where=f"{label}:{line}")
+        raise ConfigError(
+            "DOCTYPE declarations (DTDs and entities) are not allowed in sengine files", where=f"{label}:{line}"
+        )
     try:
         tree = etree.fromstring(data, _parser(), base_url=None).getroottree()
     except etree.XMLSyntaxError as exc:
@@ -58,12 +66,15 @@ def parse(path: Path, label: str) -> etree._Element:
         msg = re.sub(r",? line \d+, column \d+$", "", str(exc.msg or exc)).strip()
         raise ConfigError(f"not well-formed XML: {msg}", where=f"{label}:{line}") from None
     if tree.docinfo.doctype or tree.docinfo.internalDTD is not None:
-        raise ConfigError("DOCTYPE declarations (DTDs and entities) are not allowed in sengine files",
-                          where=f"{label}:1")
+        raise ConfigError(
+            "DOCTYPE declarations (DTDs and entities) are not allowed in sengine files", where=f"{label}:1"
+        )
     root = tree.getroot()
     if not isinstance(root.tag, str) or root.tag != "sengine":
-        raise ConfigError(f"not a sengine file: the root element is <{root.tag}>, expected <sengine version=\"1\">",
-                          where=f"{label}:{root.sourceline or 1}")
+        raise ConfigError(
+            f'not a sengine file: the root element is <{root.tag}>, expected <sengine version="1">',
+            where=f"{label}:{root.sourceline or 1}",
+        )
     schema = _schema()
     if not schema.validate(tree):
         err = schema.error_log.last_error

@@ -45,8 +45,20 @@ def height_png(path: Path, size=(400, 200)) -> Path:
     return path
 
 
-def grid_city(nx: int = 8, ny: int = 6, *, block=(160.0, 70.0), street=20.0, sidewalk=3.0, lots_per_side=6,
-              angle=12.0, origin=(40.75, -73.99), height_map: Path | None = None, hmin=12.0, hmax=240.0):
+def grid_city(
+    nx: int = 8,
+    ny: int = 6,
+    *,
+    block=(160.0, 70.0),
+    street=20.0,
+    sidewalk=3.0,
+    lots_per_side=6,
+    angle=12.0,
+    origin=(40.75, -73.99),
+    height_map: Path | None = None,
+    hmin=12.0,
+    hmax=240.0,
+):
     """Layers and plan of a small synthetic grid city (m, planar frame at ``origin``).
 
     With ``height_map`` (a folder), a radial height map PNG matching the city's
@@ -74,8 +86,9 @@ def grid_city(nx: int = 8, ny: int = 6, *, block=(160.0, 70.0), street=20.0, sid
             segs.append(rot(shapely.LineString([(x0, y), (x1, y)])))
             cls.append("major" if j % 3 == 0 else "minor")
     cls = np.array(cls)
-    roads = Layer.from_geoms(segs, meta=meta, **{"class": cls, "major": cls == "major",
-                                                  "width": np.full(len(segs), street)})
+    roads = Layer.from_geoms(
+        segs, meta=meta, **{"class": cls, "major": cls == "major", "width": np.full(len(segs), street)}
+    )
     faces, blocks, sidewalks, lots, lot_block, corner, park_ids = [], [], [], [], [], [], []
     for i in range(nx):
         for j in range(ny):
@@ -100,9 +113,15 @@ def grid_city(nx: int = 8, ny: int = 6, *, block=(160.0, 70.0), street=20.0, sid
     outline = rot(shapely.box(0, 0, width, height))
     streets = shapely.difference(outline, shapely.union_all(faces))
     lot_block = np.array(lot_block)
-    lots_layer = Layer.from_geoms(lots, parent=lot_block, meta=meta, block=lot_block,
-                                  district=np.zeros(len(lots), np.int64), corner=np.array(corner),
-                                  method=np.full(len(lots), "manhattan"))
+    lots_layer = Layer.from_geoms(
+        lots,
+        parent=lot_block,
+        meta=meta,
+        block=lot_block,
+        district=np.zeros(len(lots), np.int64),
+        corner=np.array(corner),
+        method=np.full(len(lots), "manhattan"),
+    )
     plan = CityPlan(name="grid", size=(width, height), origin=origin)
     if height_map is not None:
         png = height_png(Path(height_map) / "height.png", (int(round(width / 4)), int(round(height / 4))))
@@ -113,8 +132,9 @@ def grid_city(nx: int = 8, ny: int = 6, *, block=(160.0, 70.0), street=20.0, sid
         "sidewalks": Layer.from_geoms(sidewalks, meta=meta, kind=np.full(len(sidewalks), "sidewalk")),
         "blocks": Layer.from_geoms(blocks, meta=meta, district=np.zeros(len(blocks), np.int64)),
         "lots": lots_layer,
-        "parks": Layer.from_geoms([blocks[b] for b in park_ids], parent=park_ids, meta=meta,
-                                  level=np.full(len(park_ids), "block")),
+        "parks": Layer.from_geoms(
+            [blocks[b] for b in park_ids], parent=park_ids, meta=meta, level=np.full(len(park_ids), "block")
+        ),
     }
 
 
@@ -141,6 +161,11 @@ def monaco_lots() -> Layer:
     _, first = np.unique(idx, return_index=True)
     parts = parts[first]
     n = len(parts)
-    return Layer.from_geoms(parts, ids=np.array(ids)[idx[first]], meta={"crs": crs},
-                            block=np.full(n, -1), district=np.zeros(n, np.int64),
-                            corner=np.zeros(n, bool))
+    return Layer.from_geoms(
+        parts,
+        ids=np.array(ids)[idx[first]],
+        meta={"crs": crs},
+        block=np.full(n, -1),
+        district=np.zeros(n, np.int64),
+        corner=np.zeros(n, bool),
+    )

@@ -33,8 +33,10 @@ def split_by_line(polys, point, direction):
     d = np.asarray(direction, np.float64).reshape(-1, 2)
     d = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-300)[:, None]
     b = shapely.bounds(polys)
-    big = 2.0 * (np.hypot(b[:, 2] - b[:, 0], b[:, 3] - b[:, 1])
-                 + np.hypot(point[:, 0] - b[:, 0], point[:, 1] - b[:, 1])) + 1.0
+    big = (
+        2.0 * (np.hypot(b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]) + np.hypot(point[:, 0] - b[:, 0], point[:, 1] - b[:, 1]))
+        + 1.0
+    )
     left = shapely.intersection(polys, frame_boxes(point, d, -big, big, 0.0, big))
     right = shapely.intersection(polys, frame_boxes(point, d, -big, big, -big, 0.0))
     return left, right

@@ -18,12 +18,19 @@ def _district_map_with_a_stray_colour(path):
     Image.fromarray(img).save(path)
 
 
-@pytest.mark.parametrize("kind, make, pattern", [
-    ("landuse", lambda p: p.write_text("not an image"), r"manhattan_landuse_bad.png"),
-    ("height", lambda p: Image.new("L", (50, 400), 128).save(p), r"50x400 px .* ratios must agree"),
-    ("district", _district_map_with_a_stray_colour, r"colour #01fe03 at pixel \(x=200, y=100\) is not in the district rules"),
-    ("height", lambda p: None, r"does not exist|not found|missing"),
-])
+@pytest.mark.parametrize(
+    "kind, make, pattern",
+    [
+        ("landuse", lambda p: p.write_text("not an image"), r"manhattan_landuse_bad.png"),
+        ("height", lambda p: Image.new("L", (50, 400), 128).save(p), r"50x400 px .* ratios must agree"),
+        (
+            "district",
+            _district_map_with_a_stray_colour,
+            r"colour #01fe03 at pixel \(x=200, y=100\) is not in the district rules",
+        ),
+        ("height", lambda p: None, r"does not exist|not found|missing"),
+    ],
+)
 def test_bad_map_is_one_line_and_exit_2(kind, make, pattern, tmp_path, capsys):
     import re
 

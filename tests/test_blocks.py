@@ -134,8 +134,10 @@ def test_node_shrinks_blocks_and_partitions_faces():
     assert set(walks["kind"]) == {"sidewalk"} and set(streets["kind"]) == {"street"}
     # street ring + sidewalk ring + block = face, for every face
     face_streets = streets.geometry[:9]
-    assert np.allclose(shapely.area(face_streets) + shapely.area(walks.geometry) + shapely.area(blocks.geometry),
-                       shapely.area(faces.geometry))
+    assert np.allclose(
+        shapely.area(face_streets) + shapely.area(walks.geometry) + shapely.area(blocks.geometry),
+        shapely.area(faces.geometry),
+    )
     assert node.report["bridges"] == 1 and len(streets) == 10
     assert shapely.within(blocks.geometry, faces.geometry[blocks["face"]]).all()
 
@@ -157,8 +159,9 @@ def test_street_inset_moves_each_side_by_its_own_street():
     want = {(0, 0): (14, 14, 94, 94), (1, 1): (106, 106, 194, 194), (2, 0): (206, 14, 286, 94)}
     for (i, j), box in want.items():
         at = shapely.contains_xy(blocks.geometry, 100 * i + 50, 100 * j + 50)
-        assert at.sum() == 1 and shapely.equals_exact(blocks.geometry[at][0].normalize(),
-                                                      shapely.box(*box).normalize(), tolerance=1e-6)
+        assert at.sum() == 1 and shapely.equals_exact(
+            blocks.geometry[at][0].normalize(), shapely.box(*box).normalize(), tolerance=1e-6
+        )
     # street ring + sidewalk ring + block = face, face by face
     f = blocks["face"]
     parts = [shapely.area(out[k].geometry) for k in ("streets", "sidewalks")]
@@ -175,7 +178,8 @@ def test_street_inset_keeps_every_street_clear(widths, sidewalk):
     lines += [shapely.LineString([(0, y), (300, y)]) for y in (0.0, 120.0, 210.0, 300.0)]
     roads = Layer.from_geoms(lines, width=np.array(widths), meta={"crs": "EPSG:32631"})
     out = get("blocks.circuits")("blocks", {"sidewalk": str(sidewalk), "inset": "street", "min_area": "1"}).run(
-        roads=roads)
+        roads=roads
+    )
     blocks = out["blocks"].geometry
     for line, w in zip(lines, widths, strict=True):  # no block comes nearer a street than its half-width + sidewalk
         if len(blocks):
@@ -190,8 +194,7 @@ def test_node_outline_areas_and_reports():
     lines += [shapely.LineString([(0, j * 100.0), (200, j * 100.0)]) for j in range(3)]
     lines.append(shapely.LineString([(0, 0), (1, 1)]))  # a sliver-free dead end
     outline = Layer.from_geoms([shapely.box(-1, -1, 201, 101)])
-    areas = Layer.from_geoms([shapely.box(0, 0, 100, 100), shapely.box(100, 0, 200, 100)], ids=[7, 8],
-                             district=[2, 5])
+    areas = Layer.from_geoms([shapely.box(0, 0, 100, 100), shapely.box(100, 0, 200, 100)], ids=[7, 8], district=[2, 5])
     node = get("blocks.circuits")("blocks", {"sidewalk": 2.0, "width_from": "param", "street_width": 6})
     out = node.run(roads=_roads(lines, 50.0), outline=outline, areas=areas)
     blocks = out["blocks"]
@@ -202,8 +205,11 @@ def test_node_outline_areas_and_reports():
 
 
 def test_thin_faces_are_dropped_and_counted():
-    lines = [shapely.box(0, 0, 200, 100).exterior, shapely.LineString([(0, 50), (200, 50)]),
-             shapely.LineString([(0, 52), (200, 52)])]  # a 2 m median strip
+    lines = [
+        shapely.box(0, 0, 200, 100).exterior,
+        shapely.LineString([(0, 50), (200, 50)]),
+        shapely.LineString([(0, 52), (200, 52)]),
+    ]  # a 2 m median strip
     node = get("blocks.circuits")("blocks", {"min_area": 10.0})
     out = node.run(roads=_roads(lines, 8.0))
     assert len(out["faces"]) == 3
@@ -271,8 +277,14 @@ def test_faces_traced_by_clean_are_taken_over():
 def test_clean_hands_no_faces_on_when_nodes_would_merge():
     from sengine import Context
 
-    lines = [[(0, 0), (100, 0)], [(100, 0), (100, 100)], [(100, 100), (0, 100)], [(0, 100), (0, 0)],
-             [(0, 0), (50, 50)], [(50, 50 + 1e-8), (100, 100)]]  # two ends 1e-8 m apart: one node at 6 decimals
+    lines = [
+        [(0, 0), (100, 0)],
+        [(100, 0), (100, 100)],
+        [(100, 100), (0, 100)],
+        [(0, 100), (0, 0)],
+        [(0, 0), (50, 50)],
+        [(50, 50 + 1e-8), (100, 100)],
+    ]  # two ends 1e-8 m apart: one node at 6 decimals
     roads = _roads([shapely.LineString(c) for c in lines])
     cleaned = get("roads.clean")("c", {"dead_ends": "false"}, Context()).run(roads=roads)["roads"]
     assert cleaned.meta["graph"]["decimals"] is None

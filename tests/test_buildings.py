@@ -108,8 +108,9 @@ def test_feature_uniform_is_uniform():
 
 
 def test_small_lots_are_skipped_and_counted():
-    lots = Layer.from_geoms([shapely.box(0, 0, 3, 3), shapely.box(10, 0, 30, 20), shapely.box(40, 0, 41, 50)],
-                            ids=[5, 6, 7])
+    lots = Layer.from_geoms(
+        [shapely.box(0, 0, 3, 3), shapely.box(10, 0, 30, 20), shapely.box(40, 0, 41, 50)], ids=[5, 6, 7]
+    )
     b, report = run(lots, None, setback=2.0, min_area=20.0)
     assert b.ids.tolist() == [6]
     assert report == {"buildings": 1, "skipped": 2, "courtyards": 0, "surveyed_heights": 0}
@@ -133,15 +134,19 @@ def test_bad_height_map_attributes_name_the_line(city, tmp_path):
     from sengine.plan import MapSpec
 
     plan, layers = city
-    bad = CityPlan(size=plan.size, maps={"height": MapSpec("height", plan.maps["height"].src, {"min": "x"},
-                                                           "city.xml:7")})
+    bad = CityPlan(
+        size=plan.size, maps={"height": MapSpec("height", plan.maps["height"].src, {"min": "x"}, "city.xml:7")}
+    )
     with pytest.raises(ConfigError, match=r"city.xml:7: height map needs min and max"):
         run(layers["lots"], bad)
 
 
 @settings(max_examples=60, deadline=None)
 @given(
-    w=st.floats(2, 80), h=st.floats(2, 80), angle=st.floats(0, 180), notch=st.floats(0, 0.9),
+    w=st.floats(2, 80),
+    h=st.floats(2, 80),
+    angle=st.floats(0, 180),
+    notch=st.floats(0, 0.9),
     setback=st.floats(0, 6),
 )
 def test_random_lots_footprints_inside(w, h, angle, notch, setback):
@@ -164,8 +169,7 @@ def test_random_lots_footprints_inside(w, h, angle, notch, setback):
 
 def test_paris_courtyards_stay_open():
     """Inner lots (courtyards, no street frontage) get no building unless asked for."""
-    blocks = Layer.from_geoms([shapely.box(0, 0, 120, 90), shapely.box(200, 0, 330, 110)],
-                              district=np.array([-1, -1]))
+    blocks = Layer.from_geoms([shapely.box(0, 0, 120, 90), shapely.box(200, 0, 330, 110)], district=np.array([-1, -1]))
     ctx = Context(seed=3, plan=CityPlan(size=(400.0, 200.0)))
     lots = get("lots.paris")("lots", {"depth": "15"}, ctx).run(blocks=blocks)["lots"]
     inner = lots["inner"].astype(bool)
@@ -181,8 +185,11 @@ def test_paris_courtyards_stay_open():
 def test_surveyed_heights_of_existing_buildings_win():
     """A lot inside a tagged existing building (OSM) takes that height; untagged ones do not count."""
     lots = Layer.from_geoms([shapely.box(0, 0, 20, 30), shapely.box(30, 0, 50, 30), shapely.box(60, 0, 80, 30)])
-    existing = Layer.from_geoms([shapely.box(-5, -5, 25, 35), shapely.box(25, -5, 55, 35)],
-                                height=np.array([111.0, 60.0]), height_source=np.array(["height", "default"]))
+    existing = Layer.from_geoms(
+        [shapely.box(-5, -5, 25, 35), shapely.box(25, -5, 55, 35)],
+        height=np.array([111.0, 60.0]),
+        height_source=np.array(["height", "default"]),
+    )
     ctx = Context(seed=1, plan=CityPlan(size=(100.0, 40.0)))
     node = get("buildings.extrude")("b", {"height": "12", "variation": "0"}, ctx)
     built = node.run(lots=lots, existing=existing)["buildings"]

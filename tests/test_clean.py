@@ -63,7 +63,9 @@ def test_random_grids_become_cells(nx_, ny_, step):
     assert np.bincount(ends).min(initial=2) >= 2 or set(np.unique(ends)) == set(ends)
     deg = np.bincount(ends)
     assert (deg[np.unique(ends)] >= 2).all()
-    assert np.array_equal(roads.meta["nodes"][roads["u"]], shapely.get_coordinates(shapely.get_point(roads.geometry, 0)))
+    assert np.array_equal(
+        roads.meta["nodes"][roads["u"]], shapely.get_coordinates(shapely.get_point(roads.geometry, 0))
+    )
 
 
 def test_bridges_and_other_levels_do_not_make_junctions():
@@ -122,10 +124,15 @@ def test_dead_ends_go_iteratively():
 def test_slivers_between_dual_carriageways_and_islands():
     # two blocks either side of a dual carriageway 6 m apart, and a small island
     lines = [
-        [(0, 0), (200, 0)], [(0, 6), (200, 6)],  # the two carriageways
-        [(0, -100), (0, 0), (0, 6), (0, 106)], [(200, -100), (200, 0), (200, 6), (200, 106)],
-        [(0, -100), (200, -100)], [(0, 106), (200, 106)],
-        [(80, 30), (90, 30), (85, 38), (80, 30)], [(85, 38), (85, 106)], [(80, 30), (80, 6)],  # island
+        [(0, 0), (200, 0)],
+        [(0, 6), (200, 6)],  # the two carriageways
+        [(0, -100), (0, 0), (0, 6), (0, 106)],
+        [(200, -100), (200, 0), (200, 6), (200, 106)],
+        [(0, -100), (200, -100)],
+        [(0, 106), (200, 106)],
+        [(80, 30), (90, 30), (85, 38), (80, 30)],
+        [(85, 38), (85, 106)],
+        [(80, 30), (80, 6)],  # island
     ]
     out, rep = clean(roads_of(lines), sliver_width=8, island_area=150)
     s = out["slivers"]
@@ -140,8 +147,11 @@ def test_known_topology_and_coordinates_give_the_same_result():
     out = get("osm.read")("r", {"path": str(DATA / "helsinki_centre.osm.pbf"), "extras": ""}, Context()).run()
     roads = out["roads"]
     by_ids, rep1 = clean(roads)
-    plain = Layer.from_geoms(roads.geometry, meta=roads.meta,
-                             **{k: roads[k] for k in ("class", "major", "width", "layer", "bridge", "tunnel")})
+    plain = Layer.from_geoms(
+        roads.geometry,
+        meta=roads.meta,
+        **{k: roads[k] for k in ("class", "major", "width", "layer", "bridge", "tunnel")},
+    )
     by_xy, rep2 = clean(plain)
     assert rep1 == rep2
     assert len(by_ids["roads"]) == len(by_xy["roads"])

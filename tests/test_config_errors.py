@@ -26,60 +26,112 @@ CASES = {
     "unknown element": ('<sengine version="1">\n  <town/>\n</sengine>\n', r"t\.xml:2: invalid: <town>"),
     "node without id": (net('    <node type="demo.squares"/>\n'), r"t\.xml:5: invalid: .*'id' is required"),
     "bad node id": (net('    <node id="1st" type="demo.squares"/>\n'), r"t\.xml:5: invalid: .*'id'"),
-    "unknown node type": (net('    <node id="s" type="demo.squarez"/>\n'),
-                          r"t\.xml:5: node 's' \(demo.squarez\): unknown node type 'demo.squarez'; did you mean 'demo.squares'"),
-    "unknown output port": (net(SRC + INSET + '    <connect from="source.nope" to="inset"/>\n'),
-                            r"t\.xml:7: node 'source' \(demo.squares\) has no output 'nope' \(outputs: squares\)"),
-    "unknown input port": (net(SRC + INSET + '    <connect from="source" to="inset.nope"/>\n'),
-                           r"t\.xml:7: node 'inset' \(demo.inset\) has no input 'nope'"),
-    "connect unknown node": (net(SRC + '    <connect from="source" to="ghost"/>\n'),
-                             r"t\.xml:6: connection names unknown node 'ghost'"),
-    "kind mismatch": (net('    <node id="l" type="demo.lines"/>\n' + INSET + '    <connect from="l" to="inset"/>\n'),
-                      r"t\.xml:7: port kind mismatch: 'l' gives lines:lines but 'inset' takes polygons:polygons"),
-    "cycle": (net(SRC + '    <node id="a" type="null"/>\n    <node id="b" type="null"/>\n'
-                  '    <connect from="a" to="b"/>\n    <connect from="b" to="a"/>\n'),
-              r"cycle: a -> b -> a"),
+    "unknown node type": (
+        net('    <node id="s" type="demo.squarez"/>\n'),
+        r"t\.xml:5: node 's' \(demo.squarez\): unknown node type 'demo.squarez'; did you mean 'demo.squares'",
+    ),
+    "unknown output port": (
+        net(SRC + INSET + '    <connect from="source.nope" to="inset"/>\n'),
+        r"t\.xml:7: node 'source' \(demo.squares\) has no output 'nope' \(outputs: squares\)",
+    ),
+    "unknown input port": (
+        net(SRC + INSET + '    <connect from="source" to="inset.nope"/>\n'),
+        r"t\.xml:7: node 'inset' \(demo.inset\) has no input 'nope'",
+    ),
+    "connect unknown node": (
+        net(SRC + '    <connect from="source" to="ghost"/>\n'),
+        r"t\.xml:6: connection names unknown node 'ghost'",
+    ),
+    "kind mismatch": (
+        net('    <node id="l" type="demo.lines"/>\n' + INSET + '    <connect from="l" to="inset"/>\n'),
+        r"t\.xml:7: port kind mismatch: 'l' gives lines:lines but 'inset' takes polygons:polygons",
+    ),
+    "cycle": (
+        net(
+            SRC + '    <node id="a" type="null"/>\n    <node id="b" type="null"/>\n'
+            '    <connect from="a" to="b"/>\n    <connect from="b" to="a"/>\n'
+        ),
+        r"cycle: a -> b -> a",
+    ),
     "missing required input": (net(SRC + INSET), r"t\.xml:6: node 'inset' \(demo.inset\): required input 'polygons'"),
-    "input connected twice": (net(SRC + '    <node id="s2" type="demo.squares"/>\n' + INSET + WIRE
-                                  + '    <connect from="s2" to="inset.polygons"/>\n'),
-                              r"input 'inset.polygons' is connected twice"),
-    "disconnect what is not connected": (net(SRC + INSET + '    <disconnect from="inset" to="source"/>\n'),
-                                         r"t\.xml:7: there is no connection from 'inset' to 'source' to remove"),
+    "input connected twice": (
+        net(
+            SRC
+            + '    <node id="s2" type="demo.squares"/>\n'
+            + INSET
+            + WIRE
+            + '    <connect from="s2" to="inset.polygons"/>\n'
+        ),
+        r"input 'inset.polygons' is connected twice",
+    ),
+    "disconnect what is not connected": (
+        net(SRC + INSET + '    <disconnect from="inset" to="source"/>\n'),
+        r"t\.xml:7: there is no connection from 'inset' to 'source' to remove",
+    ),
     "duplicate node id": (net(SRC + SRC), r"t\.xml:6: node id 'source' is defined twice"),
-    "parameter below minimum": (net('    <node id="s" type="demo.squares">\n      <param name="count" value="0"/>\n'
-                                    '    </node>\n'), r"t\.xml:6: node 's' \(demo.squares\): count=0 is below the minimum 1"),
-    "parameter above maximum": (net('    <node id="s" type="demo.squares">\n      <param name="size" value="1e9"/>\n'
-                                    '    </node>\n'), r"size=1000000000.0 m is above the maximum 10000.0 m"),
-    "parameter wrong type": (net('    <node id="s" type="demo.squares">\n      <param name="count" value="many"/>\n'
-                                 '    </node>\n'), r"count='many' is not a valid int"),
-    "unknown parameter": (net('    <node id="s" type="demo.squares">\n      <param name="colour" value="red"/>\n'
-                              '    </node>\n'), r"unknown parameter 'colour' \(parameters: count, size\)"),
-    "param for unknown node": (net(SRC + '    <param node="ghost" name="count" value="3"/>\n'),
-                               r"t\.xml:6: no node with id 'ghost'"),
-    "missing plugin file": ('<sengine version="1">\n  <plugin path="nowhere.py"/>\n</sengine>\n',
-                            r"t\.xml:2: plugin path '.*nowhere.py' does not exist"),
-    "missing plugin module": ('<sengine version="1">\n  <plugin module="no_such_sengine_plugin"/>\n</sengine>\n',
-                              r"t\.xml:2: plugin module 'no_such_sengine_plugin' not found"),
-    "plugin with both": ('<sengine version="1">\n  <plugin module="a" path="b.py"/>\n</sengine>\n',
-                         r"t\.xml:2: <plugin> takes exactly one of module= or path="),
-    "unknown network base": ('<sengine version="1">\n  <network base="nosuch"/>\n</sengine>\n',
-                             r"t\.xml:2: unknown network base 'nosuch'"),
+    "parameter below minimum": (
+        net('    <node id="s" type="demo.squares">\n      <param name="count" value="0"/>\n    </node>\n'),
+        r"t\.xml:6: node 's' \(demo.squares\): count=0 is below the minimum 1",
+    ),
+    "parameter above maximum": (
+        net('    <node id="s" type="demo.squares">\n      <param name="size" value="1e9"/>\n    </node>\n'),
+        r"size=1000000000.0 m is above the maximum 10000.0 m",
+    ),
+    "parameter wrong type": (
+        net('    <node id="s" type="demo.squares">\n      <param name="count" value="many"/>\n    </node>\n'),
+        r"count='many' is not a valid int",
+    ),
+    "unknown parameter": (
+        net('    <node id="s" type="demo.squares">\n      <param name="colour" value="red"/>\n    </node>\n'),
+        r"unknown parameter 'colour' \(parameters: count, size\)",
+    ),
+    "param for unknown node": (
+        net(SRC + '    <param node="ghost" name="count" value="3"/>\n'),
+        r"t\.xml:6: no node with id 'ghost'",
+    ),
+    "missing plugin file": (
+        '<sengine version="1">\n  <plugin path="nowhere.py"/>\n</sengine>\n',
+        r"t\.xml:2: plugin path '.*nowhere.py' does not exist",
+    ),
+    "missing plugin module": (
+        '<sengine version="1">\n  <plugin module="no_such_sengine_plugin"/>\n</sengine>\n',
+        r"t\.xml:2: plugin module 'no_such_sengine_plugin' not found",
+    ),
+    "plugin with both": (
+        '<sengine version="1">\n  <plugin module="a" path="b.py"/>\n</sengine>\n',
+        r"t\.xml:2: <plugin> takes exactly one of module= or path=",
+    ),
+    "unknown network base": (
+        '<sengine version="1">\n  <network base="nosuch"/>\n</sengine>\n',
+        r"t\.xml:2: unknown network base 'nosuch'",
+    ),
     "bad city size": (net(SRC, city='  <city size="-5 10"/>\n'), r"t\.xml:3: size='-5 10' must be positive"),
     "bad origin": (net(SRC, city='  <city origin="95 10"/>\n'), r"t\.xml:3: origin='95 10' is not a latitude"),
     "malformed size": (net(SRC, city='  <city size="ten"/>\n'), r"t\.xml:3: invalid: .*size"),
-    "map twice": (net(SRC, city='  <city>\n    <map kind="height" src="a.png"/>\n    <map kind="height" src="b.png"/>\n'
-                              '  </city>\n'), r"t\.xml:5: a map of kind 'height' is given twice"),
-    "XXE local file": ('<?xml version="1.0"?>\n<!DOCTYPE sengine [<!ENTITY x SYSTEM "file:///etc/passwd">]>\n'
-                       '<sengine version="1"><city name="&x;"/></sengine>\n',
-                       r"DOCTYPE declarations \(DTDs and entities\) are not allowed"),
-    "billion laughs": ('<?xml version="1.0"?>\n<!DOCTYPE lolz [\n <!ENTITY lol "lol">\n'
-                       ' <!ENTITY lol2 "&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;">\n'
-                       ' <!ENTITY lol3 "&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;">\n'
-                       ' <!ENTITY lol4 "&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;">\n]>\n'
-                       '<sengine version="1"><city name="&lol4;"/></sengine>\n',
-                       r"DOCTYPE declarations \(DTDs and entities\) are not allowed"),
-    "external DTD over the network": ('<?xml version="1.0"?>\n<!DOCTYPE sengine SYSTEM "http://example.invalid/s.dtd">\n'
-                                      '<sengine version="1"/>\n', r"DOCTYPE declarations"),
+    "map twice": (
+        net(
+            SRC,
+            city='  <city>\n    <map kind="height" src="a.png"/>\n    <map kind="height" src="b.png"/>\n  </city>\n',
+        ),
+        r"t\.xml:5: a map of kind 'height' is given twice",
+    ),
+    "XXE local file": (
+        '<?xml version="1.0"?>\n<!DOCTYPE sengine [<!ENTITY x SYSTEM "file:///etc/passwd">]>\n'
+        '<sengine version="1"><city name="&x;"/></sengine>\n',
+        r"DOCTYPE declarations \(DTDs and entities\) are not allowed",
+    ),
+    "billion laughs": (
+        '<?xml version="1.0"?>\n<!DOCTYPE lolz [\n <!ENTITY lol "lol">\n'
+        ' <!ENTITY lol2 "&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;">\n'
+        ' <!ENTITY lol3 "&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;&lol2;">\n'
+        ' <!ENTITY lol4 "&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;&lol3;">\n]>\n'
+        '<sengine version="1"><city name="&lol4;"/></sengine>\n',
+        r"DOCTYPE declarations \(DTDs and entities\) are not allowed",
+    ),
+    "external DTD over the network": (
+        '<?xml version="1.0"?>\n<!DOCTYPE sengine SYSTEM "http://example.invalid/s.dtd">\n<sengine version="1"/>\n',
+        r"DOCTYPE declarations",
+    ),
 }
 
 
@@ -109,16 +161,25 @@ def test_missing_config_file(tmp_path, capsys):
     assert status == 2 and err.count("\n") == 1 and "nope.xml: file not found" in err
 
 
-@pytest.mark.parametrize("argv, pattern", [
-    (["--set", "ghost.count=3"], r"--set ghost.count: no node with id 'ghost'"),
-    (["--set", "source.count=-1"], r"--set source.count: node 'source' \(demo.squares\): count=-1 is below the minimum 1"),
-    (["--set", "count"], r"--set 'count' must be NODE.PARAM=VALUE"),
-    (["--map", "height"], r"--map 'height' must be KIND=PATH"),
-    (["--plugin", "not_a_module_anywhere"], r"--plugin not_a_module_anywhere: plugin module 'not_a_module_anywhere' not found"),
-    (["--workers", "0"], r"^sengine run: error: argument --workers: 0 is less than 1"),
-    (["--workers", "two"], r"argument --workers: 'two' is not a whole number"),
-    (["--no-such-option"], r"^sengine: error: unrecognized arguments: --no-such-option"),
-])
+@pytest.mark.parametrize(
+    "argv, pattern",
+    [
+        (["--set", "ghost.count=3"], r"--set ghost.count: no node with id 'ghost'"),
+        (
+            ["--set", "source.count=-1"],
+            r"--set source.count: node 'source' \(demo.squares\): count=-1 is below the minimum 1",
+        ),
+        (["--set", "count"], r"--set 'count' must be NODE.PARAM=VALUE"),
+        (["--map", "height"], r"--map 'height' must be KIND=PATH"),
+        (
+            ["--plugin", "not_a_module_anywhere"],
+            r"--plugin not_a_module_anywhere: plugin module 'not_a_module_anywhere' not found",
+        ),
+        (["--workers", "0"], r"^sengine run: error: argument --workers: 0 is less than 1"),
+        (["--workers", "two"], r"argument --workers: 'two' is not a whole number"),
+        (["--no-such-option"], r"^sengine: error: unrecognized arguments: --no-such-option"),
+    ],
+)
 def test_bad_command_line_override(argv, pattern, fixtures, tmp_path, capsys):
     out = tmp_path / "OUT"
     status = main(["run", str(fixtures / "squares.xml"), "-o", str(out), "--quiet", *argv])
@@ -149,11 +210,16 @@ def test_failing_node_leaves_no_partial_output(fixtures, tmp_path, monkeypatch):
         raise InputDataError("the input went bad", where=self.where)
 
     config = tmp_path / "c.xml"
-    config.write_text((fixtures / "squares.xml").read_text().replace(
-        'squares_plugin.py', str(fixtures / "squares_plugin.py")).replace(
-        '    <connect from="source.squares" to="inset.polygons"/>',
-        '    <node id="second" type="demo.inset"/>\n    <connect from="source.squares" to="inset.polygons"/>\n'
-        '    <connect from="inset" to="second"/>'))
+    config.write_text(
+        (fixtures / "squares.xml")
+        .read_text()
+        .replace("squares_plugin.py", str(fixtures / "squares_plugin.py"))
+        .replace(
+            '    <connect from="source.squares" to="inset.polygons"/>',
+            '    <node id="second" type="demo.inset"/>\n    <connect from="source.squares" to="inset.polygons"/>\n'
+            '    <connect from="inset" to="second"/>',
+        )
+    )
     original = inset.run
     calls = []
 

@@ -24,8 +24,14 @@ COLUMNS = {
     "blocks": {"district": np.int64},
     "polygons": {"kind": "U16"},
     "parks": {"level": "U16"},
-    "lots": {"block": np.int64, "district": np.int64, "corner": bool, "frontage": float,
-             "street_edges": np.int64, "method": "U16"},
+    "lots": {
+        "block": np.int64,
+        "district": np.int64,
+        "corner": bool,
+        "frontage": float,
+        "street_edges": np.int64,
+        "method": "U16",
+    },
     "buildings": {"height": float, "floors": np.int64, "roof": "U16", "lot": np.int64, "district": np.int64},
 }
 
@@ -37,8 +43,7 @@ def empty(kind: str) -> Layer:
 @pytest.mark.parametrize("name", names())
 def test_node_on_empty_input(name, tmp_path):
     cls = get(name)
-    ctx = Context(seed=1, plan=CityPlan(size=(500.0, 400.0)), base_dir=tmp_path, out=tmp_path,
-                  formats=frozenset())
+    ctx = Context(seed=1, plan=CityPlan(size=(500.0, 400.0)), base_dir=tmp_path, out=tmp_path, formats=frozenset())
     node = cls("n", {}, ctx)
     inputs = {port: empty(decl.kind) for port, decl in cls.inputs.items()}
     before = {port: (len(layer), dict(layer.attrs)) for port, layer in inputs.items()}

@@ -85,8 +85,9 @@ def test_manhattan_has_its_park_water_and_outputs(manhattan):
     assert heights.min() >= 12 * 0.7 and heights.max() <= 240 * 1.3 and np.ptp(heights) > 100
 
 
-@pytest.mark.parametrize("name,districts,lots", [("paris.xml", 3, {"paris"}),
-                                                  ("districts.xml", 3, {"manhattan", "paris", "recursive"})])
+@pytest.mark.parametrize(
+    "name,districts,lots", [("paris.xml", 3, {"paris"}), ("districts.xml", 3, {"manhattan", "paris", "recursive"})]
+)
 def test_other_demos(tmp_path, name, districts, lots):
     layers, stats = sengine.load(CONFIGS / name).run(out=tmp_path / "out")
     counts = stats["counts"]
@@ -95,8 +96,9 @@ def test_other_demos(tmp_path, name, districts, lots):
     assert counts["lots"] > counts["blocks"]
     areas = layers["majorRoads"]["areas"]
     assert len(set(areas["district"])) == districts
-    assert shapely.area(areas.geometry).sum() == pytest.approx(layers["majorRoads"]["outline"].geometry[0].area,
-                                                               rel=1e-6)
+    assert shapely.area(areas.geometry).sum() == pytest.approx(
+        layers["majorRoads"]["outline"].geometry[0].area, rel=1e-6
+    )
     assert set(layers["lots"]["lots"]["method"]) >= lots
     blocks = layers["blocks"]["blocks"]
     assert set(blocks["district"]) == set(range(districts))
@@ -120,8 +122,25 @@ def test_same_seed_same_bytes_across_processes_and_workers(manhattan, tmp_path):
     _, stats, out = manhattan
     env = dict(os.environ, PYTHONHASHSEED="123")
     other = tmp_path / "other"
-    subprocess.run([sys.executable, "-m", "sengine", "run", str(CONFIGS / "manhattan.xml"), "-o", str(other),
-                    "--seed", "7", "--workers", "2", "--quiet"], check=True, env=env, timeout=600)
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sengine",
+            "run",
+            str(CONFIGS / "manhattan.xml"),
+            "-o",
+            str(other),
+            "--seed",
+            "7",
+            "--workers",
+            "2",
+            "--quiet",
+        ],
+        check=True,
+        env=env,
+        timeout=600,
+    )
     names = sorted(p.name for p in out.iterdir())
     assert names == sorted(p.name for p in other.iterdir())
     assert {"city.glb", "preview.png", "streets.osm", "lots.geojson", "buildings.geojson"} <= set(names)

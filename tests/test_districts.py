@@ -14,8 +14,9 @@ from sengine.errors import ConfigError, InputDataError
 from sengine.plan import MapSpec
 from sengine.registry import get
 
-SETTINGS = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow,
-                                                                          HealthCheck.function_scoped_fixture])
+SETTINGS = settings(
+    max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture]
+)
 SIZE = (3000.0, 2000.0)
 
 
@@ -134,15 +135,24 @@ def draw_maps(folder, shift=0):
 
 
 def map_plan(folder, patterns=("grid", "radial", "organic")):
-    extras = {"grid": {"spacing": "260 180", "angle": "12"}, "radial": {"rings": "3", "spokes": "8"},
-              "organic": {"sites": "12", "weights": "0.5"}}
-    rules = [Rule("district", {"color": c, "pattern": p, "major-width": str(18 + 2 * i), **extras[p]}, f"c.xml:{5 + i}")
-             for i, (c, p) in enumerate(zip(DISTRICT_COLOURS, patterns))]
-    rules += [Rule("landuse", {"color": "#ffffff", "class": "buildable"}, "c.xml:9"),
-              Rule("landuse", {"color": "#2060ff", "class": "water"}, "c.xml:10"),
-              Rule("landuse", {"color": "#30a040", "class": "park"}, "c.xml:11")]
-    maps = {"district": MapSpec("district", folder / "d.png", {}, "c.xml:3"),
-            "landuse": MapSpec("landuse", folder / "l.png", {}, "c.xml:4")}
+    extras = {
+        "grid": {"spacing": "260 180", "angle": "12"},
+        "radial": {"rings": "3", "spokes": "8"},
+        "organic": {"sites": "12", "weights": "0.5"},
+    }
+    rules = [
+        Rule("district", {"color": c, "pattern": p, "major-width": str(18 + 2 * i), **extras[p]}, f"c.xml:{5 + i}")
+        for i, (c, p) in enumerate(zip(DISTRICT_COLOURS, patterns))
+    ]
+    rules += [
+        Rule("landuse", {"color": "#ffffff", "class": "buildable"}, "c.xml:9"),
+        Rule("landuse", {"color": "#2060ff", "class": "water"}, "c.xml:10"),
+        Rule("landuse", {"color": "#30a040", "class": "park"}, "c.xml:11"),
+    ]
+    maps = {
+        "district": MapSpec("district", folder / "d.png", {}, "c.xml:3"),
+        "landuse": MapSpec("landuse", folder / "l.png", {}, "c.xml:4"),
+    }
     return CityPlan(size=SIZE, maps=maps, rules=rules)
 
 
@@ -189,8 +199,9 @@ def test_pattern_lines_end_on_the_border(city):
     # a major road piece never stops short of the district border (no dangles)
     _, out, _ = city
     g = out["roads"].geometry
-    ends = np.concatenate([shapely.get_coordinates(shapely.get_point(g, 0)),
-                           shapely.get_coordinates(shapely.get_point(g, -1))])
+    ends = np.concatenate(
+        [shapely.get_coordinates(shapely.get_point(g, 0)), shapely.get_coordinates(shapely.get_point(g, -1))]
+    )
     _, counts = np.unique(np.round(ends, 3), axis=0, return_counts=True)
     assert (counts >= 2).all()
 
@@ -214,8 +225,10 @@ def test_mixed_patterns_meet_cleanly_in_any_order(tmp_path):
 
 
 def test_without_a_district_map_the_first_rule_styles_the_city():
-    rules = [Rule("district", {"pattern": "radial", "spokes": "6"}, "t.xml:3"),
-             Rule("district", {"pattern": "grid"}, "t.xml:4")]
+    rules = [
+        Rule("district", {"pattern": "radial", "spokes": "6"}, "t.xml:3"),
+        Rule("district", {"pattern": "grid"}, "t.xml:4"),
+    ]
     out, _ = run_major(CityPlan(size=SIZE, rules=rules))
     assert set(out["areas"]["district"]) == {0}
     assert set(out["areas"]["pattern"]) == {"radial"}
@@ -237,14 +250,17 @@ def test_district_map_of_the_wrong_shape(tmp_path):
         run_major(map_plan(tmp_path))
 
 
-@pytest.mark.parametrize("attrs,message", [
-    ({"pattern": "hexagon"}, r"t\.xml:7: <district> pattern='hexagon' is not one of grid, radial, organic"),
-    ({"spacing": "300"}, r"t\.xml:7: <district> spacing='300' is not 2 numbers"),
-    ({"spacing": "0 0"}, r"spacing='0 0'"),
-    ({"sites": "2.5", "pattern": "organic"}, r"sites='2.5' is not 1 whole number"),
-    ({"minor-angle": "steep"}, r"minor-angle='steep' is not 1 number"),
-    ({"color": "purple"}, r"t\.xml:7: colour 'purple'"),
-])
+@pytest.mark.parametrize(
+    "attrs,message",
+    [
+        ({"pattern": "hexagon"}, r"t\.xml:7: <district> pattern='hexagon' is not one of grid, radial, organic"),
+        ({"spacing": "300"}, r"t\.xml:7: <district> spacing='300' is not 2 numbers"),
+        ({"spacing": "0 0"}, r"spacing='0 0'"),
+        ({"sites": "2.5", "pattern": "organic"}, r"sites='2.5' is not 1 whole number"),
+        ({"minor-angle": "steep"}, r"minor-angle='steep' is not 1 number"),
+        ({"color": "purple"}, r"t\.xml:7: colour 'purple'"),
+    ],
+)
 def test_bad_district_rules(attrs, message):
     with pytest.raises((ConfigError, InputDataError), match=message):
         run_major(CityPlan(size=SIZE, rules=[Rule("district", attrs, "t.xml:7")]))
@@ -259,11 +275,23 @@ def test_rule_without_colour_under_a_district_map(tmp_path):
 
 
 @SETTINGS
-@given(seed=st.integers(0, 2**31), angle=st.floats(-180, 180), dx=st.floats(120, 700), dy=st.floats(120, 700),
-       pattern=st.sampled_from(["grid", "radial", "organic"]))
+@given(
+    seed=st.integers(0, 2**31),
+    angle=st.floats(-180, 180),
+    dx=st.floats(120, 700),
+    dy=st.floats(120, 700),
+    pattern=st.sampled_from(["grid", "radial", "organic"]),
+)
 def test_random_patterns_partition(seed, angle, dx, dy, pattern):
-    attrs = {"pattern": pattern, "spacing": f"{dx} {dy}", "angle": str(angle), "sites": str(int(dx // 20)),
-             "rings": str(int(dy // 100)), "spokes": str(int(dx // 60)), "offset": f"{dy} {dx}"}
+    attrs = {
+        "pattern": pattern,
+        "spacing": f"{dx} {dy}",
+        "angle": str(angle),
+        "sites": str(int(dx // 20)),
+        "rings": str(int(dy // 100)),
+        "spokes": str(int(dx // 60)),
+        "offset": f"{dy} {dx}",
+    }
     out, _ = run_major(CityPlan(size=(1700.0, 1100.0), rules=[Rule("district", attrs, "t.xml:3")]), seed=seed)
     assert_partition(out["areas"], out["outline"].geometry[0])
     assert_planar(out["roads"])

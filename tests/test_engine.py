@@ -30,9 +30,11 @@ def demo_plugin():
 
 # -- plugins, three ways ----------------------------------------------------------
 
+
 def _fake_distribution(site: Path) -> None:
     """A package installed the way pip would: module plus dist-info with an entry point."""
-    (site / "cityblocks_plugin.py").write_text(textwrap.dedent('''
+    (site / "cityblocks_plugin.py").write_text(
+        textwrap.dedent('''
         import shapely
         from sengine import Layer, Param, Port, SENode, register
 
@@ -46,7 +48,8 @@ def _fake_distribution(site: Path) -> None:
 
             def run(self):
                 return {"strips": Layer.from_geoms([shapely.box(i * 10, 0, i * 10 + 8, 30) for i in range(self.p.count)])}
-    '''))
+    ''')
+    )
     dist = site / "cityblocks_plugin-1.0.dist-info"
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: cityblocks-plugin\nVersion: 1.0\n")
@@ -64,9 +67,11 @@ def test_plugin_by_entry_point(tmp_path):
     names = {n["name"] for n in json.loads(listing.stdout)}
     assert "thirdparty.stripes" in names and "null" in names
     config = tmp_path / "c.xml"
-    config.write_text('<sengine version="1"><network><node id="s" type="thirdparty.stripes">'
-                      '<param name="count" value="6"/></node><node id="n" type="null"/>'
-                      '<connect from="s" to="n"/></network></sengine>')
+    config.write_text(
+        '<sengine version="1"><network><node id="s" type="thirdparty.stripes">'
+        '<param name="count" value="6"/></node><node id="n" type="null"/>'
+        '<connect from="s" to="n"/></network></sengine>'
+    )
     ran = run_cli("run", config, "-o", tmp_path / "out", env=env, cwd=tmp_path)
     assert ran.returncode == 0, ran.stderr
     stats = json.loads((tmp_path / "out" / "stats.json").read_text())
@@ -134,6 +139,7 @@ def test_run_signature_must_match_ports():
 
 # -- parameters and randomness ------------------------------------------------------
 
+
 def test_parameters_are_checked_and_coerced():
     cls = get("demo.squares")
     node = cls("s", {"count": "12", "size": "2.5"})
@@ -161,6 +167,7 @@ def test_feature_seeding_is_independent_of_batch():
 
 # -- running -------------------------------------------------------------------------
 
+
 def test_same_seed_same_bytes(tmp_path, fixtures):
     outs = []
     for name in ("a", "b"):
@@ -173,7 +180,9 @@ def test_same_seed_same_bytes(tmp_path, fixtures):
     sa, sb = (json.loads((o / "stats.json").read_text()) for o in outs)
     assert sa["counts"] == sb["counts"] and sa["seed"] == sb["seed"] == 3
     other = sengine.load(fixtures / "squares.xml").run(seed=4)
-    assert not shapely.equals(other["source"].geometry, sengine.load(fixtures / "squares.xml").run(seed=3)["source"].geometry).all()
+    assert not shapely.equals(
+        other["source"].geometry, sengine.load(fixtures / "squares.xml").run(seed=3)["source"].geometry
+    ).all()
 
 
 def test_stats_json_shape(tmp_path, fixtures, cli):
@@ -207,6 +216,7 @@ def test_validation_collects_every_problem():
 
 # -- the standard networks -----------------------------------------------------------
 
+
 def test_std_network_requires_major_and_minor_roads():
     with pytest.raises(NetworkError, match="needs the standard name 'majorRoads'"):
         StdNetwork({"minorRoads": "null"})
@@ -239,9 +249,11 @@ def test_loadmap_network_minor_roads_is_null():
 
 def test_std_network_from_xml(tmp_path, cli):
     config = tmp_path / "std.xml"
-    config.write_text(f'<sengine version="1"><plugin path="{PLUGIN}"/><network base="std">'
-                      '<node id="majorRoads" type="demo.squares"/><node id="minorRoads" type="demo.inset">'
-                      '<param name="distance" value="2"/></node></network></sengine>')
+    config.write_text(
+        f'<sengine version="1"><plugin path="{PLUGIN}"/><network base="std">'
+        '<node id="majorRoads" type="demo.squares"/><node id="minorRoads" type="demo.inset">'
+        '<param name="distance" value="2"/></node></network></sengine>'
+    )
     res = cli("run", config, "-o", tmp_path / "o")
     assert res.returncode == 0, res.stderr
     stats = json.loads((tmp_path / "o" / "stats.json").read_text())
@@ -251,6 +263,7 @@ def test_std_network_from_xml(tmp_path, cli):
 
 # -- CLI surfaces --------------------------------------------------------------------
 
+
 def test_nodes_json_lists_declarations(cli):
     res = cli("nodes", "--json", "--plugin", PLUGIN)
     assert res.returncode == 0, res.stderr
@@ -258,8 +271,16 @@ def test_nodes_json_lists_declarations(cli):
     sq = nodes["demo.squares"]
     assert set(sq) >= {"name", "doc", "inputs", "outputs", "params"}
     count = next(p for p in sq["params"] if p["name"] == "count")
-    assert count == {"name": "count", "type": "int", "default": 5, "min": 1, "max": 10000, "choices": None,
-                     "unit": "1", "doc": "number of squares"}
+    assert count == {
+        "name": "count",
+        "type": "int",
+        "default": 5,
+        "min": 1,
+        "max": 10000,
+        "choices": None,
+        "unit": "1",
+        "doc": "number of squares",
+    }
     assert sq["outputs"] == [{"name": "squares", "kind": "polygons", "doc": "one square per feature"}]
 
 
@@ -306,10 +327,12 @@ def test_batch_runs_each_seed(fixtures, tmp_path, cli):
 
 def test_installed_package_has_builtins_without_top_level_nodes(tmp_path):
     """From outside the checkout: the built-in nodes load, no top-level ``nodes`` package exists."""
-    code = ("import importlib.util, json, sengine, sengine.registry as r;"
-            "print(json.dumps({'file': sengine.__file__, 'names': r.names(),"
-            " 'nodes': importlib.util.find_spec('nodes') is not None,"
-            " 'networks': importlib.util.find_spec('networks') is not None}))")
+    code = (
+        "import importlib.util, json, sengine, sengine.registry as r;"
+        "print(json.dumps({'file': sengine.__file__, 'names': r.names(),"
+        " 'nodes': importlib.util.find_spec('nodes') is not None,"
+        " 'networks': importlib.util.find_spec('networks') is not None}))"
+    )
     import subprocess
 
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
@@ -324,9 +347,14 @@ def test_installed_package_has_builtins_without_top_level_nodes(tmp_path):
 
 # -- the Layer -------------------------------------------------------------------------
 
+
 def test_layer_geojson_round_trip():
-    lay = Layer.from_geoms([shapely.box(0, 0, 2, 1), shapely.Point(3, 4)], parent=[7, 8],
-                           kind=np.array(["lot", "tree"]), height=np.array([12.5, np.nan]))
+    lay = Layer.from_geoms(
+        [shapely.box(0, 0, 2, 1), shapely.Point(3, 4)],
+        parent=[7, 8],
+        kind=np.array(["lot", "tree"]),
+        height=np.array([12.5, np.nan]),
+    )
     data = lay.to_geojson()
     assert [f["properties"]["kind"] for f in data["features"]] == ["lot", "tree"]
     assert data["features"][1]["properties"]["height"] is None
@@ -351,8 +379,12 @@ def test_chunk_reports_merge():
     """Counts of a node's chunks add up; ``max_*`` figures take the largest; the rest comes from the first."""
     from sengine.network import _sum_reports
 
-    merged = _sum_reports([{"lots": 3, "max_levels": 4, "method": "a", "sub": {"n": 1}},
-                           {"lots": 5, "max_levels": 2, "method": "b", "sub": {"n": 2}}])
+    merged = _sum_reports(
+        [
+            {"lots": 3, "max_levels": 4, "method": "a", "sub": {"n": 1}},
+            {"lots": 5, "max_levels": 2, "method": "b", "sub": {"n": 2}},
+        ]
+    )
     assert merged == {"lots": 8, "max_levels": 4, "method": "a", "sub": {"n": 3}}
 
 
@@ -377,14 +409,18 @@ def test_workers_give_the_same_result(tmp_path, fixtures, monkeypatch, fork_afte
 def test_disconnect_then_connect_inserts_a_node(tmp_path):
     """A base network's connection is removed and a node put in between."""
     base = tmp_path / "base.xml"
-    base.write_text(f'<sengine version="1"><plugin path="{PLUGIN}"/><network>'
-                    '<node id="src" type="demo.squares"/><node id="out" type="demo.inset"/>'
-                    '<connect from="src.squares" to="out.polygons"/></network></sengine>')
+    base.write_text(
+        f'<sengine version="1"><plugin path="{PLUGIN}"/><network>'
+        '<node id="src" type="demo.squares"/><node id="out" type="demo.inset"/>'
+        '<connect from="src.squares" to="out.polygons"/></network></sengine>'
+    )
     config = tmp_path / "c.xml"
-    config.write_text('<sengine version="1"><network file="base.xml">'
-                      '<node id="mid" type="demo.inset"><param name="distance" value="2"/></node>'
-                      '<disconnect from="src" to="out"/>'
-                      '<connect from="src" to="mid"/><connect from="mid" to="out"/></network></sengine>')
+    config.write_text(
+        '<sengine version="1"><network file="base.xml">'
+        '<node id="mid" type="demo.inset"><param name="distance" value="2"/></node>'
+        '<disconnect from="src" to="out"/>'
+        '<connect from="src" to="mid"/><connect from="mid" to="out"/></network></sengine>'
+    )
     layers, stats = sengine.load(config).run(seed=1)
     assert list(stats["counts"]) == ["src", "mid", "out"]
     assert shapely.area(layers["out"]["polygons"].geometry) == pytest.approx(np.full(5, 16.0))  # 10 - 2*2 - 2*1

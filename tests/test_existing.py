@@ -25,24 +25,40 @@ def run(buildings, existing, lots=None, **params):
 
 def street_of_lots():
     """Five 20 m x 30 m lots in a row, a generated building inset 2 m on each."""
-    lots = Layer.from_geoms([shapely.box(20 * i, 0, 20 * i + 20, 30) for i in range(5)], ids=np.arange(10, 15),
-                            district=np.array([1, 1, 1, 2, 2]))
-    built = Layer.from_geoms(shapely.buffer(lots.geometry, -2.0, join_style="mitre"), ids=lots.ids, parent=lots.ids,
-                             height=np.full(5, 12.8), floors=np.full(5, 4), roof="flat", lot=lots.ids,
-                             district=lots["district"])
+    lots = Layer.from_geoms(
+        [shapely.box(20 * i, 0, 20 * i + 20, 30) for i in range(5)],
+        ids=np.arange(10, 15),
+        district=np.array([1, 1, 1, 2, 2]),
+    )
+    built = Layer.from_geoms(
+        shapely.buffer(lots.geometry, -2.0, join_style="mitre"),
+        ids=lots.ids,
+        parent=lots.ids,
+        height=np.full(5, 12.8),
+        floors=np.full(5, 4),
+        roof="flat",
+        lot=lots.ids,
+        district=lots["district"],
+    )
     return lots, built
 
 
 def test_existing_buildings_stand_and_generated_ones_keep_clear():
     lots, built = street_of_lots()
     existing = Layer.from_geoms(
-        [shapely.box(3, 3, 15, 25),        # inside lot 10: its generated building goes
-         shapely.box(37.5, 5, 42.5, 10),   # across lots 11 and 12, 2.5 m x 5 m into each: both go
-         shapely.box(79, 0, 80, 1),        # a shed in lot 13's setback: lot 13 is still built
-         shapely.box(200, 0, 210, 10)],    # outside every lot: kept, with no lot
-        height=np.array([31.0, 9.0, 3.0, 20.0]), floors=np.array([10, 3, 1, 6]), roof="flat",
-        osm_id=np.array([7, 8, 9, 10]), name=np.array(["Hall", "", "", ""], dtype=object),
-        height_source=np.array(["height", "levels", "default", "height"], dtype=object))
+        [
+            shapely.box(3, 3, 15, 25),  # inside lot 10: its generated building goes
+            shapely.box(37.5, 5, 42.5, 10),  # across lots 11 and 12, 2.5 m x 5 m into each: both go
+            shapely.box(79, 0, 80, 1),  # a shed in lot 13's setback: lot 13 is still built
+            shapely.box(200, 0, 210, 10),
+        ],  # outside every lot: kept, with no lot
+        height=np.array([31.0, 9.0, 3.0, 20.0]),
+        floors=np.array([10, 3, 1, 6]),
+        roof="flat",
+        osm_id=np.array([7, 8, 9, 10]),
+        name=np.array(["Hall", "", "", ""], dtype=object),
+        height_source=np.array(["height", "levels", "default", "height"], dtype=object),
+    )
     out, report = run(built, existing, lots)
     gen = out["source"] == "generated"
     assert sorted(out["lot"][gen].tolist()) == [13, 14]
@@ -71,8 +87,9 @@ def test_keep_chooses_one_kind():
         run(built, Layer.from_geoms([shapely.box(0, 0, 1, 1)]))
 
 
-boxes = st.lists(st.tuples(st.floats(0, 90), st.floats(0, 90), st.floats(1, 15), st.floats(1, 15)),
-                 min_size=0, max_size=25)
+boxes = st.lists(
+    st.tuples(st.floats(0, 90), st.floats(0, 90), st.floats(1, 15), st.floats(1, 15)), min_size=0, max_size=25
+)
 
 
 @settings(max_examples=60, deadline=None)
@@ -80,8 +97,14 @@ boxes = st.lists(st.tuples(st.floats(0, 90), st.floats(0, 90), st.floats(1, 15),
 def test_no_generated_building_overlaps_the_map_more_than_allowed(gen, real, overlap):
     gen_g = [shapely.box(x, y, x + w, y + h) for x, y, w, h in gen]
     real_g = [shapely.box(x, y, x + w, y + h) for x, y, w, h in real]
-    built = Layer.from_geoms(gen_g, height=np.full(len(gen_g), 9.6), floors=np.full(len(gen_g), 3), roof="flat",
-                             lot=np.arange(len(gen_g)), district=np.full(len(gen_g), -1))
+    built = Layer.from_geoms(
+        gen_g,
+        height=np.full(len(gen_g), 9.6),
+        floors=np.full(len(gen_g), 3),
+        roof="flat",
+        lot=np.arange(len(gen_g)),
+        district=np.full(len(gen_g), -1),
+    )
     existing = Layer.from_geoms(real_g, height=np.full(len(real_g), 20.0))
     out, report = run(built, existing, overlap=str(overlap))
     gen_mask = out["source"] == "generated"

@@ -59,7 +59,7 @@ def test_extrusion_is_closed_and_has_the_right_volume():
     holed = np.flatnonzero(shapely.get_num_interior_rings(g) > 0)
     assert holed.size
     for i in list(holed[:5]) + list(range(0, len(g), 97)):
-        v, f, _ = mesh.extrude(g[i:i + 1], [10.0])
+        v, f, _ = mesh.extrude(g[i : i + 1], [10.0])
         one = trimesh.Trimesh(v, f, process=True)
         assert one.is_watertight and one.volume > 0
         np.testing.assert_allclose(one.volume, g[i].area * 10.0, rtol=1e-9)
@@ -106,7 +106,8 @@ def test_glb_large_coordinates_keep_precision(tmp_path):
     ll = shapely.transform(lots.geometry, to_lonlat(lots.meta["crs"]))
     g = shapely.transform(ll, from_lonlat(utm))
     b = Extrude("b", {"setback": 0.5, "min_area": 5.0}, Context(seed=1)).run(
-        lots=Layer.from_geoms(g, ids=lots.ids, meta={"crs": utm}))["buildings"]
+        lots=Layer.from_geoms(g, ids=lots.ids, meta={"crs": utm})
+    )["buildings"]
     export(tmp_path, None, {"buildings": b}, {"glb"})
     scene = trimesh.load(tmp_path / "city.glb")
     world = scene.to_geometry()
@@ -147,8 +148,10 @@ def check_rfc7946(path, layer, origin):
             a = _signed_area(ring)
             assert (a > 0) if k == 0 else (a < 0), "exterior rings CCW, holes CW"
     # coordinates go back to the planar frame within 2 cm
-    back = shapely.transform(shapely.from_geojson([json.dumps(f["geometry"]) for f in data["features"]]),
-                             from_lonlat(layer.meta.get("crs") or local_crs(origin)))
+    back = shapely.transform(
+        shapely.from_geojson([json.dumps(f["geometry"]) for f in data["features"]]),
+        from_lonlat(layer.meta.get("crs") or local_crs(origin)),
+    )
     assert shapely.hausdorff_distance(back, layer.geometry).max() < 0.02
     return data
 
@@ -207,13 +210,13 @@ def test_streets_osm_reads_back_with_shared_junctions(city, written):
     assert ways == len(roads)
     assert set(refs) == set(nodes)
     # a junction in the plan (an end point shared by several segments) is one shared node
-    ends = np.round(np.concatenate([shapely.get_coordinates(shapely.get_point(roads.geometry, k)) for k in (0, -1)]),
-                    3)
+    ends = np.round(np.concatenate([shapely.get_coordinates(shapely.get_point(roads.geometry, k)) for k in (0, -1)]), 3)
     _, counts = np.unique(ends, axis=0, return_counts=True)
     assert sum(1 for c in refs.values() if c > 1) == (counts > 1).sum()
     assert len(nodes) == len(counts)
-    assert tags == Counter({"primary": int((roads["class"] == "major").sum()),
-                            "residential": int((roads["class"] == "minor").sum())})
+    assert tags == Counter(
+        {"primary": int((roads["class"] == "major").sum()), "residential": int((roads["class"] == "minor").sum())}
+    )
 
 
 # -- preview ---------------------------------------------------------------------
@@ -289,8 +292,9 @@ def test_cityjson_lod1_solids(city, written):
     origin_zone = 32600 + int((plan.origin[1] + 180) // 6) + 1
     assert doc["metadata"]["referenceSystem"] == f"https://www.opengis.net/def/crs/EPSG/0/{origin_zone}"
     utm = f"EPSG:{origin_zone}"
-    footprint = shapely.transform(layers["buildings"].geometry[0], lambda xy: from_lonlat(utm)(
-        to_lonlat(local_crs(plan.origin))(xy)))
+    footprint = shapely.transform(
+        layers["buildings"].geometry[0], lambda xy: from_lonlat(utm)(to_lonlat(local_crs(plan.origin))(xy))
+    )
     assert tm.volume == pytest.approx(footprint.area * layers["buildings"]["height"][0], rel=1e-4)  # mm vertices
     floor = verts[shell[0][0]]  # the bottom surface's outer ring
     assert (floor[:, 2] == 0).all()
@@ -357,8 +361,13 @@ def test_random_polygons_mesh_exactly(offset):
     from hypothesis import strategies as st
 
     @settings(max_examples=80, deadline=None)
-    @given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 40), hole=st.booleans(),
-           h=st.floats(0.5, 300), rev=st.booleans())
+    @given(
+        seed=st.integers(0, 2**32 - 1),
+        n=st.integers(3, 40),
+        hole=st.booleans(),
+        h=st.floats(0.5, 300),
+        rev=st.booleans(),
+    )
     def check(seed, n, hole, h, rev):
         poly = _star(seed, n, hole, offset)
         if not poly.is_valid or poly.area < 1.0 or poly.geom_type != "Polygon":

@@ -57,8 +57,12 @@ def test_faces_of_random_segments_match_polygonize_and_euler(segs):
 
 
 def test_square_with_dead_end_hole_and_spike():
-    lines = [shapely.box(0, 0, 10, 10).exterior, shapely.LineString([(0, 0), (-5, -5)]),
-             shapely.LineString([(2, 2), (4, 4)]), shapely.box(6, 6, 8, 8).exterior]
+    lines = [
+        shapely.box(0, 0, 10, 10).exterior,
+        shapely.LineString([(0, 0), (-5, -5)]),
+        shapely.LineString([(2, 2), (4, 4)]),
+        shapely.box(6, 6, 8, 8).exterior,
+    ]
     xy, u, v, _ = segments_from_lines(lines, node=True)
     pf = planar_faces(xy, u, v)
     assert pf.counts["bridges"] == 2
@@ -194,10 +198,14 @@ def test_shared_areas_and_largest_share():
     from sengine.geom.polygons import largest_share, shared_areas
 
     lots = np.array([shapely.box(0, 0, 10, 10), shapely.box(10, 0, 20, 10), shapely.box(20, 0, 30, 10)])
-    things = np.array([shapely.box(8, 2, 12, 4),    # 4 m2 on each of lots 0 and 1: the lower wins the tie
-                       shapely.box(15, 2, 27, 4),   # 10 m2 on lot 1, 14 m2 on lot 2
-                       shapely.box(30, 0, 31, 1),   # touches lot 2 only along an edge: on none
-                       shapely.box(50, 0, 51, 1)])  # far away
+    things = np.array(
+        [
+            shapely.box(8, 2, 12, 4),  # 4 m2 on each of lots 0 and 1: the lower wins the tie
+            shapely.box(15, 2, 27, 4),  # 10 m2 on lot 1, 14 m2 on lot 2
+            shapely.box(30, 0, 31, 1),  # touches lot 2 only along an edge: on none
+            shapely.box(50, 0, 51, 1),
+        ]
+    )  # far away
     gi, li, area = shared_areas(things, lots)
     got = {(int(g), int(k)): round(float(a), 9) for g, k, a in zip(gi, li, area, strict=True)}
     assert got == {(0, 0): 4.0, (0, 1): 4.0, (1, 1): 10.0, (1, 2): 14.0, (2, 2): 0.0}

@@ -21,8 +21,10 @@ coord = st.floats(0, 300, allow_nan=False)
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.tuples(coord, coord, st.floats(2, 80)), max_size=6),
-       st.lists(st.tuples(coord, coord, st.floats(1, 120), st.floats(1, 30)), max_size=4))
+@given(
+    st.lists(st.tuples(coord, coord, st.floats(2, 80)), max_size=6),
+    st.lists(st.tuples(coord, coord, st.floats(1, 120), st.floats(1, 30)), max_size=4),
+)
 @example(circles=[(212.5, 16.0, 80.0)], rects=[(132.0, 5e-324, 4.0, 1.0)])  # a cut a hair above the block's edge
 def test_pieces_and_cut_land_partition_each_block(circles, rects):
     blocks = np.array([shapely.box(x, y, x + 90, y + 60) for x in (0, 100, 200) for y in (0, 70, 140)])
@@ -40,12 +42,20 @@ def test_pieces_and_cut_land_partition_each_block(circles, rects):
 
 
 def test_a_river_splits_a_block_and_slivers_go():
-    blocks = Layer.from_geoms([shapely.box(0, 0, 100, 60), shapely.box(110, 0, 210, 60),
-                               shapely.box(220, 0, 320, 60), shapely.box(330, 0, 430, 60)], ids=[4, 9, 12, 15],
-                              district=np.array([2, 3, 3, 3]))
+    blocks = Layer.from_geoms(
+        [
+            shapely.box(0, 0, 100, 60),
+            shapely.box(110, 0, 210, 60),
+            shapely.box(220, 0, 320, 60),
+            shapely.box(330, 0, 430, 60),
+        ],
+        ids=[4, 9, 12, 15],
+        district=np.array([2, 3, 3, 3]),
+    )
     water = Layer.from_geoms([shapely.box(40, -10, 55, 70), shapely.box(110, 0, 210, 59.5)], kind="water")
-    parks = Layer.from_geoms([shapely.Point(80, 30).buffer(8), shapely.box(220, 3, 320, 60),
-                              shapely.box(330, 5, 430, 60)], kind="park")
+    parks = Layer.from_geoms(
+        [shapely.Point(80, 30).buffer(8), shapely.box(220, 3, 320, 60), shapely.box(330, 5, 430, 60)], kind="park"
+    )
     node = get("blocks.landuse")("landuse", {"min_area": "60", "min_width": "4"}, Context())
     out = node.run(blocks=blocks, water=water, parks=parks)["blocks"]
     # block 4 falls in two pieces (the first keeps the id); block 9 keeps a 0.5 m strip of 50 m2 (under

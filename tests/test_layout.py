@@ -22,7 +22,8 @@ def _is_module(name: str) -> bool:
 
 def _is_type_checking(test: ast.expr) -> bool:
     return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
-        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
 
 
 def _imports(path: Path) -> set[str]:
@@ -31,8 +32,13 @@ def _imports(path: Path) -> set[str]:
     package = mod if path.name == "__init__.py" else mod.rpartition(".")[0]
     out = set()
     tree = ast.parse(path.read_text())
-    typing_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If) and _is_type_checking(block.test)
-                   for stmt in block.body for n in ast.walk(stmt)}
+    typing_only = {
+        id(n)
+        for block in ast.walk(tree)
+        if isinstance(block, ast.If) and _is_type_checking(block.test)
+        for stmt in block.body
+        for n in ast.walk(stmt)
+    }
     for node in ast.walk(tree):
         if id(node) in typing_only:  # ``if TYPE_CHECKING:`` imports never run
             continue
@@ -75,8 +81,12 @@ def test_nothing_outside_the_node_library_imports_it():
 
 
 def test_the_geometry_library_imports_only_itself_and_the_errors():
-    bad = sorted((m, t) for m, ts in GRAPH.items() for t in ts
-                 if _wing(m) == "geom" and _wing(t) != "geom" and t not in ("sengine.errors", "sengine"))
+    bad = sorted(
+        (m, t)
+        for m, ts in GRAPH.items()
+        for t in ts
+        if _wing(m) == "geom" and _wing(t) != "geom" and t not in ("sengine.errors", "sengine")
+    )
     assert not bad, bad
     # ``from sengine import X`` would load the whole engine
     assert not [m for m, ts in GRAPH.items() if _wing(m) == "geom" and "sengine" in ts]

@@ -74,8 +74,11 @@ def check_lots(blocks: Layer, lots: Layer, name: str):
         assert outside <= 1e-6 * area + 1e-9, f"{name}: lots stick out of the block"
         assert overlap_area(mine) <= 1e-6 * area + 1e-9, f"{name}: lots overlap"
     # the frontage the methods carry through their cuts is the one measured on the geometry
-    owner = np.searchsorted(blocks.ids, lots["block"]) if np.all(np.diff(blocks.ids) > 0) else \
-        np.array([np.flatnonzero(blocks.ids == b)[0] for b in lots["block"]])
+    owner = (
+        np.searchsorted(blocks.ids, lots["block"])
+        if np.all(np.diff(blocks.ids) > 0)
+        else np.array([np.flatnonzero(blocks.ids == b)[0] for b in lots["block"]])
+    )
     ref = LOTS.lot_attributes(lots.geometry, owner, blocks.geometry)
     assert np.allclose(lots["frontage"], ref["frontage"], atol=1e-6), f"{name}: frontage differs from measured"
     assert np.array_equal(lots["street_edges"], ref["street_edges"]) and np.array_equal(lots["corner"], ref["corner"])
@@ -99,8 +102,10 @@ def test_every_method_partitions_random_blocks(polys):
 
 @pytest.mark.parametrize("name", METHODS)
 def test_same_seed_same_lots(name):
-    polys = [shapely.affinity.rotate(shapely.box(0, 0, 270, 80), 29),
-             shapely.Polygon([(0, 0), (120, 0), (120, 90), (60, 20), (0, 90)])]
+    polys = [
+        shapely.affinity.rotate(shapely.box(0, 0, 270, 80), 29),
+        shapely.Polygon([(0, 0), (120, 0), (120, 90), (60, 20), (0, 90)]),
+    ]
     blocks = Layer.from_geoms(polys)
 
     def wkb(seed):
@@ -152,9 +157,13 @@ def test_attributes_of_a_corner_lot():
 
 
 def test_district_rules_choose_method_and_params():
-    plan = CityPlan(rules=[Rule("district", {"lots": "paris", "lot-depth": "12"}, "c.xml:3"),
-                           Rule("district", {"lots": "recursive", "lot-area": "400"}, "c.xml:4"),
-                           Rule("district", {"lots": "voronoi"}, "c.xml:5")])
+    plan = CityPlan(
+        rules=[
+            Rule("district", {"lots": "paris", "lot-depth": "12"}, "c.xml:3"),
+            Rule("district", {"lots": "recursive", "lot-area": "400"}, "c.xml:4"),
+            Rule("district", {"lots": "voronoi"}, "c.xml:5"),
+        ]
+    )
     polys = [shapely.box(0, 0, 150, 100), shapely.box(200, 0, 300, 100), shapely.box(0, 200, 270, 280)]
     blocks = Layer.from_geoms(polys, district=[0, 1, -1])
     node = get("lots.district")("lots", {}, Context(seed=1, plan=plan))
@@ -171,8 +180,9 @@ def test_district_rules_choose_method_and_params():
 
 
 def test_empty_and_degenerate_blocks_do_not_raise():
-    blocks = Layer.from_geoms([shapely.Polygon(), shapely.box(0, 0, 0.01, 100),
-                               shapely.Polygon([(0, 0), (10, 0), (10, 10), (9.99, 0.01)])])
+    blocks = Layer.from_geoms(
+        [shapely.Polygon(), shapely.box(0, 0, 0.01, 100), shapely.Polygon([(0, 0), (10, 0), (10, 10), (9.99, 0.01)])]
+    )
     for name in METHODS:
         node = get(name)("lots", {})
         lots = node.run(blocks=blocks)["lots"]
@@ -197,8 +207,11 @@ def test_filter_and_stats():
 
 @pytest.mark.parametrize("name", METHODS)
 def test_lots_of_a_block_do_not_depend_on_its_batch(name):
-    polys = [shapely.box(0, 0, 150, 100), shapely.Polygon([(0, 0), (120, 0), (120, 90), (60, 20), (0, 90)]),
-             shapely.affinity.rotate(shapely.box(0, 0, 270, 80), 29)]
+    polys = [
+        shapely.box(0, 0, 150, 100),
+        shapely.Polygon([(0, 0), (120, 0), (120, 90), (60, 20), (0, 90)]),
+        shapely.affinity.rotate(shapely.box(0, 0, 270, 80), 29),
+    ]
     ids = np.array([4, 9, 17])
 
     def lots_of(sel):
@@ -214,15 +227,18 @@ def monaco_blocks():
     """Blocks of the Monaco extract through the load-map nodes (53 irregular blocks)."""
     ctx = Context(seed=1)
     data = Path(__file__).resolve().parent.parent / "configs" / "data" / "monaco.osm.pbf"
-    roads = get("osm.read")("majorRoads", {"path": str(data), "extras": "",
-                                           "minor": "unclassified,residential,living_street,pedestrian,road"},
-                            ctx).run()["roads"]
+    roads = get("osm.read")(
+        "majorRoads",
+        {"path": str(data), "extras": "", "minor": "unclassified,residential,living_street,pedestrian,road"},
+        ctx,
+    ).run()["roads"]
     roads = get("roads.clean")("clean", {"sliver_width": 6}, ctx).run(roads=roads)["roads"]
     blocks = get("blocks.circuits")("blocks", {"node": False, "sidewalk": 2, "min_area": 50}, ctx).run(roads=roads)
     blocks = blocks["blocks"]
     origin = shapely.bounds(blocks.geometry)[:, :2].min(axis=0)  # local frame for the snap-rounding measures
-    return Layer.from_geoms(shapely.transform(blocks.geometry, lambda xy: xy - origin), ids=blocks.ids,
-                            district=np.zeros(len(blocks), int))
+    return Layer.from_geoms(
+        shapely.transform(blocks.geometry, lambda xy: xy - origin), ids=blocks.ids, district=np.zeros(len(blocks), int)
+    )
 
 
 @pytest.mark.parametrize("name", METHODS)
@@ -241,8 +257,11 @@ def test_real_blocks(monaco_blocks, name):
 
 def test_recursive_degenerate_cuts():
     # symmetric shapes: exact-middle cuts run through vertices and along edges
-    polys = [shapely.Polygon([(0, 0), (40, 20), (0, 40), (-40, 20)]), shapely.box(0, 0, 64, 64),
-             shapely.Polygon([(0, 0), (60, 0), (60, 60), (30, 30), (0, 60)])]
+    polys = [
+        shapely.Polygon([(0, 0), (40, 20), (0, 40), (-40, 20)]),
+        shapely.box(0, 0, 64, 64),
+        shapely.Polygon([(0, 0), (60, 0), (60, 60), (30, 30), (0, 60)]),
+    ]
     blocks = Layer.from_geoms(polys)
     node = get("lots.recursive")("lots", {"jitter": 0.0, "max_area": 100.0, "min_frontage": 1.0})
     lots = node.run(blocks=blocks)["lots"]
@@ -251,9 +270,11 @@ def test_recursive_degenerate_cuts():
 
 
 def test_paris_thin_concave_and_holed_blocks():
-    polys = [shapely.box(0, 0, 300, 12),  # thinner than two lot depths
-             shapely.Polygon([(0, 0), (200, 0), (200, 40), (40, 40), (40, 200), (0, 200)]),  # L: concave corner
-             shapely.box(0, 0, 200, 200).difference(shapely.box(80, 80, 120, 120))]  # a hole in the courtyard
+    polys = [
+        shapely.box(0, 0, 300, 12),  # thinner than two lot depths
+        shapely.Polygon([(0, 0), (200, 0), (200, 40), (40, 40), (40, 200), (0, 200)]),  # L: concave corner
+        shapely.box(0, 0, 200, 200).difference(shapely.box(80, 80, 120, 120)),
+    ]  # a hole in the courtyard
     blocks = Layer.from_geoms(polys)
     node = get("lots.paris")("lots", {})
     lots = node.run(blocks=blocks)["lots"]
@@ -272,13 +293,16 @@ def test_awkward_blocks():
         shapely.box(0, 0, 100, 1e-4),
         shapely.Point(0, 0).buffer(300, quad_segs=1250),
         shapely.box(0, 0, 100, 100).difference(shapely.Polygon([(0, 0), (10, 20), (20, 10)])),  # hole touching
-        shapely.box(0, 0, 100, 100).difference(shapely.box(40, 40, 60, 60)).difference(shapely.box(10, 10, 20, 20))
+        shapely.box(0, 0, 100, 100)
+        .difference(shapely.box(40, 40, 60, 60))
+        .difference(shapely.box(10, 10, 20, 20))
         .difference(shapely.box(70, 20, 90, 80)),
         shapely.Polygon([(0, 0), (50, 0), (50, 0), (50, 0), (100, 0), (100, 50), (0, 50)]),
         shapely.affinity.translate(shapely.box(0, 0, 80, 60), 1e7, 1e7),
         shapely.Polygon([(0, 0), (200, 0), (200, 5), (5, 5), (5, 200), (0, 200)]),
-        shapely.Polygon(np.c_[np.linspace(0, 500, 400), 20 * np.sin(np.linspace(0, 60, 400))].tolist()
-                        + [(500, -100), (0, -100)]),
+        shapely.Polygon(
+            np.c_[np.linspace(0, 500, 400), 20 * np.sin(np.linspace(0, 60, 400))].tolist() + [(500, -100), (0, -100)]
+        ),
     ]
     blocks = Layer.from_geoms(polys)
     for name in METHODS:
@@ -315,9 +339,10 @@ def test_paris_courtyards_do_not_reach_the_street(paris_demo):
         return shapely.length(shapely.intersection(shapely.boundary(lots.geometry), zone))
 
     on_exterior = shared(shapely.get_exterior_ring(blocks.geometry))
-    assert on_exterior[inner].max() < 0.01, \
-        f"courtyards on the street: {np.round(np.sort(on_exterior[inner])[-5:], 2)} m in blocks " \
+    assert on_exterior[inner].max() < 0.01, (
+        f"courtyards on the street: {np.round(np.sort(on_exterior[inner])[-5:], 2)} m in blocks "
         f"{sorted(set(lots['block'][inner & (on_exterior >= 0.01)].tolist()))}"
+    )
     assert (shared(shapely.boundary(blocks.geometry))[~inner] > 0).all()
     assert (lots["frontage"][~inner] > 0).all()
     # within the block, no overlap, areas add up: the union is the block

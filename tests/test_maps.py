@@ -14,8 +14,9 @@ from sengine.geom.raster import classify, colour_hex, parse_colour, read_map, ve
 from sengine.plan import MapSpec
 
 EXTENT = (0.0, 0.0, 600.0, 400.0)  # 1 m per pixel for a 600 x 400 image
-SETTINGS = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow,
-                                                                          HealthCheck.function_scoped_fixture])
+SETTINGS = settings(
+    max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture]
+)
 
 
 def ramp(dtype=np.uint8, full=255):
@@ -102,8 +103,9 @@ def colour_map(path, fmt=None, size=(600, 400)):
     return [(255, 255, 255), (208, 48, 48), (32, 96, 255)]
 
 
-@pytest.mark.parametrize("name,fmt", [("c.png", None), ("c.tif", None), ("c.jpg", "JPEG"), ("c.bmp", None),
-                                      ("p.png", "P")])
+@pytest.mark.parametrize(
+    "name,fmt", [("c.png", None), ("c.tif", None), ("c.jpg", "JPEG"), ("c.bmp", None), ("p.png", "P")]
+)
 def test_colour_regions_partition_the_extent(tmp_path, name, fmt):
     path = tmp_path / name
     legend = colour_map(path, None if fmt == "P" else fmt)
@@ -193,7 +195,7 @@ def label_images(draw):
         lab = np.zeros((rows, cols), np.int64)
         for _ in range(draw(st.integers(0, 8))):
             r0, c0 = rng.integers(0, rows), rng.integers(0, cols)
-            lab[r0:r0 + rng.integers(1, rows), c0:c0 + rng.integers(1, cols)] = rng.integers(0, k)
+            lab[r0 : r0 + rng.integers(1, rows), c0 : c0 + rng.integers(1, cols)] = rng.integers(0, k)
     else:  # salt and pepper: the hardest case for noding
         lab = rng.integers(0, k, (rows, cols))
     return lab

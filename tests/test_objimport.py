@@ -86,8 +86,9 @@ def test_obj_lots_are_one_polygon_per_piece(tmp_path):
     lots = out["lots"]
     assert len(lots) == 3 and len(out["blocks"]) == 3
     areas = np.sort(shapely.area(lots.geometry))
-    assert areas == pytest.approx(np.sort([600.0, shapely.Polygon([(30, 0), (50, 0), (55, 15), (40, 30), (30, 20)]).area,
-                                          400.0]))
+    assert areas == pytest.approx(
+        np.sort([600.0, shapely.Polygon([(30, 0), (50, 0), (55, 15), (40, 30), (30, 20)]).area, 400.0])
+    )
     assert shapely.is_valid(lots.geometry).all()
     assert set(lots["method"]) == {"obj"} and (lots["block"] == -1).all()
     # the L piece keeps its concave corner: its convex hull is larger

@@ -38,12 +38,15 @@ def monaco():
     return read(MONACO)
 
 
-@pytest.mark.parametrize("path, crs, lat, lon", [
-    (HELSINKI, "EPSG:32635", 60.17, 24.94),
-    (MONACO, "EPSG:32632", 43.74, 7.42),
-    (OAKLAND, "EPSG:32610", 37.81, -122.29),
-    (KIRCHBERG, "EPSG:32632", 48.13, 10.08),
-])
+@pytest.mark.parametrize(
+    "path, crs, lat, lon",
+    [
+        (HELSINKI, "EPSG:32635", 60.17, 24.94),
+        (MONACO, "EPSG:32632", 43.74, 7.42),
+        (OAKLAND, "EPSG:32610", 37.81, -122.29),
+        (KIRCHBERG, "EPSG:32632", 48.13, 10.08),
+    ],
+)
 def test_every_format_reads_into_utm(path, crs, lat, lon):
     out, node = read(path)
     roads = out["roads"]
@@ -124,8 +127,8 @@ def test_path_from_the_plan():
 
 # -- edge cases of real files ---------------------------------------------------------
 
-def _osm_module():
 
+def _osm_module():
 
     import sengine.nodes.osm.read as module
 
@@ -179,6 +182,7 @@ def test_pbf_node_out_of_range(tmp_path):
 
 # -- bad input: one line naming the file ---------------------------------------------
 
+
 def _one_line_naming(exc, path):
     msg = str(exc.value)
     assert "\n" not in msg and str(path) in msg
@@ -225,7 +229,8 @@ def test_no_highways_is_an_empty_city(tmp_path, caplog):
         '<node id="1" lat="48.0" lon="10.0"/><node id="2" lat="48.001" lon="10.0"/>'
         '<node id="3" lat="48.001" lon="10.001"/>\n'
         '<way id="5"><nd ref="1"/><nd ref="2"/><nd ref="3"/><nd ref="1"/><tag k="building" v="yes"/></way>\n'
-        '<way id="6"><nd ref="1"/><nd ref="3"/><tag k="waterway" v="ditch"/></way>\n</osm>\n')
+        '<way id="6"><nd ref="1"/><nd ref="3"/><tag k="waterway" v="ditch"/></way>\n</osm>\n'
+    )
     with caplog.at_level(logging.WARNING):
         out, _ = read(f)
     assert len(out["roads"]) == 0
@@ -240,13 +245,15 @@ def test_coordinates_out_of_range(tmp_path):
     f.write_text(
         '<?xml version="1.0"?>\n<osm version="0.6">\n'
         '<node id="1" lat="95.0" lon="7.4"/><node id="2" lat="43.7" lon="7.41"/>\n'
-        '<way id="10"><nd ref="1"/><nd ref="2"/><tag k="highway" v="residential"/></way>\n</osm>\n')
+        '<way id="10"><nd ref="1"/><nd ref="2"/><tag k="highway" v="residential"/></way>\n</osm>\n'
+    )
     with pytest.raises(InputDataError, match="outside") as exc:
         read(f)
     _one_line_naming(exc, f)
 
 
 # -- blocks against an independent route -------------------------------------------------
+
 
 def _sengine_faces(roads):
     cleaned = get("roads.clean")("clean", {}, Context()).run(roads=roads)["roads"]
@@ -339,7 +346,10 @@ def test_osm_node_ids_on_request(helsinki):
     from sengine.geom.crs import from_lonlat
 
     want = set(ids[:200].tolist())
-    loc = {n.id: (n.location.lon, n.location.lat) for n in osmium.FileProcessor(str(HELSINKI), osmium.osm.NODE)
-           if n.id in want}
+    loc = {
+        n.id: (n.location.lon, n.location.lat)
+        for n in osmium.FileProcessor(str(HELSINKI), osmium.osm.NODE)
+        if n.id in want
+    }
     xy = from_lonlat(roads.meta["crs"])(np.array([loc[i] for i in ids[:200]]))
     assert np.allclose(xy, roads.meta["nodes"][:200], atol=1e-6)

@@ -29,8 +29,9 @@ def _same(a, b):
         assert np.array_equal(a.tags[k], b.tags[k]), k
     for kind, (geoms, attrs) in a.polygons.items():
         assert geoms == b.polygons[kind][0]
-        assert [{**d, "height": str(d["height"])} for d in attrs] == \
-            [{**d, "height": str(d["height"])} for d in b.polygons[kind][1]]
+        assert [{**d, "height": str(d["height"])} for d in attrs] == [
+            {**d, "height": str(d["height"])} for d in b.polygons[kind][1]
+        ]
 
 
 @pytest.mark.parametrize("name", ["helsinki_centre.osm.pbf", "monaco.osm.pbf", "west_oakland.osm.bz2"])
@@ -56,8 +57,12 @@ def _write(path, nodes, ways):
 
 def test_ways_come_out_by_id_with_their_points_and_tags(stream, tmp_path):
     nodes = [(i, 7.40 + 0.001 * i, 43.70) for i in range(1, 9)]
-    ways = [(30, [1, 2], {"highway": "primary", "name": "C"}), (10, [3, 4, 5], {"highway": "residential"}),
-            (20, [6, 7], {"highway": "residential", "name": "B"}), (5, [8, 1], {"highway": "tertiary"})]
+    ways = [
+        (30, [1, 2], {"highway": "primary", "name": "C"}),
+        (10, [3, 4, 5], {"highway": "residential"}),
+        (20, [6, 7], {"highway": "residential", "name": "B"}),
+        (5, [8, 1], {"highway": "tertiary"}),
+    ]
     path = tmp_path / "unsorted.osm.pbf"
     _write(path, nodes, ways)
     for workers in (1, 2):
@@ -72,8 +77,11 @@ def test_ways_come_out_by_id_with_their_points_and_tags(stream, tmp_path):
 def test_an_error_in_the_forked_share_is_raised_here(stream, tmp_path):
     """A bad node on a residential way (the child's share) fails the read as in one process."""
     path = tmp_path / "wild.osm.pbf"
-    _write(path, [(1, 7.4, 95.0), (2, 7.41, 43.7), (3, 7.42, 43.7)],
-           [(10, [1, 2], {"highway": "residential"}), (11, [2, 3], {"highway": "primary"})])
+    _write(
+        path,
+        [(1, 7.4, 95.0), (2, 7.41, 43.7), (3, 7.42, 43.7)],
+        [(10, [1, 2], {"highway": "residential"}), (11, [2, 3], {"highway": "primary"})],
+    )
     for workers in (1, 2):
         with pytest.raises(InputDataError, match="outside"):
             stream.read_osm(path, classes=KEEP, workers=workers)

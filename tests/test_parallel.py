@@ -17,6 +17,7 @@ def _square(i):
     def run():
         time.sleep(0.01)  # long enough for every process to get some
         return i * i, os.getpid()
+
     return run
 
 
@@ -43,6 +44,7 @@ def test_a_failing_job_raises_its_own_error_here():
             if i == 3:
                 raise InputDataError("bad file", where="x.osm")
             return i
+
         return run
 
     for workers in (1, 2):

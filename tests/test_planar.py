@@ -59,8 +59,7 @@ def test_walks_that_do_not_nest_take_the_stack_walk():
 
 def test_pinched_faces_keep_each_lobe():
     """Two squares sharing a corner inside a big square: one face touching itself at that corner."""
-    xy = np.array([[0, 0], [10, 0], [10, 10], [0, 10], [2, 2], [5, 2], [5, 5], [2, 5], [8, 5], [8, 8], [5, 8]],
-                  float)
+    xy = np.array([[0, 0], [10, 0], [10, 10], [0, 10], [2, 2], [5, 2], [5, 5], [2, 5], [8, 5], [8, 8], [5, 8]], float)
     edges = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (6, 8), (8, 9), (9, 10), (10, 6)]
     u, v = np.array(edges).T
     pf = planar_faces(xy, u, v)

@@ -25,14 +25,22 @@ def run(lots, buildings, blocks=None, **params):
 
 
 def test_buildings_count_on_the_lots_they_stand_on():
-    lots = Layer.from_geoms([shapely.box(0, 0, 20, 30), shapely.box(20, 0, 40, 30), shapely.box(0, 40, 20, 70)],
-                            ids=[5, 6, 7], block=np.array([1, 1, 2]), district=np.array([0, 0, 3]))
+    lots = Layer.from_geoms(
+        [shapely.box(0, 0, 20, 30), shapely.box(20, 0, 40, 30), shapely.box(0, 40, 20, 70)],
+        ids=[5, 6, 7],
+        block=np.array([1, 1, 2]),
+        district=np.array([0, 0, 3]),
+    )
     blocks = Layer.from_geoms([shapely.box(0, 0, 40, 30), shapely.box(0, 40, 20, 70)], ids=[1, 2])
     buildings = Layer.from_geoms(
-        [shapely.box(2, 2, 12, 12),     # 100 m2 x 3 floors on lot 5
-         shapely.box(15, 15, 25, 25),   # across lots 5 and 6, 50 m2 on each, 2 floors; named lot 5
-         shapely.box(50, 0, 60, 10)],   # on no lot
-        floors=np.array([3, 2, 4]), lot=np.array([5, 5, -1]))
+        [
+            shapely.box(2, 2, 12, 12),  # 100 m2 x 3 floors on lot 5
+            shapely.box(15, 15, 25, 25),  # across lots 5 and 6, 50 m2 on each, 2 floors; named lot 5
+            shapely.box(50, 0, 60, 10),
+        ],  # on no lot
+        floors=np.array([3, 2, 4]),
+        lot=np.array([5, 5, -1]),
+    )
     lots_out, blocks_out, report = run(lots, buildings, blocks)
     assert lots_out["footprint"].tolist() == pytest.approx([150.0, 50.0, 0.0])
     assert lots_out["floor_area"].tolist() == pytest.approx([400.0, 100.0, 0.0])
@@ -45,8 +53,14 @@ def test_buildings_count_on_the_lots_they_stand_on():
     unnamed = Layer(lots.geometry, lots.ids, lots.parent, {"district": lots["district"]})
     assert run(unnamed, buildings, blocks)[1]["floor_area"].tolist() == pytest.approx([500.0, 0.0])
     city = report["city"]
-    assert city == {"site_area_m2": 1800.0, "footprint_m2": 200.0, "floor_area_m2": 500.0,
-                    "far": round(500 / 1800, 4), "coverage": round(200 / 1800, 4), "residents": 10}
+    assert city == {
+        "site_area_m2": 1800.0,
+        "footprint_m2": 200.0,
+        "floor_area_m2": 500.0,
+        "far": round(500 / 1800, 4),
+        "coverage": round(200 / 1800, 4),
+        "residents": 10,
+    }
     assert report["footprint_off_lots_m2"] == 100.0
     assert report["districts"]["0"]["floor_area_m2"] == 500.0 and report["districts"]["3"]["far"] == 0.0
     _, _, report = run(lots, buildings, m2_per_resident="25")
@@ -54,8 +68,17 @@ def test_buildings_count_on_the_lots_they_stand_on():
 
 
 lots_grid = st.tuples(st.integers(1, 5), st.integers(1, 5), st.floats(5, 40), st.floats(5, 40))
-boxes = st.lists(st.tuples(st.floats(-20, 200), st.floats(-20, 200), st.floats(0.5, 30), st.floats(0.5, 30),
-                           st.integers(1, 30), st.integers(-1, 30)), max_size=30)
+boxes = st.lists(
+    st.tuples(
+        st.floats(-20, 200),
+        st.floats(-20, 200),
+        st.floats(0.5, 30),
+        st.floats(0.5, 30),
+        st.integers(1, 30),
+        st.integers(-1, 30),
+    ),
+    max_size=30,
+)
 
 
 @settings(max_examples=60, deadline=None)

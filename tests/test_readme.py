@@ -53,7 +53,6 @@ def test_readme_lists_every_builtin_node():
         assert f"`{name}`" in README, f"node {name} is missing from the README's node reference"
 
 
-
 def test_readme_node_registers_and_runs(tmp_path):
     code = next(b for b in blocks("python") if "@register" in b)
     (tmp_path / "readme_courtyards.py").write_text(code)

@@ -45,8 +45,9 @@ def assert_plane_graph(roads: Layer):
     tree = shapely.STRtree(g)
     assert len(tree.query(g, predicate="crosses")[0]) == 0
     assert len(tree.query(g, predicate="overlaps")[0]) == 0
-    ends = np.concatenate([shapely.get_coordinates(shapely.get_point(g, 0)),
-                           shapely.get_coordinates(shapely.get_point(g, -1))])
+    ends = np.concatenate(
+        [shapely.get_coordinates(shapely.get_point(g, 0)), shapely.get_coordinates(shapely.get_point(g, -1))]
+    )
     _, counts = np.unique(np.round(ends, 3), axis=0, return_counts=True)
     assert (counts >= 2).all(), "dead ends"
     # no segment passes through a junction: every junction is an end point
@@ -55,12 +56,16 @@ def assert_plane_graph(roads: Layer):
     assert len(i) == 0
 
 
-@pytest.mark.parametrize("rule", [
-    {"pattern": "grid", "spacing": "600 480", "angle": "29", "minor-spacing": "150 80"},
-    {"pattern": "radial", "rings": "3", "spokes": "8", "minor-spacing": "120 90"},
-    {"pattern": "organic", "sites": "15", "minor-spacing": "110 70", "minor-angle": "random"},
-    {"pattern": "organic", "sites": "15", "minor-spacing": "100 100", "minor-angle": "45"},
-], ids=["grid", "radial", "organic-random", "organic-45"])
+@pytest.mark.parametrize(
+    "rule",
+    [
+        {"pattern": "grid", "spacing": "600 480", "angle": "29", "minor-spacing": "150 80"},
+        {"pattern": "radial", "rings": "3", "spokes": "8", "minor-spacing": "120 90"},
+        {"pattern": "organic", "sites": "15", "minor-spacing": "110 70", "minor-angle": "random"},
+        {"pattern": "organic", "sites": "15", "minor-spacing": "100 100", "minor-angle": "45"},
+    ],
+    ids=["grid", "radial", "organic-random", "organic-45"],
+)
 def test_minor_roads_partition_every_area(rule):
     major, out, node = city([rule])
     roads = out["roads"]
@@ -117,8 +122,9 @@ def test_random_angle_per_area_is_seeded():
 
 
 def test_widths_and_district_per_rule():
-    rules = [{"pattern": "grid", "spacing": "800 800", "minor-spacing": "200 100", "minor-width": "9",
-              "major-width": "31"}]
+    rules = [
+        {"pattern": "grid", "spacing": "800 800", "minor-spacing": "200 100", "minor-width": "9", "major-width": "31"}
+    ]
     _, out, _ = city(rules)
     r = out["roads"]
     assert set(r["width"][r["class"] == "minor"]) == {9.0}
@@ -141,19 +147,38 @@ def test_pure_minor_grid_one_intersection_for_all_areas():
     styles = [MINOR.DistrictStyle(index=0, name="a", colour=None, minor_spacing=(100.0, 50.0), minor_angle=0.0)]
     lines, owner, ang = MINOR.minor_grid(areas, np.array([0, 0]), styles, lambda i: np.random.default_rng(i))
     assert set(owner) == {0, 1} and np.allclose(ang, 0)
-    net = MINOR.minor_network(areas, np.array([0, 0]), shapely.get_parts(shapely.union_all(shapely.boundary(areas))),
-                              {}, styles, lambda i: np.random.default_rng(i))
+    net = MINOR.minor_network(
+        areas,
+        np.array([0, 0]),
+        shapely.get_parts(shapely.union_all(shapely.boundary(areas))),
+        {},
+        styles,
+        lambda i: np.random.default_rng(i),
+    )
     assert len(net["cells"]) == 2 * 3 * 4
     np.testing.assert_allclose(shapely.area(net["cells"]), 5000.0)
 
 
 @SETTINGS
-@given(seed=st.integers(0, 2**31), angle=st.floats(-90, 90), mdx=st.floats(60, 200), mdy=st.floats(40, 150),
-       how=st.sampled_from(["follow", "random", "fixed"]), pattern=st.sampled_from(["grid", "radial", "organic"]))
+@given(
+    seed=st.integers(0, 2**31),
+    angle=st.floats(-90, 90),
+    mdx=st.floats(60, 200),
+    mdy=st.floats(40, 150),
+    how=st.sampled_from(["follow", "random", "fixed"]),
+    pattern=st.sampled_from(["grid", "radial", "organic"]),
+)
 def test_random_minor_grids_make_plane_graphs(seed, angle, mdx, mdy, how, pattern):
-    rule = {"pattern": pattern, "spacing": "500 400", "angle": str(angle), "sites": "9", "spokes": "6",
-            "rings": "2", "minor-spacing": f"{mdx} {mdy}",
-            "minor-angle": str(-angle / 2) if how == "fixed" else how}
+    rule = {
+        "pattern": pattern,
+        "spacing": "500 400",
+        "angle": str(angle),
+        "sites": "9",
+        "spokes": "6",
+        "rings": "2",
+        "minor-spacing": f"{mdx} {mdy}",
+        "minor-angle": str(-angle / 2) if how == "fixed" else how,
+    }
     major, out, _ = city([rule], seed=seed, size=(1500.0, 1000.0))
     assert_plane_graph(out["roads"])
     f = faces(out["roads"])

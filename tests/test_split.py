@@ -39,14 +39,18 @@ def polygon(draw):
 @st.composite
 def cuts(draw):
     polys = draw(st.lists(polygon(), min_size=1, max_size=8))
-    polys = np.array([p for p in polys if p.geom_type == "Polygon" and p.is_valid] or [shapely.box(0, 0, 1, 1)],
-                     dtype=object)
+    polys = np.array(
+        [p for p in polys if p.geom_type == "Polygon" and p.is_valid] or [shapely.box(0, 0, 1, 1)], dtype=object
+    )
     n = len(polys)
     rng = np.random.default_rng(draw(st.integers(0, 2**31)))
     b = shapely.bounds(polys)
     on_grid = rng.random(n) < 0.5  # through vertices, along edges
-    pt = np.where(on_grid[:, None], b[:, :2] + rng.integers(0, 4, (n, 2)),
-                  np.c_[rng.uniform(b[:, 0], b[:, 2]), rng.uniform(b[:, 1], b[:, 3])])
+    pt = np.where(
+        on_grid[:, None],
+        b[:, :2] + rng.integers(0, 4, (n, 2)),
+        np.c_[rng.uniform(b[:, 0], b[:, 2]), rng.uniform(b[:, 1], b[:, 3])],
+    )
     ang = np.where(on_grid, rng.integers(0, 4, n) * np.pi / 4, rng.uniform(0, np.pi, n))
     d = np.c_[np.cos(ang), np.sin(ang)]
     d[np.abs(d) < 1e-12] = 0.0
@@ -54,8 +58,15 @@ def cuts(draw):
 
 
 def test_ring_set_round_trip():
-    polys = np.array([shapely.box(0, 0, 10, 5), shapely.box(0, 0, 10, 10).difference(shapely.box(3, 3, 6, 6)),
-                      shapely.Polygon([(0, 0), (1, 0), (1, 0), (1, 1), (0, 0)]), shapely.Polygon()], dtype=object)
+    polys = np.array(
+        [
+            shapely.box(0, 0, 10, 5),
+            shapely.box(0, 0, 10, 10).difference(shapely.box(3, 3, 6, 6)),
+            shapely.Polygon([(0, 0), (1, 0), (1, 0), (1, 1), (0, 0)]),
+            shapely.Polygon(),
+        ],
+        dtype=object,
+    )
     rs = RingSet.from_polygons(polys)
     assert rs.n == 4
     assert np.allclose(rs.areas(), shapely.area(polys))
@@ -122,9 +133,17 @@ def test_split_of_nothing_and_missed_polygons():
 
 
 def test_segments_on_boundary_matches_the_geos_test():
-    blocks = np.array([shapely.box(0, 0, 100, 50), shapely.box(200, 0, 300, 50).difference(shapely.box(240, 10, 260, 40))])
-    lots = np.array([shapely.box(0, 0, 30, 20), shapely.box(30, 20, 60, 30), shapely.box(240, 0, 260, 10),
-                     shapely.box(0, 30, 100, 50)])
+    blocks = np.array(
+        [shapely.box(0, 0, 100, 50), shapely.box(200, 0, 300, 50).difference(shapely.box(240, 10, 260, 40))]
+    )
+    lots = np.array(
+        [
+            shapely.box(0, 0, 30, 20),
+            shapely.box(30, 20, 60, 30),
+            shapely.box(240, 0, 260, 10),
+            shapely.box(0, 30, 100, 50),
+        ]
+    )
     owner = np.array([0, 0, 1, 0])
     p0, p1, idx, ring, on = segments_on_boundary(lots, owner, blocks, tol=1e-6)
     q0, q1, qidx, _ = ring_segments(lots)
@@ -142,7 +161,7 @@ def test_pieces_of_a_polygon_do_not_depend_on_its_batch(case):
     pieces, parent, side, failed = split(rs, pt, d)
     out = shapely.to_wkb(pieces.polygons())
     for i in range(len(polys)):
-        alone, _, s1, f1 = split(rs.take([i]), pt[i:i + 1], d[i:i + 1])
+        alone, _, s1, f1 = split(rs.take([i]), pt[i : i + 1], d[i : i + 1])
         assert f1[0] == failed[i]
         assert shapely.to_wkb(alone.polygons()).tolist() == out[parent == i].tolist()
         assert s1.tolist() == side[parent == i].tolist()

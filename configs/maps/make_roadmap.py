@@ -42,8 +42,7 @@ def draw(path: Path) -> None:
         a = k * math.pi / 4 + 0.2
         line([(cx + 20 * math.cos(a), cy + 20 * math.sin(a)), (cx + r * math.cos(a), cy + r * math.sin(a))])
     for rr in (55, 100):
-        pts = [(cx + rr * math.cos(t / 60 * math.pi), cy + rr * math.sin(t / 60 * math.pi) * 0.95)
-               for t in range(121)]
+        pts = [(cx + rr * math.cos(t / 60 * math.pi), cy + rr * math.sin(t / 60 * math.pi) * 0.95) for t in range(121)]
         line(pts)
     line([(cx + 20 * math.cos(t / 30 * math.pi), cy + 20 * math.sin(t / 30 * math.pi)) for t in range(61)])
     # avenue from the old town to the grid, and one diagonal across the grid

@@ -40,10 +40,7 @@ def local_crs(origin: tuple[float, float]) -> str:
     lat, lon = (float(v) for v in origin)
     if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
         raise ValueError(f"origin (lat, lon) = ({lat}, {lon}) is outside [-90, 90] x [-180, 180]")
-    return (
-        f"+proj=tmerc +lat_0={lat:.9g} +lon_0={lon:.9g} +k=1 +x_0=0 +y_0=0 "
-        "+ellps=WGS84 +units=m +no_defs"
-    )
+    return f"+proj=tmerc +lat_0={lat:.9g} +lon_0={lon:.9g} +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs"
 
 
 def utm_crs(lat: float, lon: float) -> str:

@@ -154,9 +154,9 @@ def _split_walk(vids: list[int]) -> list[list[int]]:
         j = where.get(vid)
         if j is not None:
             out.append(stack[j:])
-            for w in stack[j + 1:]:
+            for w in stack[j + 1 :]:
                 where.pop(w, None)
-            del stack[j + 1:]
+            del stack[j + 1 :]
         else:
             where[vid] = len(stack)
             stack.append(vid)
@@ -257,13 +257,16 @@ def _nesting(p: np.ndarray, q: np.ndarray, n: int) -> tuple[np.ndarray, bool]:
 def _split_walks_python(vid: np.ndarray, walk: np.ndarray, nwalk: int):
     """:func:`split_walks` walk by walk with :func:`_split_walk`."""
     starts = np.searchsorted(walk, np.arange(nwalk + 1))
-    cycles = [(w, c) for w in range(nwalk) for c in _split_walk(vid[starts[w]:starts[w + 1]].tolist())]
+    cycles = [(w, c) for w in range(nwalk) for c in _split_walk(vid[starts[w] : starts[w + 1]].tolist())]
     if not cycles:
         z = np.empty(0, np.int64)
         return z, z, z
     size = [len(c) for _, c in cycles]
-    return (np.fromiter((x for _, c in cycles for x in c), np.int64, sum(size)),
-            np.repeat(np.arange(len(cycles)), size), np.array([w for w, _ in cycles], np.int64))
+    return (
+        np.fromiter((x for _, c in cycles for x in c), np.int64, sum(size)),
+        np.repeat(np.arange(len(cycles)), size),
+        np.array([w for w, _ in cycles], np.int64),
+    )
 
 
 def signed_area(xy: np.ndarray, index: np.ndarray, n: int | None = None) -> np.ndarray:
@@ -391,9 +394,13 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     counts["duplicates"] = int((~loop).sum() - len(uniq))
     bridge_u = np.zeros(len(uniq), bool)
     live = np.arange(len(uniq))
-    empty = PlanarFaces(np.empty(0, object), np.full((m0, 2), -1, np.int64), np.empty(0, object),
-                        np.zeros(m0, bool), {**counts, "bridges": 0, "faces": 0, "holes": 0,
-                                             "degenerate": 0, "pinched": 0})
+    empty = PlanarFaces(
+        np.empty(0, object),
+        np.full((m0, 2), -1, np.int64),
+        np.empty(0, object),
+        np.zeros(m0, bool),
+        {**counts, "bridges": 0, "faces": 0, "holes": 0, "degenerate": 0, "pinched": 0},
+    )
     if len(uniq) == 0:
         return empty
     order = _angular_order(xy, eu, ev)
@@ -503,6 +510,14 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     bridge = np.zeros(m0, bool)
     bridge[ok] = bridge_u[emap[ok]]
     counts["faces"] = int(len(polygons))
-    return PlanarFaces(np.asarray(polygons, dtype=object), edge_faces, np.asarray(outline, dtype=object),
-                       bridge, counts, ovid, np.r_[offset, len(ovid)].astype(np.int64), area,
-                       np.where(simple, face_poly, -1))
+    return PlanarFaces(
+        np.asarray(polygons, dtype=object),
+        edge_faces,
+        np.asarray(outline, dtype=object),
+        bridge,
+        counts,
+        ovid,
+        np.r_[offset, len(ovid)].astype(np.int64),
+        area,
+        np.where(simple, face_poly, -1),
+    )

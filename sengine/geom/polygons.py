@@ -44,6 +44,7 @@ log = logging.getLogger(__name__)
 
 # -- rings, boxes, frames ------------------------------------------------------------
 
+
 def obb_frame(geoms):
     """Frame of the minimum-area oriented bounding box of each geometry.
 
@@ -106,12 +107,15 @@ def frame_boxes(center, axis, a0, a1, b0, b1):
     axis = np.asarray(axis, np.float64).reshape(-1, 2)
     a0, a1, b0, b1 = np.broadcast_arrays(*(np.asarray(x, np.float64) for x in (a0, a1, b0, b1)))
     nrm = np.stack([-axis[:, 1], axis[:, 0]], axis=1)
-    corners = np.stack([
-        center + a0[:, None] * axis + b0[:, None] * nrm,
-        center + a1[:, None] * axis + b0[:, None] * nrm,
-        center + a1[:, None] * axis + b1[:, None] * nrm,
-        center + a0[:, None] * axis + b1[:, None] * nrm,
-    ], axis=1)
+    corners = np.stack(
+        [
+            center + a0[:, None] * axis + b0[:, None] * nrm,
+            center + a1[:, None] * axis + b0[:, None] * nrm,
+            center + a1[:, None] * axis + b1[:, None] * nrm,
+            center + a0[:, None] * axis + b1[:, None] * nrm,
+        ],
+        axis=1,
+    )
     return shapely.polygons(corners)
 
 
@@ -149,7 +153,7 @@ def threaded(func, *arrays, threads: int | None = None, min_size: int = PARALLEL
 
     bounds = np.linspace(0, size, n + 1).astype(np.int64)
     with ThreadPoolExecutor(n) as pool:
-        parts = list(pool.map(lambda k: func(*(a[bounds[k]:bounds[k + 1]] for a in arrays), **kwargs), range(n)))
+        parts = list(pool.map(lambda k: func(*(a[bounds[k] : bounds[k + 1]] for a in arrays), **kwargs), range(n)))
     return np.concatenate(parts, axis=-1)
 
 
@@ -163,7 +167,7 @@ def strtree_query(tree, geoms, *, threads: int | None = None) -> tuple[np.ndarra
 
     bounds = np.linspace(0, len(geoms), n + 1).astype(np.int64)
     with ThreadPoolExecutor(n) as pool:
-        parts = list(pool.map(lambda k: tree.query(geoms[bounds[k]:bounds[k + 1]]), range(n)))
+        parts = list(pool.map(lambda k: tree.query(geoms[bounds[k] : bounds[k + 1]]), range(n)))
     for k, part in enumerate(parts):
         part[0] += bounds[k]
     out = np.concatenate(parts, axis=1)
@@ -192,8 +196,9 @@ def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = No
     out = np.empty(len(polys), dtype=object)
     # dealt out round-robin: neighbouring polygons are alike, so every thread gets a fair share of work
     with ThreadPoolExecutor(n) as pool:
-        done = pool.map(lambda k: shapely.buffer(polys[k::n], dist[k::n], join_style="mitre",
-                                                 mitre_limit=mitre_limit), range(n))
+        done = pool.map(
+            lambda k: shapely.buffer(polys[k::n], dist[k::n], join_style="mitre", mitre_limit=mitre_limit), range(n)
+        )
         for k, part in enumerate(done):
             out[k::n] = part
     return out
@@ -225,8 +230,10 @@ def clip_frame_boxes(geoms, center, axis, a0, a1, b0, b1):
     sb = np.where(b1 > b0, b1 - b0, 1.0)
     c, ci = shapely.get_coordinates(geoms, return_index=True)
     q = c - center[ci]
-    uv = np.stack([(np.einsum("ij,ij->i", q, axis[ci]) - a0[ci]) / sa[ci],
-                   (np.einsum("ij,ij->i", q, nrm[ci]) - b0[ci]) / sb[ci]], axis=1)
+    uv = np.stack(
+        [(np.einsum("ij,ij->i", q, axis[ci]) - a0[ci]) / sa[ci], (np.einsum("ij,ij->i", q, nrm[ci]) - b0[ci]) / sb[ci]],
+        axis=1,
+    )
     local = shapely.set_coordinates(geoms.copy(), uv)
     pieces = shapely.clip_by_rect(local, 0.0, 0.0, 1.0, 1.0)
     c2, ci2 = shapely.get_coordinates(pieces, return_index=True)
@@ -237,8 +244,9 @@ def clip_frame_boxes(geoms, center, axis, a0, a1, b0, b1):
     bad = ~shapely.is_valid(pieces)
     if bad.any():
         idx = np.flatnonzero(bad)
-        pieces[idx] = shapely.intersection(geoms[idx], frame_boxes(center[idx], axis[idx], a0[idx], a1[idx],
-                                                                   b0[idx], b1[idx]))
+        pieces[idx] = shapely.intersection(
+            geoms[idx], frame_boxes(center[idx], axis[idx], a0[idx], a1[idx], b0[idx], b1[idx])
+        )
     return pieces
 
 

@@ -478,12 +478,19 @@ def vectorize(
         # edges along the image frame stay as they are (they hold its corners)
         xy, idx = shapely.get_coordinates(edges, return_index=True)
         xmin, ymin, xmax, ymax = img.extent
-        off = ~(np.isclose(xy[:, 0], xmin) | np.isclose(xy[:, 0], xmax)
-                | np.isclose(xy[:, 1], ymin) | np.isclose(xy[:, 1], ymax))
+        off = ~(
+            np.isclose(xy[:, 0], xmin)
+            | np.isclose(xy[:, 0], xmax)
+            | np.isclose(xy[:, 1], ymin)
+            | np.isclose(xy[:, 1], ymax)
+        )
         inner = np.bincount(idx, weights=off, minlength=len(edges)) > 0
         smooth = edges.copy()
-        smooth[inner] = shapely.simplify(_smooth_edges(edges[inner], img.extent, 1.5 * max(img.pixel_size)),
-                                         simplify * max(img.pixel_size), preserve_topology=True)
+        smooth[inner] = shapely.simplify(
+            _smooth_edges(edges[inner], img.extent, 1.5 * max(img.pixel_size)),
+            simplify * max(img.pixel_size),
+            preserve_topology=True,
+        )
         noded = shapely.union_all(smooth)
         new = np.asarray(shapely.get_parts(shapely.polygonize([noded])), dtype=object)
         # each new face takes the label of the pixel face it overlaps most
@@ -519,8 +526,12 @@ def _smooth_edges(edges: np.ndarray, extent, corner: float) -> np.ndarray:
         closed = bool(np.all(xy[0] == xy[-1]))
         seg = np.hypot(*(xy[1:] - xy[:-1]).T)
         mids = (xy[:-1] + xy[1:]) / 2.0
-        on_frame = (np.isclose(xy[:, 0], xmin) | np.isclose(xy[:, 0], xmax)
-                    | np.isclose(xy[:, 1], ymin) | np.isclose(xy[:, 1], ymax))
+        on_frame = (
+            np.isclose(xy[:, 0], xmin)
+            | np.isclose(xy[:, 0], xmax)
+            | np.isclose(xy[:, 1], ymin)
+            | np.isclose(xy[:, 1], ymax)
+        )
         keep = np.zeros(len(xy), bool)
         keep[1:-1] = on_frame[1:-1] | ((seg[:-1] > corner) & (seg[1:] > corner))
         if closed:

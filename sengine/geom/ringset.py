@@ -75,8 +75,7 @@ class RingSet:
         rings, pidx = shapely.get_rings(polys, return_index=True)
         c, ci = shapely.get_coordinates(rings, return_index=True)
         keep = np.r_[ci[1:] == ci[:-1], False]  # drop each ring's closing vertex
-        rs = cls(c[keep], ci[keep].astype(np.int64), np.full(int(keep.sum()), bool(flag)),
-                 pidx.astype(np.int64), n)
+        rs = cls(c[keep], ci[keep].astype(np.int64), np.full(int(keep.sum()), bool(flag)), pidx.astype(np.int64), n)
         return rs.cleaned()
 
     def cleaned(self) -> RingSet:
@@ -178,8 +177,9 @@ class RingSet:
         rkeep = mask[self.poly]
         rmap = np.cumsum(rkeep) - 1
         vkeep = rkeep[self.ring]
-        return RingSet(self.xy[vkeep], rmap[self.ring[vkeep]], self.flag[vkeep], pmap[self.poly[rkeep]],
-                       int(mask.sum()))
+        return RingSet(
+            self.xy[vkeep], rmap[self.ring[vkeep]], self.flag[vkeep], pmap[self.poly[rkeep]], int(mask.sum())
+        )
 
     def permuted(self, order) -> RingSet:
         """The polygons in the given order (any permutation or selection of indices)."""
@@ -190,8 +190,13 @@ class RingSet:
         vfirst = _first_of(self.ring, len(self.poly))
         vcnt = np.diff(vfirst)[rings]
         verts = np.repeat(vfirst[:-1][rings], vcnt) + _ramp(vcnt)
-        return RingSet(self.xy[verts], np.repeat(np.arange(len(rings)), vcnt), self.flag[verts],
-                       np.repeat(np.arange(len(order)), rcnt), len(order))
+        return RingSet(
+            self.xy[verts],
+            np.repeat(np.arange(len(rings)), vcnt),
+            self.flag[verts],
+            np.repeat(np.arange(len(order)), rcnt),
+            len(order),
+        )
 
     @staticmethod
     def concat(sets) -> RingSet:
@@ -201,11 +206,13 @@ class RingSet:
             return RingSet(np.zeros((0, 2)), np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.int64), 0)
         roff = np.cumsum([0] + [len(s.poly) for s in sets])
         poff = np.cumsum([0] + [s.n for s in sets])
-        return RingSet(np.concatenate([s.xy for s in sets]).reshape(-1, 2),
-                       np.concatenate([s.ring + o for s, o in zip(sets, roff)]).astype(np.int64),
-                       np.concatenate([s.flag for s in sets]).astype(bool),
-                       np.concatenate([s.poly + o for s, o in zip(sets, poff)]).astype(np.int64),
-                       int(poff[-1]))
+        return RingSet(
+            np.concatenate([s.xy for s in sets]).reshape(-1, 2),
+            np.concatenate([s.ring + o for s, o in zip(sets, roff)]).astype(np.int64),
+            np.concatenate([s.flag for s in sets]).astype(bool),
+            np.concatenate([s.poly + o for s, o in zip(sets, poff)]).astype(np.int64),
+            int(poff[-1]),
+        )
 
     def extent_along(self, direction) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Projection range of each polygon on its own direction.

@@ -249,7 +249,11 @@ def lines_from_groups(xy: np.ndarray, group: np.ndarray) -> np.ndarray:
     from an ``(m, 2, 2)`` array, which shapely does about a quarter faster.
     """
     xy = np.asarray(xy, np.float64)
-    if len(xy) % 2 == 0 and len(xy) and np.array_equal(group[0::2], group[1::2]) \
-            and np.array_equal(group[0::2], np.arange(len(xy) // 2)):
+    if (
+        len(xy) % 2 == 0
+        and len(xy)
+        and np.array_equal(group[0::2], group[1::2])
+        and np.array_equal(group[0::2], np.arange(len(xy) // 2))
+    ):
         return shapely.linestrings(xy.reshape(-1, 2, 2))
     return shapely.linestrings(xy, indices=group)

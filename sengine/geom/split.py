@@ -36,6 +36,7 @@ __all__ = ["RingSet", "split", "cut_lengths"]  # RingSet re-exported: cut and pi
 
 # -- the cut ------------------------------------------------------------------------------
 
+
 def _signed(rs: RingSet, point, direction):
     """Signed distance ``s`` (left > 0) and abscissa ``t`` of every vertex on its polygon's line."""
     point = np.asarray(point, np.float64).reshape(-1, 2)
@@ -128,8 +129,9 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
     lam = sa / (sa - sb)
     mu = sb / (sb - sa)  # 1 - lam, exact 0 when b is on the line
     near_a = lam <= 0.5
-    cxy = np.where(near_a[:, None], rs.xy[a] + lam[:, None] * (rs.xy[b] - rs.xy[a]),
-                   rs.xy[b] + mu[:, None] * (rs.xy[a] - rs.xy[b]))
+    cxy = np.where(
+        near_a[:, None], rs.xy[a] + lam[:, None] * (rs.xy[b] - rs.xy[a]), rs.xy[b] + mu[:, None] * (rs.xy[a] - rs.xy[b])
+    )
     ct = np.where(near_a, t[a] + lam * (t[b] - t[a]), t[b] + mu * (t[a] - t[b]))
     leaving = pos[a]  # the edge goes from left to right
     # order along the perturbed line s = -eps: ties at a vertex broken by the other end
@@ -357,7 +359,7 @@ def _hole_owner(cs, cpar, shell_ids, hole_ids, bad):
             # the midpoint of the hole's first edge: inside the piece, off the hole's own ring
             p = 0.5 * (cs.xy[vstart[r]] + cs.xy[vstart[r] + 1])
             for si in range(first[hp[h]], first[hp[h]] + cnt[hp[h]]):
-                ring = cs.xy[vstart[shell_ids[si]]:vstart[shell_ids[si] + 1]]
+                ring = cs.xy[vstart[shell_ids[si]] : vstart[shell_ids[si] + 1]]
                 if _inside(p, ring):
                     res[h] = si
                     break

@@ -31,6 +31,7 @@ __all__ = ["to_wgs84", "feature_collection_chunks", "feature_collection_text", "
 
 log = logging.getLogger(__name__)
 
+
 def to_wgs84(geoms: np.ndarray, to_lonlat: Callable[[np.ndarray], np.ndarray], *, precision: int = 7) -> np.ndarray:
     """Geometries in longitude / latitude, rounded, polygons oriented per RFC 7946.
 
@@ -128,8 +129,14 @@ def _default(v: Any) -> Any:
 CHUNK = 20_000
 
 
-def feature_collection_chunks(layer: Layer, to_lonlat: Callable[[np.ndarray], np.ndarray], *,
-                              name: str | None = None, precision: int = 7, chunk: int = CHUNK) -> Iterator[str]:
+def feature_collection_chunks(
+    layer: Layer,
+    to_lonlat: Callable[[np.ndarray], np.ndarray],
+    *,
+    name: str | None = None,
+    precision: int = 7,
+    chunk: int = CHUNK,
+) -> Iterator[str]:
     """The RFC 7946 FeatureCollection of ``layer`` as pieces of JSON text (sorted keys).
 
     Values are rendered column by column (ints with ``str``, floats with
@@ -155,14 +162,21 @@ def feature_collection_chunks(layer: Layer, to_lonlat: Callable[[np.ndarray], np
     yield "]" + (',"name":' + _dumps(name) if name else "") + ',"type":"FeatureCollection"}'
 
 
-def feature_collection_text(layer: Layer, to_lonlat: Callable[[np.ndarray], np.ndarray], *,
-                            name: str | None = None, precision: int = 7) -> str:
+def feature_collection_text(
+    layer: Layer, to_lonlat: Callable[[np.ndarray], np.ndarray], *, name: str | None = None, precision: int = 7
+) -> str:
     """The RFC 7946 FeatureCollection of ``layer`` as JSON text (see :func:`feature_collection_chunks`)."""
     return "".join(feature_collection_chunks(layer, to_lonlat, name=name, precision=precision))
 
 
-def write_geojson(path: str | Path, layer: Layer, to_lonlat: Callable[[np.ndarray], np.ndarray], *,
-                  name: str | None = None, precision: int = 7) -> int:
+def write_geojson(
+    path: str | Path,
+    layer: Layer,
+    to_lonlat: Callable[[np.ndarray], np.ndarray],
+    *,
+    name: str | None = None,
+    precision: int = 7,
+) -> int:
     """Write ``layer`` as RFC 7946 GeoJSON, a chunk of features at a time; return the number of features."""
     with open(path, "w", encoding="utf-8") as f:
         for piece in feature_collection_chunks(layer, to_lonlat, name=name, precision=precision):

@@ -71,8 +71,13 @@ class FilterArea(SENode):
     maps_features = True
 
     def run(self, *, input: Layer) -> dict[str, Layer]:
-        keep, why = size_mask(input.geometry, min_area=self.p.min_area, max_area=self.p.max_area,
-                              min_width=self.p.min_width, max_width=self.p.max_width)
+        keep, why = size_mask(
+            input.geometry,
+            min_area=self.p.min_area,
+            max_area=self.p.max_area,
+            min_width=self.p.min_width,
+            max_width=self.p.max_width,
+        )
         self.report = {"kept": int(keep.sum()), "dropped": int((~keep).sum()), **why}
         log.info("%s: kept %d of %d features", self.where, int(keep.sum()), len(keep))
         return {"output": input.take(keep)}

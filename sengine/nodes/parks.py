@@ -30,8 +30,9 @@ log = logging.getLogger(__name__)
 MODES = ("every", "random", "largest", "inside")
 
 
-def choose_park_blocks(geoms, ids, *, mode: str, every: int = 12, share: float = 0.05,
-                       min_area: float = 0.0, rng_of=None, zones=None) -> np.ndarray:
+def choose_park_blocks(
+    geoms, ids, *, mode: str, every: int = 12, share: float = 0.05, min_area: float = 0.0, rng_of=None, zones=None
+) -> np.ndarray:
     """Which blocks become parks.
 
     Parameters
@@ -104,8 +105,12 @@ class ParksBlock(SENode):
         "blocks": Port("blocks", "the blocks that did not become parks"),
     }
     params = {
-        "mode": Param("str", "every", choices=MODES, doc="how blocks are chosen (every Nth id, random, largest, "
-                                                          "inside the land-use park class)"),
+        "mode": Param(
+            "str",
+            "every",
+            choices=MODES,
+            doc="how blocks are chosen (every Nth id, random, largest, inside the land-use park class)",
+        ),
         "every": Param("int", 12, min=1, max=1_000_000, unit="1", doc="every Nth block id becomes a park"),
         "share": Param("float", 0.05, min=0.0, max=1.0, unit="1", doc="fraction of blocks (random, largest)"),
         "min_area": Param("float", 0.0, min=0.0, unit="m2", doc="smaller blocks never become parks"),
@@ -115,14 +120,26 @@ class ParksBlock(SENode):
         zones = None
         if self.p.mode == "inside":
             zones = _park_zones(self.context.plan)
-        pick = choose_park_blocks(blocks.geometry, blocks.ids, mode=self.p.mode, every=self.p.every,
-                                  share=self.p.share, min_area=self.p.min_area,
-                                  rng_of=lambda i: self.rng(i), zones=zones)
+        pick = choose_park_blocks(
+            blocks.geometry,
+            blocks.ids,
+            mode=self.p.mode,
+            every=self.p.every,
+            share=self.p.share,
+            min_area=self.p.min_area,
+            rng_of=lambda i: self.rng(i),
+            zones=zones,
+        )
         chosen = blocks.take(pick)
         district = chosen["district"] if "district" in chosen else np.full(len(chosen), -1, np.int64)
-        new = Layer.from_geoms(chosen.geometry, parent=chosen.ids, meta=dict(blocks.meta),
-                               level=np.full(len(chosen), "block"), district=np.asarray(district, np.int64),
-                               area=shapely.area(chosen.geometry) if len(chosen) else np.zeros(0))
+        new = Layer.from_geoms(
+            chosen.geometry,
+            parent=chosen.ids,
+            meta=dict(blocks.meta),
+            level=np.full(len(chosen), "block"),
+            district=np.asarray(district, np.int64),
+            area=shapely.area(chosen.geometry) if len(chosen) else np.zeros(0),
+        )
         out = Layer.concat([parks, new]) if parks is not None and len(parks) else new
         self.report = {"block_parks": int(pick.sum()), "park_area_m2": round(float(new.area()), 1)}
         log.info("parks.block: %d of %d blocks become parks", int(pick.sum()), len(blocks))

@@ -44,22 +44,26 @@ class StdNetwork(Network):
     REQUIRED: ClassVar[tuple[str, ...]] = ("majorRoads", "minorRoads")
     template: ClassVar[str | None] = None
 
-    def __init__(self, associations: Mapping[str, str] | Iterable[tuple[str, str]] = (), *,
-                 where: str = "", **kwargs: Any):
+    def __init__(
+        self, associations: Mapping[str, str] | Iterable[tuple[str, str]] = (), *, where: str = "", **kwargs: Any
+    ):
         super().__init__(**kwargs)
         pairs = list(associations.items()) if isinstance(associations, Mapping) else list(associations)
         if self.template is not None:
             self.merge(read_network_file(NETWORKS_DIR / f"{self.template}.xml"))
             for name, type_ in pairs:
                 if name not in self.specs:
-                    raise NetworkError(f"{type(self).__name__} has no standard name {name!r} "
-                                       f"(names: {', '.join(self.names())})", where=where or None)
+                    raise NetworkError(
+                        f"{type(self).__name__} has no standard name {name!r} (names: {', '.join(self.names())})",
+                        where=where or None,
+                    )
                 self.replace(name, type_, where=where)
         else:
             unknown = [name for name, _ in pairs if name not in self.STANDARD]
             if unknown:
-                raise NetworkError(f"{unknown[0]!r} is not a standard name ({', '.join(self.STANDARD)})",
-                                   where=where or None)
+                raise NetworkError(
+                    f"{unknown[0]!r} is not a standard name ({', '.join(self.STANDARD)})", where=where or None
+                )
             given = dict(pairs)
             chain = [name for name in self.STANDARD if name in given]
             for name in chain:

@@ -80,8 +80,7 @@ class StatsShape(SENode):
 
     def run(self, *, input: Layer) -> dict[str, Layer]:
         st = shape_stats(input.geometry, frontage=input.get("frontage"), front_angle=input.get("front_angle"))
-        self.report = {"features": len(input), "area": float(st["area"].sum()),
-                       "frontage": float(st["frontage"].sum())}
+        self.report = {"features": len(input), "area": float(st["area"].sum()), "frontage": float(st["frontage"].sum())}
         return {"output": input.with_columns(**st)}
 
 
@@ -110,7 +109,9 @@ def built_on_sites(sites: Layer, buildings: Layer, shares=None) -> tuple[np.ndar
     """
     bi, si, part = building_shares(sites, buildings) if shares is None else shares
     n = len(sites)
-    return np.bincount(si, weights=part, minlength=n), np.bincount(si, weights=part * _floors(buildings)[bi], minlength=n)
+    return np.bincount(si, weights=part, minlength=n), np.bincount(
+        si, weights=part * _floors(buildings)[bi], minlength=n
+    )
 
 
 def _floors(buildings: Layer) -> np.ndarray:
@@ -127,9 +128,14 @@ def planning_columns(site_area: np.ndarray, foot: np.ndarray, gfa: np.ndarray) -
 
 def _summary(site_area, foot, gfa, m2_per_resident: float) -> dict:
     a, f, g = float(np.sum(site_area)), float(np.sum(foot)), float(np.sum(gfa))
-    return {"site_area_m2": round(a, 1), "footprint_m2": round(f, 1), "floor_area_m2": round(g, 1),
-            "far": round(g / a, 4) if a > 0 else 0.0, "coverage": round(f / a, 4) if a > 0 else 0.0,
-            "residents": int(g // m2_per_resident)}
+    return {
+        "site_area_m2": round(a, 1),
+        "footprint_m2": round(f, 1),
+        "floor_area_m2": round(g, 1),
+        "far": round(g / a, 4) if a > 0 else 0.0,
+        "coverage": round(f / a, 4) if a > 0 else 0.0,
+        "residents": int(g // m2_per_resident),
+    }
 
 
 @register
@@ -140,16 +146,25 @@ class StatsPlanning(SENode):
     inputs = {
         "lots": Port("lots", "lots: the sites"),
         "buildings": Port("buildings", "buildings with a floors column"),
-        "blocks": Port("blocks", "blocks, for block-level figures (a lot's 'block' column names its block)",
-                       required=False),
+        "blocks": Port(
+            "blocks", "blocks, for block-level figures (a lot's 'block' column names its block)", required=False
+        ),
     }
     outputs = {
         "lots": Port("lots", "the lots with footprint, floor_area (m2), far and coverage columns"),
-        "blocks": Port("blocks", "the blocks with the same columns, for what stands on their lots (empty without blocks)"),
+        "blocks": Port(
+            "blocks", "the blocks with the same columns, for what stands on their lots (empty without blocks)"
+        ),
     }
     params = {
-        "m2_per_resident": Param("float", 50.0, min=1.0, max=1000.0, unit="m2",
-                                 doc="gross floor area per resident (all floor area counted as housing)"),
+        "m2_per_resident": Param(
+            "float",
+            50.0,
+            min=1.0,
+            max=1000.0,
+            unit="m2",
+            doc="gross floor area per resident (all floor area counted as housing)",
+        ),
     }
 
     def run(self, *, lots: Layer, buildings: Layer, blocks: Layer | None = None) -> dict[str, Layer]:
@@ -159,21 +174,27 @@ class StatsPlanning(SENode):
         foot, gfa = built_on_sites(lots, buildings, shares)
         out_lots = lots.with_columns(**planning_columns(lot_area, foot, gfa))
         all_foot = float(shapely.area(buildings.geometry).sum()) if len(buildings) else 0.0
-        report = {"city": _summary(lot_area, foot, gfa, per_resident), "buildings": len(buildings),
-                  "footprint_off_lots_m2": round(max(all_foot - float(foot.sum()), 0.0), 1)}
+        report = {
+            "city": _summary(lot_area, foot, gfa, per_resident),
+            "buildings": len(buildings),
+            "footprint_off_lots_m2": round(max(all_foot - float(foot.sum()), 0.0), 1),
+        }
         if "district" in lots and len(lots):
             district = np.asarray(lots["district"], np.int64)
             report["districts"] = {
                 str(d): _summary(lot_area[district == d], foot[district == d], gfa[district == d], per_resident)
-                for d in np.unique(district)}
+                for d in np.unique(district)
+            }
         if "source" in buildings and len(buildings):  # e.g. the map's buildings beside the generated ones
             src = np.asarray(buildings["source"]).astype(str)
             bi, _, part = shares
             floor_area = part * _floors(buildings)[bi]
             for kind in np.unique(src):
                 mine = src[bi] == kind
-                report[f"{kind}_buildings"] = {"footprint_m2": round(float(part[mine].sum()), 1),
-                                               "floor_area_m2": round(float(floor_area[mine].sum()), 1)}
+                report[f"{kind}_buildings"] = {
+                    "footprint_m2": round(float(part[mine].sum()), 1),
+                    "floor_area_m2": round(float(floor_area[mine].sum()), 1),
+                }
         out_blocks = Layer.empty(meta=lots.meta)
         if blocks is not None:
             if "block" in lots:  # the lots' sums: every building on a lot is on its block
@@ -186,6 +207,12 @@ class StatsPlanning(SENode):
             out_blocks = blocks.with_columns(**planning_columns(shapely.area(blocks.geometry), bf, bg))
         self.report = report
         c = report["city"]
-        log.info("%s: FAR %.2f, coverage %.0f %%, %.0f m2 of floor area on %.0f m2 of lots", self.where, c["far"],
-                 100 * c["coverage"], c["floor_area_m2"], c["site_area_m2"])
+        log.info(
+            "%s: FAR %.2f, coverage %.0f %%, %.0f m2 of floor area on %.0f m2 of lots",
+            self.where,
+            c["far"],
+            100 * c["coverage"],
+            c["floor_area_m2"],
+            c["site_area_m2"],
+        )
         return {"lots": out_lots, "blocks": out_blocks}

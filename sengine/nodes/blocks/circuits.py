@@ -51,8 +51,17 @@ from sengine.geom.segments import merge_points, planarize, segments_from_lines
 if TYPE_CHECKING:
     import networkx as nx
 
-__all__ = ["find_blocks", "BlockFaces", "traced_faces", "face_half_widths", "shrink_faces", "inset_by_street",
-           "shrink_faces_by_street", "street_graph", "BlocksCircuits"]
+__all__ = [
+    "find_blocks",
+    "BlockFaces",
+    "traced_faces",
+    "face_half_widths",
+    "shrink_faces",
+    "inset_by_street",
+    "shrink_faces_by_street",
+    "street_graph",
+    "BlocksCircuits",
+]
 
 log = logging.getLogger(__name__)
 
@@ -152,8 +161,13 @@ def find_blocks(streets, *, node: bool = True, decimals: int | None = 6) -> Bloc
     pf: PlanarFaces = planar_faces(xy, u, v)
     for k in ("duplicates", "self_loops", "bridges", "holes", "degenerate", "pinched", "faces"):
         counts[k] = pf.counts.get(k, 0)
-    log.info("blocks: %d segments -> %d faces (%d dead-end/bridge segments dropped, %d holes)",
-             counts["segments"], counts["faces"], counts["bridges"], counts["holes"])
+    log.info(
+        "blocks: %d segments -> %d faces (%d dead-end/bridge segments dropped, %d holes)",
+        counts["segments"],
+        counts["faces"],
+        counts["bridges"],
+        counts["holes"],
+    )
     return BlockFaces(**{**vars(pf), "counts": counts}, xy=xy, u=u, v=v, src=src)
 
 
@@ -306,7 +320,11 @@ def shrink_faces_by_street(faces, bf: BlockFaces, face_ids, segment_half_width, 
     for side in bf.edge_faces.T:
         narrow[side[(side >= 0) & (hw <= 0)]] = True
     wide = ~narrow[np.asarray(face_ids, np.int64)]
-    return _ring_between(faces, edge, gap=wide), _ring_between(edge, block, gap=np.full(len(faces), sidewalk > 0)), block
+    return (
+        _ring_between(faces, edge, gap=wide),
+        _ring_between(edge, block, gap=np.full(len(faces), sidewalk > 0)),
+        block,
+    )
 
 
 def _ring_between(outer, inner, gap=None):
@@ -386,13 +404,27 @@ class BlocksCircuits(SENode):
     }
     params = {
         "sidewalk": Param("float", 3.0, min=0.0, max=50.0, unit="m", doc="sidewalk width"),
-        "street_width": Param("float", 10.0, min=0.0, max=200.0, unit="m",
-                              doc="street width where the roads carry none (or 'width_from' is param)"),
-        "width_from": Param("str", "roads", choices=("roads", "param"),
-                            doc="street widths from the roads' width column, or street_width for all"),
-        "inset": Param("str", "mean", choices=("mean", "street"),
-                       doc="shrink each face by the mean half-width of its streets, or each side by its own "
-                           "street's (a few times slower on a whole city)"),
+        "street_width": Param(
+            "float",
+            10.0,
+            min=0.0,
+            max=200.0,
+            unit="m",
+            doc="street width where the roads carry none (or 'width_from' is param)",
+        ),
+        "width_from": Param(
+            "str",
+            "roads",
+            choices=("roads", "param"),
+            doc="street widths from the roads' width column, or street_width for all",
+        ),
+        "inset": Param(
+            "str",
+            "mean",
+            choices=("mean", "street"),
+            doc="shrink each face by the mean half-width of its streets, or each side by its own "
+            "street's (a few times slower on a whole city)",
+        ),
         "min_area": Param("float", 50.0, min=0.0, unit="m2", doc="faces and blocks smaller than this are dropped"),
         "node": Param("bool", True, doc="split crossing segments first (turn off only for plane input)"),
         "decimals": Param("int", 6, min=0, max=12, unit="1", doc="merge nodes equal to this many decimals (m)"),
@@ -459,14 +491,16 @@ class BlocksCircuits(SENode):
         self.report = report
         log.info("%s: %d faces -> %d blocks (%s)", self.where, len(bf.faces), len(parts), report)
         blocks = Layer.from_geoms(parts, parent=parent, meta=meta, district=district, face=fid[pidx])
-        faces_l = Layer.from_geoms(faces, ids=fid, parent=fparent, meta=meta, district=fdistrict,
-                                   half_width=hw)
+        faces_l = Layer.from_geoms(faces, ids=fid, parent=fparent, meta=meta, district=fdistrict, half_width=hw)
         # dead ends and connectors: their street surface as flat-capped rectangles
         a, b = bf.xy[bf.u[bf.bridge]], bf.xy[bf.v[bf.bridge]]
         ln = np.hypot(*(b - a).T)
         hwd = width[bf.src[bf.bridge]] / 2.0
-        dead_poly = frame_boxes((a + b) / 2.0, (b - a) / np.maximum(ln, 1e-12)[:, None],
-                                -ln / 2.0, ln / 2.0, -hwd, hwd) if len(a) else np.empty(0, object)
+        dead_poly = (
+            frame_boxes((a + b) / 2.0, (b - a) / np.maximum(ln, 1e-12)[:, None], -ln / 2.0, ln / 2.0, -hwd, hwd)
+            if len(a)
+            else np.empty(0, object)
+        )
         sgeom = np.concatenate([street, dead_poly])
         sgeom = sgeom[~shapely.is_empty(sgeom)]
         streets = Layer.from_geoms(sgeom, meta=meta, kind=np.full(len(sgeom), "street"))

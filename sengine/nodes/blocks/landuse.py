@@ -114,15 +114,19 @@ class BlocksLanduse(SENode):
     outputs = {"blocks": Port("blocks", "the buildable pieces; a block cut in two keeps its id on the first piece")}
     params = {
         "min_area": Param("float", 50.0, min=0.0, unit="m2", doc="pieces smaller than this are dropped"),
-        "min_width": Param("float", 4.0, min=0.0, unit="m",
-                           doc="pieces of a cut block nowhere this wide are dropped (a strip left along a park)"),
+        "min_width": Param(
+            "float",
+            4.0,
+            min=0.0,
+            unit="m",
+            doc="pieces of a cut block nowhere this wide are dropped (a strip left along a park)",
+        ),
     }
 
     def run(self, *, blocks: Layer, water: Layer | None = None, parks: Layer | None = None) -> dict[str, Layer]:
         cut = [lay.geometry for lay in (water, parks) if lay is not None and len(lay)]
         geoms = np.concatenate(cut) if cut else np.empty(0, dtype=object)
-        pieces, src, counts = cut_blocks(blocks.geometry, geoms, min_area=self.p.min_area,
-                                           min_width=self.p.min_width)
+        pieces, src, counts = cut_blocks(blocks.geometry, geoms, min_area=self.p.min_area, min_width=self.p.min_width)
         out = blocks.take(src)
         # the first piece of a block keeps its id; further pieces get new ones after the largest
         again = np.r_[False, src[1:] == src[:-1]] if len(src) else np.zeros(0, bool)
@@ -131,6 +135,12 @@ class BlocksLanduse(SENode):
         ids[again] = top + np.arange(int(again.sum()))
         out = Layer(pieces, ids, out.parent, out.attrs, out.meta)
         self.report = {**counts, "blocks": len(out)}
-        log.info("%s: %d of %d blocks lose water or park land (%.0f m2); %d pieces", self.where,
-                 counts["blocks_cut"], len(blocks), counts["area_removed_m2"], len(out))
+        log.info(
+            "%s: %d of %d blocks lose water or park land (%.0f m2); %d pieces",
+            self.where,
+            counts["blocks_cut"],
+            len(blocks),
+            counts["area_removed_m2"],
+            len(out),
+        )
         return {"blocks": out}

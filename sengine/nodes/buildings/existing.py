@@ -66,14 +66,24 @@ def map_buildings(real: Layer, lots: Layer | None, first_id: int) -> Layer:
             district[has] = np.asarray(lots["district"], np.int64)[lot_i[has]]
     height = np.asarray(real["height"], np.float64)
     floors = real.get("floors", np.maximum(1, np.rint(height / FLOOR_HEIGHT)))
-    cols = {"height": height, "floors": np.asarray(floors, np.int64),
-            "roof": real.get("roof", np.full(n, "flat", dtype=object)),
-            "lot": lot, "district": district, "source": np.full(n, "osm", dtype=object),
-            "osm_id": real.get("osm_id", np.full(n, -1, np.int64)),
-            "name": real.get("name", np.full(n, "", dtype=object)),
-            "height_source": real.get("height_source", np.full(n, "height", dtype=object))}
-    return Layer(real.geometry, first_id + np.arange(n, dtype=np.int64), lot.copy(),
-                 {k: np.asarray(v) for k, v in cols.items()}, dict(real.meta))
+    cols = {
+        "height": height,
+        "floors": np.asarray(floors, np.int64),
+        "roof": real.get("roof", np.full(n, "flat", dtype=object)),
+        "lot": lot,
+        "district": district,
+        "source": np.full(n, "osm", dtype=object),
+        "osm_id": real.get("osm_id", np.full(n, -1, np.int64)),
+        "name": real.get("name", np.full(n, "", dtype=object)),
+        "height_source": real.get("height_source", np.full(n, "height", dtype=object)),
+    }
+    return Layer(
+        real.geometry,
+        first_id + np.arange(n, dtype=np.int64),
+        lot.copy(),
+        {k: np.asarray(v) for k, v in cols.items()},
+        dict(real.meta),
+    )
 
 
 @register
@@ -83,17 +93,32 @@ class BuildingsExisting(SENode):
     name = "buildings.existing"
     inputs = {
         "buildings": Port("buildings", "generated buildings (e.g. buildings.extrude)"),
-        "existing": Port("buildings", "buildings already there, with a height column (e.g. osm.read's buildings)",
-                         required=False),
+        "existing": Port(
+            "buildings", "buildings already there, with a height column (e.g. osm.read's buildings)", required=False
+        ),
         "lots": Port("lots", "lots: give each existing building the lot and district it stands in", required=False),
     }
-    outputs = {"buildings": Port("buildings", "existing and generated buildings, with 'source' (and the map's "
-                                              "'osm_id', 'name', 'height_source' when it has buildings)")}
+    outputs = {
+        "buildings": Port(
+            "buildings",
+            "existing and generated buildings, with 'source' (and the map's "
+            "'osm_id', 'name', 'height_source' when it has buildings)",
+        )
+    }
     params = {
-        "keep": Param("str", "both", choices=("both", "existing", "generated"),
-                      doc="the existing buildings and the generated ones clear of them, or one kind only"),
-        "overlap": Param("float", 1.0, min=0.0, unit="m2",
-                         doc="a generated building overlapping existing ones by more than this is not built"),
+        "keep": Param(
+            "str",
+            "both",
+            choices=("both", "existing", "generated"),
+            doc="the existing buildings and the generated ones clear of them, or one kind only",
+        ),
+        "overlap": Param(
+            "float",
+            1.0,
+            min=0.0,
+            unit="m2",
+            doc="a generated building overlapping existing ones by more than this is not built",
+        ),
     }
 
     def run(self, *, buildings: Layer, existing: Layer | None = None, lots: Layer | None = None) -> dict[str, Layer]:
@@ -113,11 +138,24 @@ class BuildingsExisting(SENode):
         if n:  # the map's columns, for the generated ones too (a city without map buildings has no use for them)
             kept = map_buildings(real, lots, first_id=int(buildings.ids.max(initial=-1)) + 1)
             on_lots = int((kept["lot"] >= 0).sum())
-            out = out.with_columns(osm_id=np.full(m, -1, np.int64), name=np.full(m, "", dtype=object),
-                                   height_source=np.full(m, "generated", dtype=object))
+            out = out.with_columns(
+                osm_id=np.full(m, -1, np.int64),
+                name=np.full(m, "", dtype=object),
+                height_source=np.full(m, "generated", dtype=object),
+            )
             out = Layer.concat([out, kept], renumber=False).with_meta(**buildings.meta)
-        self.report = {"buildings": len(out), "existing": n, "generated": m, "not_built": len(buildings) - m,
-                       "existing_on_lots": on_lots}
-        log.info("%s: %d existing buildings kept, %d of %d generated buildings clear of them", self.where, n,
-                 m, len(buildings))
+        self.report = {
+            "buildings": len(out),
+            "existing": n,
+            "generated": m,
+            "not_built": len(buildings) - m,
+            "existing_on_lots": on_lots,
+        }
+        log.info(
+            "%s: %d existing buildings kept, %d of %d generated buildings clear of them",
+            self.where,
+            n,
+            m,
+            len(buildings),
+        )
         return {"buildings": out}

@@ -127,8 +127,9 @@ def existing_heights(points: np.ndarray, existing: Layer) -> np.ndarray:
     return out
 
 
-def snap_floors(height: np.ndarray, floor_height: float, lo: float | None = None, hi: float | None = None
-                ) -> tuple[np.ndarray, np.ndarray]:
+def snap_floors(
+    height: np.ndarray, floor_height: float, lo: float | None = None, hi: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Round heights to whole floors, staying within ``[lo, hi]`` where possible.
 
     Returns ``height = floors * floor_height`` (m) and ``floors`` (at least 1).
@@ -160,7 +161,9 @@ def sample_height_map(plan, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, f
     if not (np.isfinite(lo) and np.isfinite(hi) and 0 <= lo <= hi):
         raise ConfigError(
             f"height map needs min and max in metres with 0 <= min <= max; got min={spec.attrs.get('min')!r} "
-            f"max={spec.attrs.get('max')!r}", where=spec.where or None)
+            f"max={spec.attrs.get('max')!r}",
+            where=spec.where or None,
+        )
     img = read_map(spec, plan.extent, colour=False)
     return img.scaled(x, y, lo, hi), lo, hi
 
@@ -183,21 +186,33 @@ class BuildingsExtrude(SENode):
     name = "buildings.extrude"
     inputs = {
         "lots": Port("lots", "lots to build on"),
-        "existing": Port("buildings", "buildings already there (OSM): a lot inside one takes its tagged height",
-                         required=False),
+        "existing": Port(
+            "buildings", "buildings already there (OSM): a lot inside one takes its tagged height", required=False
+        ),
     }
     outputs = {"buildings": Port("buildings", "footprints with height, floors, roof, lot, district")}
     params = {
-        "setback": Param("float", 2.0, min=0.0, max=50.0, unit="m",
-                         doc="inset of the footprint from every lot edge"),
-        "height": Param("float", 15.0, min=1.0, max=1000.0, unit="m",
-                        doc="building height when the city has no height map"),
-        "variation": Param("float", 0.2, min=0.0, max=0.95, unit="1",
-                           doc="random height variation, a fraction of the mapped height (+/-)"),
-        "floor_height": Param("float", 3.2, min=2.6, max=10.0, unit="m",
-                              doc="storey height; heights snap to whole floors (at least 2.6 m, paper 003)"),
-        "min_area": Param("float", 20.0, min=0.0, unit="m2",
-                          doc="footprints smaller than this are not built"),
+        "setback": Param("float", 2.0, min=0.0, max=50.0, unit="m", doc="inset of the footprint from every lot edge"),
+        "height": Param(
+            "float", 15.0, min=1.0, max=1000.0, unit="m", doc="building height when the city has no height map"
+        ),
+        "variation": Param(
+            "float",
+            0.2,
+            min=0.0,
+            max=0.95,
+            unit="1",
+            doc="random height variation, a fraction of the mapped height (+/-)",
+        ),
+        "floor_height": Param(
+            "float",
+            3.2,
+            min=2.6,
+            max=10.0,
+            unit="m",
+            doc="storey height; heights snap to whole floors (at least 2.6 m, paper 003)",
+        ),
+        "min_area": Param("float", 20.0, min=0.0, unit="m2", doc="footprints smaller than this are not built"),
         "courtyards": Param("bool", False, doc="also build on inner lots (courtyards with no street frontage)"),
     }
     maps_features = True
@@ -229,14 +244,30 @@ class BuildingsExtrude(SENode):
             height[surveyed], floors[surveyed] = snap_floors(known[surveyed], p.floor_height)
         district = lots["district"][keep] if "district" in lots.attrs else np.full(len(ids), -1, np.int64)
         out = Layer(
-            footprints, ids.copy(), ids.copy(),
-            {"height": height.astype(np.float64), "floors": floors.astype(np.int64),
-             "roof": np.full(len(ids), "flat"), "lot": ids.astype(np.int64), "district": np.asarray(district)},
+            footprints,
+            ids.copy(),
+            ids.copy(),
+            {
+                "height": height.astype(np.float64),
+                "floors": floors.astype(np.int64),
+                "roof": np.full(len(ids), "flat"),
+                "lot": ids.astype(np.int64),
+                "district": np.asarray(district),
+            },
             dict(lots.meta),
         )
-        self.report = {"buildings": int(len(ids)), "skipped": skipped, "courtyards": int(open_court.sum()),
-                       "surveyed_heights": int(surveyed.sum())}
+        self.report = {
+            "buildings": int(len(ids)),
+            "skipped": skipped,
+            "courtyards": int(open_court.sum()),
+            "surveyed_heights": int(surveyed.sum()),
+        }
         if skipped:
-            log.info("%s: %d lots too small for a %.3g m setback and %.3g m2 footprint", self.where, skipped,
-                     p.setback, p.min_area)
+            log.info(
+                "%s: %d lots too small for a %.3g m setback and %.3g m2 footprint",
+                self.where,
+                skipped,
+                p.setback,
+                p.min_area,
+            )
         return {"buildings": out}

@@ -41,8 +41,16 @@ FORMATS = ("glb", "geojson", "osm", "png", "obj", "cityjson")
 DEFAULT_FORMATS = frozenset({"glb", "geojson", "osm", "png"})
 
 
-def export_layers(out: Path, layers: dict[str, Layer | None], formats, *, plan=None, line_width: float = 1.0,
-                  preview_size: int = 1600, workers: int = 1) -> dict:
+def export_layers(
+    out: Path,
+    layers: dict[str, Layer | None],
+    formats,
+    *,
+    plan=None,
+    line_width: float = 1.0,
+    preview_size: int = 1600,
+    workers: int = 1,
+) -> dict:
     """Write ``layers`` into folder ``out`` in each of ``formats``.
 
     Parameters
@@ -81,23 +89,40 @@ def export_layers(out: Path, layers: dict[str, Layer | None], formats, *, plan=N
         # the plan's extent frames a synthetic city; data in another frame (OSM in UTM) frames itself
         extent = plan.extent if plan is not None else None
         extent = extent if extent is not None and not _outside(layers, extent) else None
-        jobs.append(("png", None, partial(preview.write_preview, out / "preview.png", layers, size=preview_size,
-                                          extent=extent)))
+        jobs.append(
+            ("png", None, partial(preview.write_preview, out / "preview.png", layers, size=preview_size, extent=extent))
+        )
     if "glb" in formats:
-        jobs.append(("glb", None, partial(gltf.write_glb, out / "city.glb", layers, line_width=line_width,
-                                          crs=any_crs)))
+        jobs.append(
+            ("glb", None, partial(gltf.write_glb, out / "city.glb", layers, line_width=line_width, crs=any_crs))
+        )
     if "obj" in formats:
         jobs.append(("obj", None, partial(obj.write_obj, out / "city.obj", layers, line_width=line_width)))
     if "geojson" in formats:  # one job per layer, the largest first
         for name in sorted(layers, key=lambda k: -len(layers[k])):
-            jobs.append(("geojson", name, partial(geojson.write_geojson, out / f"{name}.geojson", layers[name],
-                                                  to_lonlat(crs[name]), name=name)))
+            jobs.append(
+                (
+                    "geojson",
+                    name,
+                    partial(
+                        geojson.write_geojson, out / f"{name}.geojson", layers[name], to_lonlat(crs[name]), name=name
+                    ),
+                )
+            )
     if "osm" in formats and "roads" in layers:
-        jobs.append(("osm", None, partial(osmxml.write_osm, out / "streets.osm", layers["roads"],
-                                          to_lonlat(crs["roads"]))))
+        jobs.append(
+            ("osm", None, partial(osmxml.write_osm, out / "streets.osm", layers["roads"], to_lonlat(crs["roads"])))
+        )
     if "cityjson" in formats and "buildings" in layers:
-        jobs.append(("cityjson", None, partial(cityjson.write_cityjson, out / "buildings.city.json",
-                                               layers["buildings"], crs=crs["buildings"])))
+        jobs.append(
+            (
+                "cityjson",
+                None,
+                partial(
+                    cityjson.write_cityjson, out / "buildings.city.json", layers["buildings"], crs=crs["buildings"]
+                ),
+            )
+        )
     done = run_jobs([partial(_timed, write) for _, _, write in jobs], workers)
     report: dict = {fmt: {} for fmt in FORMATS if any(f == fmt for f, _, _ in jobs)}
     seconds = dict.fromkeys(report, 0.0)
@@ -107,9 +132,13 @@ def export_layers(out: Path, layers: dict[str, Layer | None], formats, *, plan=N
         else:
             report[fmt][name] = result
         seconds[fmt] += dt
-    log.info("exported %s in %.3f s of writing with %d worker(s) (%s)", ", ".join(sorted(seconds)),
-             sum(seconds.values()), max(1, min(workers, len(jobs))),
-             ", ".join(f"{k} {v:.3f}" for k, v in seconds.items()))
+    log.info(
+        "exported %s in %.3f s of writing with %d worker(s) (%s)",
+        ", ".join(sorted(seconds)),
+        sum(seconds.values()),
+        max(1, min(workers, len(jobs))),
+        ", ".join(f"{k} {v:.3f}" for k, v in seconds.items()),
+    )
     report["seconds"] = seconds
     return report
 
@@ -155,15 +184,24 @@ class ExportCity(SENode):
     }
     outputs = {}
     params = {
-        "line_width": Param("float", 1.0, min=0.05, max=50.0, unit="m",
-                            doc="width of road centre-line ribbons in the 3D exports"),
-        "preview_size": Param("int", 1600, min=200, max=8000, unit="px",
-                              doc="long side of preview.png"),
+        "line_width": Param(
+            "float", 1.0, min=0.05, max=50.0, unit="m", doc="width of road centre-line ribbons in the 3D exports"
+        ),
+        "preview_size": Param("int", 1600, min=200, max=8000, unit="px", doc="long side of preview.png"),
     }
 
-    def run(self, *, roads: Layer | None = None, streets: Layer | None = None, sidewalks: Layer | None = None,
-            blocks: Layer | None = None, lots: Layer | None = None, buildings: Layer | None = None,
-            parks: Layer | None = None, water: Layer | None = None) -> dict[str, Layer]:
+    def run(
+        self,
+        *,
+        roads: Layer | None = None,
+        streets: Layer | None = None,
+        sidewalks: Layer | None = None,
+        blocks: Layer | None = None,
+        lots: Layer | None = None,
+        buildings: Layer | None = None,
+        parks: Layer | None = None,
+        water: Layer | None = None,
+    ) -> dict[str, Layer]:
         out = self.context.out
         if out is None:  # an in-memory run (tests, notebooks): nothing to write
             log.info("%s: no output folder, nothing written", self.where)
@@ -171,11 +209,25 @@ class ExportCity(SENode):
             return {}
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
-        layers = {"roads": roads, "streets": streets, "sidewalks": sidewalks, "blocks": blocks, "lots": lots,
-                  "buildings": buildings, "parks": parks, "water": water}
-        report = export_layers(out, layers, self.context.formats, plan=self.context.plan,
-                               line_width=self.p.line_width, preview_size=self.p.preview_size,
-                               workers=self.context.workers)
+        layers = {
+            "roads": roads,
+            "streets": streets,
+            "sidewalks": sidewalks,
+            "blocks": blocks,
+            "lots": lots,
+            "buildings": buildings,
+            "parks": parks,
+            "water": water,
+        }
+        report = export_layers(
+            out,
+            layers,
+            self.context.formats,
+            plan=self.context.plan,
+            line_width=self.p.line_width,
+            preview_size=self.p.preview_size,
+            workers=self.context.workers,
+        )
         report.pop("seconds", None)  # timings would make stats.json differ between runs
         self.report = _flat_counts(report)
         return {}

@@ -100,7 +100,8 @@ def city_model(buildings: Layer, *, crs: str | None = None, scale: float = 0.001
 def write_cityjson(path: str | Path, buildings: Layer, *, crs: str | None = None) -> int:
     """Write ``buildings`` as CityJSON 2.0; return the number of city objects."""
     doc = city_model(buildings, crs=crs)
-    Path(path).write_text(json.dumps(doc, sort_keys=True, separators=(",", ":"), allow_nan=False) + "\n",
-                          encoding="utf-8")
+    Path(path).write_text(
+        json.dumps(doc, sort_keys=True, separators=(",", ":"), allow_nan=False) + "\n", encoding="utf-8"
+    )
     log.info("wrote %s: %d buildings", path, len(doc["CityObjects"]))
     return len(doc["CityObjects"])

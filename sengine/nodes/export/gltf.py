@@ -95,8 +95,7 @@ def _offset(vertices: list[np.ndarray]) -> np.ndarray:
     return np.round((lo + hi) / 2.0, -3)
 
 
-def glb_bytes(layers: Mapping[str, Layer], *, line_width: float = 1.0, crs: str | None = None
-              ) -> tuple[bytes, dict]:
+def glb_bytes(layers: Mapping[str, Layer], *, line_width: float = 1.0, crs: str | None = None) -> tuple[bytes, dict]:
     """The binary glTF of ``layers`` and the vertex / triangle counts of each mesh.
 
     One node, one mesh and one material per non-empty layer, in :data:`LAYERS`
@@ -125,17 +124,38 @@ def glb_bytes(layers: Mapping[str, Layer], *, line_width: float = 1.0, crs: str 
         v[:, :2] -= off
         pos = np.ascontiguousarray(mesh.to_y_up(v), dtype=np.float32)
         idx = np.ascontiguousarray(f, dtype=np.uint32)
-        accessors.append({"bufferView": add_view(pos.tobytes(), 34962), "componentType": 5126, "count": len(pos),
-                          "type": "VEC3", "min": [float(c.min()) for c in pos.T],
-                          "max": [float(c.max()) for c in pos.T]})
-        accessors.append({"bufferView": add_view(idx.tobytes(), 34963), "componentType": 5125,
-                          "count": int(idx.size), "type": "SCALAR"})
+        accessors.append(
+            {
+                "bufferView": add_view(pos.tobytes(), 34962),
+                "componentType": 5126,
+                "count": len(pos),
+                "type": "VEC3",
+                "min": [float(c.min()) for c in pos.T],
+                "max": [float(c.max()) for c in pos.T],
+            }
+        )
+        accessors.append(
+            {
+                "bufferView": add_view(idx.tobytes(), 34963),
+                "componentType": 5125,
+                "count": int(idx.size),
+                "type": "SCALAR",
+            }
+        )
         rgba = [round(c / 255.0, 6) for c in COLOURS.get(name, _DEFAULT_COLOUR)] + [1.0]
-        materials.append({"name": name, "doubleSided": name != "buildings",
-                          "pbrMetallicRoughness": {"baseColorFactor": rgba, "metallicFactor": 0.0,
-                                                   "roughnessFactor": 0.9}})
-        gl_meshes.append({"name": name, "primitives": [{"attributes": {"POSITION": 2 * k}, "indices": 2 * k + 1,
-                                                         "material": k, "mode": 4}]})
+        materials.append(
+            {
+                "name": name,
+                "doubleSided": name != "buildings",
+                "pbrMetallicRoughness": {"baseColorFactor": rgba, "metallicFactor": 0.0, "roughnessFactor": 0.9},
+            }
+        )
+        gl_meshes.append(
+            {
+                "name": name,
+                "primitives": [{"attributes": {"POSITION": 2 * k}, "indices": 2 * k + 1, "material": k, "mode": 4}],
+            }
+        )
         node = {"name": name, "mesh": k}
         if off.any():
             node["translation"] = translation
@@ -144,14 +164,32 @@ def glb_bytes(layers: Mapping[str, Layer], *, line_width: float = 1.0, crs: str 
     doc = {
         "asset": {"version": "2.0", "generator": "sengine"},
         "scene": 0,
-        "scenes": [{"name": "city",
-                    "extras": {"sengine": {"units": "m", "up": "y", "crs": crs or "",
-                                           "planar_offset": [float(off[0]), float(off[1])]}}}],
+        "scenes": [
+            {
+                "name": "city",
+                "extras": {
+                    "sengine": {
+                        "units": "m",
+                        "up": "y",
+                        "crs": crs or "",
+                        "planar_offset": [float(off[0]), float(off[1])],
+                    }
+                },
+            }
+        ],
     }
     if nodes:  # glTF arrays may not be empty: an empty city is a scene without nodes
         doc["scenes"][0]["nodes"] = list(range(len(nodes)))
-        doc.update({"nodes": nodes, "meshes": gl_meshes, "materials": materials, "accessors": accessors, "bufferViews": views,
-                    "buffers": [{"byteLength": length}]})
+        doc.update(
+            {
+                "nodes": nodes,
+                "meshes": gl_meshes,
+                "materials": materials,
+                "accessors": accessors,
+                "bufferViews": views,
+                "buffers": [{"byteLength": length}],
+            }
+        )
     text = json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()
     text += b" " * (-len(text) % 4)
     binary = b"".join(blobs)
@@ -162,8 +200,9 @@ def glb_bytes(layers: Mapping[str, Layer], *, line_width: float = 1.0, crs: str 
     return struct.pack("<III", 0x46546C67, 2, 12 + len(chunks)) + chunks, counts
 
 
-def write_glb(path: str | Path, layers: Mapping[str, Layer], *, line_width: float = 1.0,
-              crs: str | None = None) -> dict:
+def write_glb(
+    path: str | Path, layers: Mapping[str, Layer], *, line_width: float = 1.0, crs: str | None = None
+) -> dict:
     """Write ``layers`` to a binary glTF file; return vertex and face counts per layer."""
     data, counts = glb_bytes(layers, line_width=line_width, crs=crs)
     Path(path).write_bytes(data)

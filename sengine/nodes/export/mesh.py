@@ -227,9 +227,9 @@ def extrude(
     vfeat = rings.feature[rings.vertex_poly()] if m else np.empty(0, np.int64)
     z0 = bases[vfeat]
     z1 = z0 + heights[vfeat]
-    vertices = np.concatenate(
-        [np.column_stack([rings.xy, z0]), np.column_stack([rings.xy, z1])]
-    ) if m else np.empty((0, 3))
+    vertices = (
+        np.concatenate([np.column_stack([rings.xy, z0]), np.column_stack([rings.xy, z1])]) if m else np.empty((0, 3))
+    )
     caps = triangulate(rings)
     i = np.arange(m)
     j = rings.next_vertex() if m else i
@@ -270,8 +270,10 @@ def _chop(geoms: np.ndarray, max_holes: int) -> tuple[np.ndarray, np.ndarray]:
         k = int(np.ceil(np.sqrt(holes[i] / (max_holes / 2))))
         x0, y0, x1, y1 = g.bounds
         xs, ys = np.linspace(x0, x1, k + 1), np.linspace(y0, y1, k + 1)
-        cut = np.array([shapely.clip_by_rect(g, xs[a], ys[b], xs[a + 1], ys[b + 1])
-                        for a in range(k) for b in range(k)], dtype=object)
+        cut = np.array(
+            [shapely.clip_by_rect(g, xs[a], ys[b], xs[a + 1], ys[b + 1]) for a in range(k) for b in range(k)],
+            dtype=object,
+        )
         pieces.append(cut)
         owner.append(np.full(len(cut), i))
     return np.concatenate(pieces), np.concatenate(owner)

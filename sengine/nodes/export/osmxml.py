@@ -31,8 +31,9 @@ log = logging.getLogger(__name__)
 HIGHWAY = {"major": "primary", "boundary": "secondary", "minor": "residential", "": "road"}
 
 
-def street_graph(geoms: np.ndarray, to_lonlat: Callable[[np.ndarray], np.ndarray]
-                 ) -> tuple[np.ndarray, list[np.ndarray], np.ndarray]:
+def street_graph(
+    geoms: np.ndarray, to_lonlat: Callable[[np.ndarray], np.ndarray]
+) -> tuple[np.ndarray, list[np.ndarray], np.ndarray]:
     """Nodes and ways of a line layer at OSM precision.
 
     Parameters
@@ -111,8 +112,9 @@ def way_tags(layer: Layer) -> list[dict[str, str]]:
     return tags
 
 
-def write_osm(path: str | Path, layer: Layer, to_lonlat: Callable[[np.ndarray], np.ndarray], *,
-              generator: str = "sengine") -> dict:
+def write_osm(
+    path: str | Path, layer: Layer, to_lonlat: Callable[[np.ndarray], np.ndarray], *, generator: str = "sengine"
+) -> dict:
     """Write a roads layer as OSM XML; return node, way and junction counts.
 
     Junctions are nodes used by more than one way, or twice by one way.

@@ -54,7 +54,7 @@ def _palette() -> np.ndarray:
     pal[0], pal[1], pal[2], pal[3], pal[4] = _BACKGROUND, _INK, (255, 255, 255), _LOT_EDGE, _MAP_EDGE
     for name, idx in _LAYER_INDEX.items():
         pal[idx] = COLOURS[name]
-    pal[_RAMP0:_RAMP0 + _RAMP_N] = ramp(np.linspace(0, 1, _RAMP_N))
+    pal[_RAMP0 : _RAMP0 + _RAMP_N] = ramp(np.linspace(0, 1, _RAMP_N))
     return pal
 
 
@@ -81,9 +81,9 @@ def _draw_polygons(draw: ImageDraw.ImageDraw, rings, to_px, values, outline: int
     polygon = draw.polygon
     for p in range(rings.n_polys):
         r0, r1 = pr[p], pr[p + 1]
-        polygon(pix[2 * rs[r0]:2 * rs[r0 + 1]], fill=vals[p], outline=outline)
+        polygon(pix[2 * rs[r0] : 2 * rs[r0 + 1]], fill=vals[p], outline=outline)
         for r in range(r0 + 1, r1):
-            polygon(pix[2 * rs[r]:2 * rs[r + 1]], fill=0, outline=outline)
+            polygon(pix[2 * rs[r] : 2 * rs[r + 1]], fill=0, outline=outline)
 
 
 def _draw_lines(draw: ImageDraw.ImageDraw, geoms: np.ndarray, to_px, value: int, widths) -> None:
@@ -104,7 +104,7 @@ def _draw_lines(draw: ImageDraw.ImageDraw, geoms: np.ndarray, to_px, value: int,
     for k in range(len(parts)):
         a, b = starts[k], starts[k + 1]
         if b - a >= 2:
-            line(pix[2 * a:2 * b], fill=value, width=int(w[k]))
+            line(pix[2 * a : 2 * b], fill=value, width=int(w[k]))
 
 
 def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Image.Image:
@@ -190,8 +190,17 @@ def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Ima
     return image
 
 
-def _footer(image: Image.Image, top: int, w: int, scale: float, hmin: float, hmax: float, present: list, *,
-            map_buildings: bool = False) -> None:
+def _footer(
+    image: Image.Image,
+    top: int,
+    w: int,
+    scale: float,
+    hmin: float,
+    hmax: float,
+    present: list,
+    *,
+    map_buildings: bool = False,
+) -> None:
     draw = ImageDraw.Draw(image)
     font = ImageFont.load_default(size=13)
     ink = _FIXED["ink"]

@@ -65,8 +65,10 @@ class Marks:
     @staticmethod
     def concat(marks) -> Marks:
         marks = list(marks)
-        return Marks(np.concatenate([m.flat for m in marks]) if marks else np.zeros(0, bool),
-                      np.concatenate([m.counts for m in marks]) if marks else np.zeros(0, np.int64))
+        return Marks(
+            np.concatenate([m.flat for m in marks]) if marks else np.zeros(0, bool),
+            np.concatenate([m.counts for m in marks]) if marks else np.zeros(0, np.int64),
+        )
 
     @classmethod
     def unknown(cls, geoms) -> Marks:
@@ -80,6 +82,7 @@ class Marks:
 
 
 # -- the contour ------------------------------------------------------------------------------
+
 
 class Contour:
     """Samples along the exterior ring of each polygon of a ring set, and polygons made of its chains.
@@ -141,10 +144,14 @@ class Contour:
         lo, hi = self.lstart[p], self.lstart[p] + self.nlap[p]
         i = np.clip(i, lo, hi)
         for _ in range(4):  # at most a step or two: rounding is far below edge lengths
-            before = (i > lo) & ((self.lap_arc[np.maximum(i - 1, 0)] > s) if right
-                                 else (self.lap_arc[np.maximum(i - 1, 0)] >= s))
-            after = (i < hi) & ((self.lap_arc[np.minimum(i, len(self.lap_arc) - 1)] <= s) if right
-                                else (self.lap_arc[np.minimum(i, len(self.lap_arc) - 1)] < s))
+            before = (i > lo) & (
+                (self.lap_arc[np.maximum(i - 1, 0)] > s) if right else (self.lap_arc[np.maximum(i - 1, 0)] >= s)
+            )
+            after = (i < hi) & (
+                (self.lap_arc[np.minimum(i, len(self.lap_arc) - 1)] <= s)
+                if right
+                else (self.lap_arc[np.minimum(i, len(self.lap_arc) - 1)] < s)
+            )
             if not (before.any() or after.any()):
                 break
             i = i - before + after
@@ -162,9 +169,11 @@ class Contour:
 
     def street(self, p, s0, s1):
         """Street (flagged) length (m) of the contour between arcs ``s0 < s1`` (< 2 perim)."""
+
         def F(s):
             i, r = self._index(p, s)
             return self.lap_F[i] + np.where(self.lap_flag[i], np.clip(r, 0.0, self.lap_len[i]), 0.0)
+
         return F(s1) - F(s0)
 
     def smooth(self, width):
@@ -196,8 +205,9 @@ class Contour:
         table_off = np.array([0, len(self.pts), 2 * len(self.pts)])
         table = np.concatenate([self.pts, self.inner, self.lap_xy])
         xy = table[table_off[kinds] + idx]
-        polys = shapely.from_ragged_array(shapely.GeometryType.POLYGON, xy,
-                                          (np.r_[0, np.cumsum(sizes)], np.arange(len(sizes) + 1)))
+        polys = shapely.from_ragged_array(
+            shapely.GeometryType.POLYGON, xy, (np.r_[0, np.cumsum(sizes)], np.arange(len(sizes) + 1))
+        )
         # signed areas of the closed rings, local to each ring's first vertex
         start = np.cumsum(sizes) - sizes
         ring = np.repeat(np.arange(len(sizes)), sizes)
@@ -260,8 +270,11 @@ class Contour:
         rr = r[mer]
         rm = row[mer]
         kinds[mer] = np.where(rr == 1, 0, np.where(rr <= nv[rm] + 1, 2, 0))
-        idx[mer] = np.where(rr == 1, ms[rm] + np.mod(ja[rm], m[rm]),
-                            np.where(rr <= nv[rm] + 1, i0[rm] + rr - 2, ms[rm] + np.mod(jb[rm], m[rm])))
+        idx[mer] = np.where(
+            rr == 1,
+            ms[rm] + np.mod(ja[rm], m[rm]),
+            np.where(rr <= nv[rm] + 1, i0[rm] + rr - 2, ms[rm] + np.mod(jb[rm], m[rm])),
+        )
         seg = np.zeros(len(row), bool)
         contour = (kind[row] == 2) & (r >= 1) & (r <= nv[row] + 1)
         seg[contour] = self.lap_flag[i0[row[contour]] + r[contour] - 2]

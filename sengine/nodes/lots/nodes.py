@@ -36,8 +36,17 @@ from .manhattan import manhattan_lots
 from .paris import paris_lots
 from .recursive import mix64, recursive_lots
 
-__all__ = ["lot_attributes", "frontage", "manhattan_lots", "recursive_lots", "paris_lots",
-           "LotsManhattan", "LotsParis", "LotsRecursive", "LotsDistrict"]
+__all__ = [
+    "lot_attributes",
+    "frontage",
+    "manhattan_lots",
+    "recursive_lots",
+    "paris_lots",
+    "LotsManhattan",
+    "LotsParis",
+    "LotsRecursive",
+    "LotsDistrict",
+]
 
 log = logging.getLogger(__name__)
 
@@ -45,6 +54,7 @@ ON_TOL = 1e-5  # m: a segment within this of the block boundary lies on it
 
 
 # -- frontage and lot attributes ---------------------------------------------------
+
 
 def frontage(geoms, owner, blocks) -> np.ndarray:
     """Length (m) of each geometry's boundary lying on its owner's boundary.
@@ -64,8 +74,9 @@ def frontage(geoms, owner, blocks) -> np.ndarray:
     return np.bincount(idx[on], weights=ln[on], minlength=len(geoms))
 
 
-def lot_attributes(lots, owner, blocks, *, corner_angle: float = 30.0, edge_angle: float = 15.0, on=None,
-                   known=None) -> dict:
+def lot_attributes(
+    lots, owner, blocks, *, corner_angle: float = 30.0, edge_angle: float = 15.0, on=None, known=None
+) -> dict:
     """Street-facing facts of each lot, from its block's boundary.
 
     Parameters
@@ -95,8 +106,12 @@ def lot_attributes(lots, owner, blocks, *, corner_angle: float = 30.0, edge_angl
     """
     lots = np.asarray(lots, dtype=object)
     k = len(lots)
-    out = {"frontage": np.zeros(k), "street_edges": np.zeros(k, np.int64), "corner": np.zeros(k, bool),
-           "front_angle": np.full(k, np.nan)}
+    out = {
+        "frontage": np.zeros(k),
+        "street_edges": np.zeros(k, np.int64),
+        "corner": np.zeros(k, bool),
+        "front_angle": np.full(k, np.nan),
+    }
     if k == 0:
         return out
     owner = np.asarray(owner, np.int64)
@@ -134,8 +149,7 @@ def lot_attributes(lots, owner, blocks, *, corner_angle: float = 30.0, edge_angl
     # a ring whose every segment is frontage and never turns still counts one edge
     out["street_edges"] = np.bincount(idx[new_edge], minlength=k)
     allon = np.bincount(idx, weights=(~on).astype(float), minlength=k) == 0
-    out["street_edges"] = np.where(allon & (out["street_edges"] == 0) & (out["frontage"] > 0), 1,
-                                   out["street_edges"])
+    out["street_edges"] = np.where(allon & (out["street_edges"] == 0) & (out["frontage"] > 0), 1, out["street_edges"])
     # longest frontage segment per lot and its direction
     cand = np.flatnonzero(on)
     if len(cand):
@@ -226,11 +240,20 @@ class _Lots(SENode):
         geoms = blocks.geometry
         if len(blocks) == 0:
             self.report = report
-            return {"lots": Layer.from_geoms([], meta=blocks.meta, block=np.empty(0, np.int64),
-                                             district=np.empty(0, np.int64), corner=np.empty(0, bool),
-                                             frontage=np.empty(0), street_edges=np.empty(0, np.int64),
-                                             method=np.empty(0, "<U9"), inner=np.empty(0, bool),
-                                             front_angle=np.empty(0))}
+            return {
+                "lots": Layer.from_geoms(
+                    [],
+                    meta=blocks.meta,
+                    block=np.empty(0, np.int64),
+                    district=np.empty(0, np.int64),
+                    corner=np.empty(0, bool),
+                    frontage=np.empty(0),
+                    street_edges=np.empty(0, np.int64),
+                    method=np.empty(0, "<U9"),
+                    inner=np.empty(0, bool),
+                    front_angle=np.empty(0),
+                )
+            }
         empty = shapely.is_empty(geoms) | (shapely.area(geoms) <= 0)
         report["skipped_empty"] = int(empty.sum())
         lots, owner, method, inner, on, known = self.split(blocks, report)
@@ -240,19 +263,31 @@ class _Lots(SENode):
         lots, owner, keep, nwhole = _check_partition(geoms, lots, owner, report)
         method = np.r_[method[keep], np.full(nwhole, "whole")]
         inner = np.r_[inner[keep], np.zeros(nwhole, bool)]
-        flags = flags.take(np.flatnonzero(keep)).append(lots[len(lots) - nwhole:])
+        flags = flags.take(np.flatnonzero(keep)).append(lots[len(lots) - nwhole :])
         o = np.lexsort((np.arange(len(owner)), owner))
         lots, owner, method, inner, flags = lots[o], owner[o], method[o], inner[o], flags.take(o)
         att = lot_attributes(lots, owner, geoms, on=flags.on, known=flags.known)
-        district = np.asarray(blocks["district"], np.int64)[owner] if "district" in blocks \
+        district = (
+            np.asarray(blocks["district"], np.int64)[owner]
+            if "district" in blocks
             else np.full(len(lots), -1, np.int64)
+        )
         report["lots"] = int(len(lots))
         report["no_frontage"] = int(((att["frontage"] <= 0) & ~inner).sum())
         self.report = report
-        lay = Layer.from_geoms(lots, parent=blocks.ids[owner], meta=blocks.meta, block=blocks.ids[owner],
-                               district=district, corner=att["corner"], frontage=att["frontage"],
-                               street_edges=att["street_edges"], method=method.astype(str), inner=inner,
-                               front_angle=att["front_angle"])
+        lay = Layer.from_geoms(
+            lots,
+            parent=blocks.ids[owner],
+            meta=blocks.meta,
+            block=blocks.ids[owner],
+            district=district,
+            corner=att["corner"],
+            frontage=att["frontage"],
+            street_edges=att["street_edges"],
+            method=method.astype(str),
+            inner=inner,
+            front_angle=att["front_angle"],
+        )
         return {"lots": lay}
 
 
@@ -269,24 +304,43 @@ def _seeds(self, ids) -> np.ndarray:
 
 
 def _recursive(self, geoms, ids, report, *, max_area, min_frontage, jitter):
-    lots, owner, on = recursive_lots(geoms, max_area=max_area, min_frontage=min_frontage, jitter=jitter,
-                                     seeds=_seeds(self, ids), report=report, street=True)
+    lots, owner, on = recursive_lots(
+        geoms,
+        max_area=max_area,
+        min_frontage=min_frontage,
+        jitter=jitter,
+        seeds=_seeds(self, ids),
+        report=report,
+        street=True,
+    )
     over = int((shapely.area(lots) > max_area).sum())
     report["over_max_area"] = report.get("over_max_area", 0) + over
     return lots, owner, np.full(len(lots), "recursive"), np.zeros(len(lots), bool), on, np.ones(len(lots), bool)
 
 
 def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage):
-    lots, owner, inner, on, known = paris_lots(geoms, segment=segment, depth=depth, deviation=deviation,
-                                               seeds=_seeds(self, ids), min_frontage=min_frontage, report=report,
-                                               street=True)
+    lots, owner, inner, on, known = paris_lots(
+        geoms,
+        segment=segment,
+        depth=depth,
+        deviation=deviation,
+        seeds=_seeds(self, ids),
+        min_frontage=min_frontage,
+        report=report,
+        street=True,
+    )
     return lots, owner, np.full(len(lots), "paris"), inner, on, known
 
 
 _P_MANHATTAN = {
     "count": Param("int", 0, min=0, max=1000, unit="1", doc="lots per side of the main axis; 0 = from width"),
-    "width": Param("float", 65.0, min=0.5, unit="m",
-                   doc="target lot width along the main axis (65 m: ~8 lots per 80 x 270 m block, as in the paper)"),
+    "width": Param(
+        "float",
+        65.0,
+        min=0.5,
+        unit="m",
+        doc="target lot width along the main axis (65 m: ~8 lots per 80 x 270 m block, as in the paper)",
+    ),
     "min_depth": Param("float", 10.0, min=0.0, unit="m", doc="blocks narrower than twice this get one row"),
 }
 _P_RECURSIVE = {
@@ -298,7 +352,9 @@ _P_PARIS = {
     "segment": Param("float", 20.0, min=1.0, unit="m", doc="contour segment length (one perimeter lot each)"),
     "depth": Param("float", 15.0, min=0.5, unit="m", doc="mean lot depth (inward displacement)"),
     "deviation": Param("float", 3.0, min=0.0, unit="m", doc="standard deviation of the lot depth"),
-    "min_frontage": Param("float", 2.0, min=0.0, unit="m", doc="perimeter pieces with less frontage join a neighbouring lot"),
+    "min_frontage": Param(
+        "float", 2.0, min=0.0, unit="m", doc="perimeter pieces with less frontage join a neighbouring lot"
+    ),
 }
 
 
@@ -310,8 +366,9 @@ class LotsManhattan(_Lots):
     params = dict(_P_MANHATTAN)
 
     def split(self, blocks, report):
-        return _manhattan(self, blocks.geometry, report, count=self.p.count, width=self.p.width,
-                          min_depth=self.p.min_depth)
+        return _manhattan(
+            self, blocks.geometry, report, count=self.p.count, width=self.p.width, min_depth=self.p.min_depth
+        )
 
 
 @register
@@ -322,8 +379,15 @@ class LotsRecursive(_Lots):
     params = dict(_P_RECURSIVE)
 
     def split(self, blocks, report):
-        return _recursive(self, blocks.geometry, blocks.ids, report, max_area=self.p.max_area,
-                          min_frontage=self.p.min_frontage, jitter=self.p.jitter)
+        return _recursive(
+            self,
+            blocks.geometry,
+            blocks.ids,
+            report,
+            max_area=self.p.max_area,
+            min_frontage=self.p.min_frontage,
+            jitter=self.p.jitter,
+        )
 
 
 @register
@@ -334,15 +398,29 @@ class LotsParis(_Lots):
     params = dict(_P_PARIS)
 
     def split(self, blocks, report):
-        return _paris(self, blocks.geometry, blocks.ids, report, segment=self.p.segment, depth=self.p.depth,
-                      deviation=self.p.deviation, min_frontage=self.p.min_frontage)
+        return _paris(
+            self,
+            blocks.geometry,
+            blocks.ids,
+            report,
+            segment=self.p.segment,
+            depth=self.p.depth,
+            deviation=self.p.deviation,
+            min_frontage=self.p.min_frontage,
+        )
 
 
 # district rule attribute -> node parameter
 _RULE_ATTRS = {
-    "lot-count": "count", "lot-width": "width", "lot-min-depth": "min_depth",
-    "lot-area": "max_area", "lot-frontage": "min_frontage", "lot-jitter": "jitter",
-    "lot-segment": "segment", "lot-depth": "depth", "lot-deviation": "deviation",
+    "lot-count": "count",
+    "lot-width": "width",
+    "lot-min-depth": "min_depth",
+    "lot-area": "max_area",
+    "lot-frontage": "min_frontage",
+    "lot-jitter": "jitter",
+    "lot-segment": "segment",
+    "lot-depth": "depth",
+    "lot-deviation": "deviation",
 }
 
 
@@ -353,8 +431,11 @@ class LotsDistrict(_Lots):
     name = "lots.district"
     params = {
         "default": Param("str", "manhattan", choices=_METHODS, doc="method for blocks of no or unset district"),
-        **_P_MANHATTAN, **_P_RECURSIVE,
-        "segment": _P_PARIS["segment"], "depth": _P_PARIS["depth"], "deviation": _P_PARIS["deviation"],
+        **_P_MANHATTAN,
+        **_P_RECURSIVE,
+        "segment": _P_PARIS["segment"],
+        "depth": _P_PARIS["depth"],
+        "deviation": _P_PARIS["deviation"],
     }
 
     def _rule_params(self, district: int) -> tuple[str, dict]:
@@ -366,8 +447,9 @@ class LotsDistrict(_Lots):
             rule = rules[district]
             method = rule.get("lots", method) or method
             if method not in _METHODS:
-                raise ParameterError(f"district rule lots={method!r} is not one of {', '.join(_METHODS)}",
-                                     where=rule.where or self.where)
+                raise ParameterError(
+                    f"district rule lots={method!r} is not one of {', '.join(_METHODS)}", where=rule.where or self.where
+                )
             for attr, pname in _RULE_ATTRS.items():
                 if rule.get(attr) is not None:
                     values[pname] = self.params[pname].coerce(rule.get(attr), rule.where or self.where, attr)
@@ -375,21 +457,36 @@ class LotsDistrict(_Lots):
 
     def split(self, blocks, report):
         geoms = blocks.geometry
-        district = np.asarray(blocks["district"], np.int64) if "district" in blocks \
-            else np.full(len(blocks), -1, np.int64)
+        district = (
+            np.asarray(blocks["district"], np.int64) if "district" in blocks else np.full(len(blocks), -1, np.int64)
+        )
         out_l, out_o, out_m, out_i, out_f = [], [], [], [], []
         for dist in np.unique(district):
             sel = np.flatnonzero(district == dist)
             method, v = self._rule_params(int(dist))
             if method == "manhattan":
-                res = _manhattan(self, geoms[sel], report, count=v["count"], width=v["width"],
-                                 min_depth=v["min_depth"])
+                res = _manhattan(self, geoms[sel], report, count=v["count"], width=v["width"], min_depth=v["min_depth"])
             elif method == "recursive":
-                res = _recursive(self, geoms[sel], blocks.ids[sel], report, max_area=v["max_area"],
-                                 min_frontage=v["min_frontage"], jitter=v["jitter"])
+                res = _recursive(
+                    self,
+                    geoms[sel],
+                    blocks.ids[sel],
+                    report,
+                    max_area=v["max_area"],
+                    min_frontage=v["min_frontage"],
+                    jitter=v["jitter"],
+                )
             else:
-                res = _paris(self, geoms[sel], blocks.ids[sel], report, segment=v["segment"], depth=v["depth"],
-                             deviation=v["deviation"], min_frontage=min(v["min_frontage"], 2.0))
+                res = _paris(
+                    self,
+                    geoms[sel],
+                    blocks.ids[sel],
+                    report,
+                    segment=v["segment"],
+                    depth=v["depth"],
+                    deviation=v["deviation"],
+                    min_frontage=min(v["min_frontage"], 2.0),
+                )
             lots, owner, meth, inner, on, known = res
             out_l.append(lots)
             out_o.append(sel[owner])
@@ -403,5 +500,11 @@ class LotsDistrict(_Lots):
         owner = np.concatenate(out_o)
         o = np.argsort(owner, kind="stable")
         flags = flags.take(o)
-        return (np.concatenate(out_l)[o], owner[o], np.concatenate(out_m)[o], np.concatenate(out_i)[o],
-                flags.on, flags.known)
+        return (
+            np.concatenate(out_l)[o],
+            owner[o],
+            np.concatenate(out_m)[o],
+            np.concatenate(out_i)[o],
+            flags.on,
+            flags.known,
+        )

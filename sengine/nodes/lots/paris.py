@@ -143,8 +143,7 @@ def _pass(rs, depth, segment, min_frontage, C):
     di = C.inner[C.mstart[C.sp] + np.mod(C.sj + 1, C.m[C.sp])] - C.inner
     dp = C.pts[C.mstart[C.sp] + np.mod(C.sj + 1, C.m[C.sp])] - C.pts
     fold = np.einsum("ij,ij->i", di, dp) < RISK * np.einsum("ij,ij->i", dp, dp)
-    risky = np.bincount((cstart_of(C)[C.sp] + C.sj // 3)[fold],
-                        minlength=len(cp)) > 0
+    risky = np.bincount((cstart_of(C)[C.sp] + C.sj // 3)[fold], minlength=len(cp)) > 0
     near = risky.copy()
     for k in (1, 2):  # a window starting at i covers i .. i + 2
         near |= risky[cstart_of(C)[cp] + np.mod(ci + k, nseg[cp])]
@@ -216,8 +215,10 @@ def _pass(rs, depth, segment, min_frontage, C):
     csel = done[run_p]
     lots = np.r_[q[gsel], corner[csel]]
     lpoly = np.r_[cp[gsel], run_p[csel]]
-    shared = np.r_[_back_length(C, cp[gsel], ja[gsel], ja[gsel] + 3, 1),
-                   _back_length(C, run_p[csel], 3 * s_i[csel], 3 * (s_i + n_i)[csel], 3 * n_i[csel])]
+    shared = np.r_[
+        _back_length(C, cp[gsel], ja[gsel], ja[gsel] + 3, 1),
+        _back_length(C, run_p[csel], 3 * s_i[csel], 3 * (s_i + n_i)[csel], 3 * n_i[csel]),
+    ]
     has_core = np.flatnonzero(done)
     small = np.zeros(P, bool)
     small[has_core] = shapely.area(core_of[has_core]) < 0.5 * depth * segment
@@ -281,8 +282,20 @@ def _back_length(C, p, ja, jb, step):
 
 # -- all blocks -------------------------------------------------------------------------------
 
-def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, rngs=None, min_frontage=2.0,
-               max_cuts=8, report=None, street=False):
+
+def paris_lots(
+    blocks,
+    *,
+    segment=20.0,
+    depth=15.0,
+    deviation=3.0,
+    seeds=None,
+    rngs=None,
+    min_frontage=2.0,
+    max_cuts=8,
+    report=None,
+    street=False,
+):
     """Paris lots (§5.5, Fig. 9 left).
 
     Parameters
@@ -328,8 +341,11 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
     blocks = np.asarray(blocks, dtype=object).ravel()
     n = len(blocks)
     if seeds is None:
-        seeds = np.array([r.integers(0, 2**63, dtype=np.uint64) for r in rngs], np.uint64) if rngs is not None \
+        seeds = (
+            np.array([r.integers(0, 2**63, dtype=np.uint64) for r in rngs], np.uint64)
+            if rngs is not None
             else np.zeros(n, np.uint64)
+        )
     seeds = np.asarray(seeds, np.uint64)
     parts, own = polygon_parts(blocks, np.arange(n))
     rs = RingSet.from_polygons(parts, flag=True)  # every block edge faces a street
@@ -393,7 +409,11 @@ def paris_lots(blocks, *, segment=20.0, depth=15.0, deviation=3.0, seeds=None, r
     marks = Marks.concat(out_m).take(o)
     known = np.concatenate(out_k)[o] if out_k else np.zeros(0, bool)
     if report is not None:
-        for k, v in (("paris_inner", int(inner.sum())), ("paris_corner", corners), ("paris_cut", cuts),
-                     ("paris_fallback", fallback)):
+        for k, v in (
+            ("paris_inner", int(inner.sum())),
+            ("paris_corner", corners),
+            ("paris_cut", cuts),
+            ("paris_fallback", fallback),
+        ):
             report[k] = report.get(k, 0) + v
     return (lots, owner, inner) + ((marks.flat, known) if street else ())

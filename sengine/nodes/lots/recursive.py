@@ -114,8 +114,9 @@ def _cut_level(rs, own, key, seeds, min_frontage, jitter):
     return RingSet.concat(new_rs), par, side, ~accepted, failed_count
 
 
-def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, seeds=None, max_levels=24,
-                   report=None, street=False):
+def recursive_lots(
+    blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, seeds=None, max_levels=24, report=None, street=False
+):
     """Recursive lots after Parish and Müller [13], keeping street access.
 
     Each piece larger than ``max_area`` is cut perpendicular to its longest
@@ -203,4 +204,3 @@ def recursive_lots(blocks, *, max_area=800.0, min_frontage=4.0, jitter=0.25, see
     done = done.permuted(o)
     lots = done.polygons()
     return (lots, owner[o]) + ((done.flag.copy(),) if street else ())
-

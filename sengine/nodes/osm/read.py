@@ -62,8 +62,7 @@ log = logging.getLogger(__name__)
 
 #: ``highway`` values counted as major roads by default (avenues).
 MAJOR_CLASSES = (
-    "motorway,motorway_link,trunk,trunk_link,primary,primary_link,"
-    "secondary,secondary_link,tertiary,tertiary_link"
+    "motorway,motorway_link,trunk,trunk_link,primary,primary_link,secondary,secondary_link,tertiary,tertiary_link"
 )
 #: ``highway`` values counted as minor roads by default; every other value is ignored.
 MINOR_CLASSES = "unclassified,residential,living_street,pedestrian,road,busway"
@@ -72,12 +71,21 @@ MINOR_CLASSES = "unclassified,residential,living_street,pedestrian,road,busway"
 #: public-space minima (paper 003 §3.2): city avenue 24 m, important street
 #: 18 m, local street 12 m, access street 8 m; paths 3 m.
 STREET_WIDTHS = {
-    "motorway": 24.0, "trunk": 24.0, "primary": 18.0, "secondary": 18.0, "tertiary": 15.0,
-    "unclassified": 12.0, "residential": 12.0, "road": 12.0, "busway": 12.0,
-    "living_street": 8.0, "pedestrian": 8.0, "service": 8.0, "track": 6.0,
+    "motorway": 24.0,
+    "trunk": 24.0,
+    "primary": 18.0,
+    "secondary": 18.0,
+    "tertiary": 15.0,
+    "unclassified": 12.0,
+    "residential": 12.0,
+    "road": 12.0,
+    "busway": 12.0,
+    "living_street": 8.0,
+    "pedestrian": 8.0,
+    "service": 8.0,
+    "track": 6.0,
 }
 _DEFAULT_WIDTH = 3.0  # footway, path, cycleway, steps ...
-
 
 
 def _classes(text: str) -> frozenset[str]:
@@ -147,8 +155,9 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
     uidx = np.empty(len(ukeys), np.int64)  # the first entry of each node
     uidx[vnode[::-1]] = np.arange(len(vnode) - 1, -1, -1)
     # the frame from all points; each node (junctions are shared) projected once
-    nodes, crs, origin = project_extract(fixed[pieces.vertex[uidx]] / 1e7,
-                                         bounds=(fixed.min(axis=0) / 1e7, fixed.max(axis=0) / 1e7))
+    nodes, crs, origin = project_extract(
+        fixed[pieces.vertex[uidx]] / 1e7, bounds=(fixed.min(axis=0) / 1e7, fixed.max(axis=0) / 1e7)
+    )
     geoms = lines_from_groups(nodes[vnode], pieces.piece)
     row = pieces.line
     names = np.array(list(ext.codes), dtype=object)
@@ -175,7 +184,9 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
     n = len(geoms)
     # the Layer directly: from_geoms would copy the 80k-element geometry array through a list
     return Layer(
-        geoms, np.arange(n, dtype=np.int64), np.full(n, -1, np.int64),
+        geoms,
+        np.arange(n, dtype=np.int64),
+        np.full(n, -1, np.int64),
         {
             "class": names[c],
             "major": is_major[c],
@@ -193,8 +204,7 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
     )
 
 
-def polygons_layer(ext: OsmExtract, kind: str, meta: dict, *, floor_height: float,
-                   default_height: float) -> Layer:
+def polygons_layer(ext: OsmExtract, kind: str, meta: dict, *, floor_height: float, default_height: float) -> Layer:
     """Water, parks or buildings of an extract, projected into the streets' frame."""
     hexes, attrs = ext.polygons[kind]
     if not hexes or "crs" not in meta:
@@ -212,8 +222,18 @@ def polygons_layer(ext: OsmExtract, kind: str, meta: dict, *, floor_height: floa
     source = np.where(np.isfinite(height), "height", np.where(levels > 0, "levels", "default"))
     height = np.where(np.isfinite(height), height, np.where(levels > 0, levels * floor_height, default_height))
     floors = np.where(levels > 0, levels, np.maximum(1, np.round(height / floor_height))).astype(np.int64)
-    return Layer.from_geoms(geoms, meta=meta, height=height, floors=floors, roof="flat", lot=-1, district=-1,
-                            osm_id=osm_id, name=names, height_source=source.astype(object))
+    return Layer.from_geoms(
+        geoms,
+        meta=meta,
+        height=height,
+        floors=floors,
+        roof="flat",
+        lot=-1,
+        district=-1,
+        osm_id=osm_id,
+        name=names,
+        height_source=source.astype(object),
+    )
 
 
 @register
@@ -237,11 +257,19 @@ class OsmRead(SENode):
     params = {
         "path": Param("path", "", doc="OSM file; empty: the plan's <map kind='osm'> src"),
         "major": Param("str", MAJOR_CLASSES, doc="comma list of highway values counted as major roads"),
-        "minor": Param("str", MINOR_CLASSES, doc="comma list of highway values kept as minor roads; '*' all others; the rest is ignored"),
-        "extras": Param("str", "water,parks,buildings", doc="comma list of extra layers to read: water, parks, buildings"),
+        "minor": Param(
+            "str",
+            MINOR_CLASSES,
+            doc="comma list of highway values kept as minor roads; '*' all others; the rest is ignored",
+        ),
+        "extras": Param(
+            "str", "water,parks,buildings", doc="comma list of extra layers to read: water, parks, buildings"
+        ),
         "node_ids": Param("bool", False, doc="keep the OSM id of every junction in meta['node_ids'] (slower)"),
         "floor_height": Param("float", 3.2, min=2.0, max=10.0, unit="m", doc="storey height for building:levels"),
-        "default_height": Param("float", 10.0, min=0.0, max=500.0, unit="m", doc="height of buildings with no height tag"),
+        "default_height": Param(
+            "float", 10.0, min=0.0, max=500.0, unit="m", doc="height of buildings with no height tag"
+        ),
     }
 
     def _path(self) -> Path:
@@ -253,8 +281,9 @@ class OsmRead(SENode):
         plan = self.context.plan
         spec = getattr(plan, "maps", {}).get("osm") if plan is not None else None
         if spec is None:
-            raise InputDataError("no OSM file: set the 'path' parameter or add <map kind=\"osm\" src=\"...\"/>",
-                                 where=self.where)
+            raise InputDataError(
+                'no OSM file: set the \'path\' parameter or add <map kind="osm" src="..."/>', where=self.where
+            )
         return Path(spec.src)
 
     def run(self) -> dict[str, Layer]:
@@ -267,8 +296,10 @@ class OsmRead(SENode):
         if bad:
             from sengine.errors import ParameterError
 
-            raise ParameterError(f"extras={self.p.extras!r}: unknown layer {sorted(bad)[0]!r} "
-                                 "(expected water, parks, buildings)", where=self.where)
+            raise ParameterError(
+                f"extras={self.p.extras!r}: unknown layer {sorted(bad)[0]!r} (expected water, parks, buildings)",
+                where=self.where,
+            )
         keep = None if "*" in minor else major | minor
         ext = read_osm(path, classes=keep, extras=extras, node_ids=self.p.node_ids, where=where)
         try:
@@ -277,21 +308,36 @@ class OsmRead(SENode):
             raise InputDataError(f"OSM file {str(path)!r}: {exc.message}", where=where) from None
         meta = dict(roads.meta)
         if not len(roads):
-            log.warning("%s: OSM file %s holds no highway of the classes %s: the city is empty of streets, "
-                        "blocks and lots (%d buildings of the map)", self.where, path,
-                        ",".join(sorted(keep)) if keep else "*", len(ext.polygons["buildings"][0]))
+            log.warning(
+                "%s: OSM file %s holds no highway of the classes %s: the city is empty of streets, "
+                "blocks and lots (%d buildings of the map)",
+                self.where,
+                path,
+                ",".join(sorted(keep)) if keep else "*",
+                len(ext.polygons["buildings"][0]),
+            )
             lonlat = [shapely.get_coordinates(shapely.from_wkb(h)) for h in ext.polygons["buildings"][0][:1]]
             if lonlat:
                 _, crs, origin = project_extract(lonlat[0])
                 meta = {"crs": crs, "origin": origin, "source": "osm"}
             roads = roads.with_meta(**meta)
-        log.info("%s: %d highway ways -> %d street segments (%s)", path.name, len(ext.code), len(roads),
-                 meta.get("crs", "no CRS"))
+        log.info(
+            "%s: %d highway ways -> %d street segments (%s)",
+            path.name,
+            len(ext.code),
+            len(roads),
+            meta.get("crs", "no CRS"),
+        )
         small = {k: v for k, v in meta.items() if k not in ("nodes", "node_keys", "node_ids")}
         out = {"roads": roads}
         for kind in ("water", "parks", "buildings"):
-            out[kind] = polygons_layer(ext, kind, small, floor_height=self.p.floor_height,
-                                       default_height=self.p.default_height)
-        self.report = {"ways": len(ext.code), "segments": len(roads), "clipped_ways": ext.clipped,
-                       **{kind: len(out[kind]) for kind in ("water", "parks", "buildings")}}
+            out[kind] = polygons_layer(
+                ext, kind, small, floor_height=self.p.floor_height, default_height=self.p.default_height
+            )
+        self.report = {
+            "ways": len(ext.code),
+            "segments": len(roads),
+            "clipped_ways": ext.clipped,
+            **{kind: len(out[kind]) for kind in ("water", "parks", "buildings")},
+        }
         return out

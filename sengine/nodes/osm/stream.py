@@ -120,8 +120,15 @@ class _Ways:
     polygons: dict  # the areas of the pass (see OsmExtract.polygons), empty without extras
 
 
-def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras: frozenset[str] = frozenset(),
-             node_ids: bool = False, where: str | None = None, workers: int | None = None) -> OsmExtract:
+def read_osm(
+    path: str | Path,
+    *,
+    classes: frozenset[str] | None = None,
+    extras: frozenset[str] = frozenset(),
+    node_ids: bool = False,
+    where: str | None = None,
+    workers: int | None = None,
+) -> OsmExtract:
     """Stream an OSM file and collect its highway ways (and optional areas).
 
     Parameters
@@ -166,8 +173,13 @@ def read_osm(path: str | Path, *, classes: frozenset[str] | None = None, extras:
         import osmium  # noqa: F401 (before the fork: a child must not wait on an import lock another thread held)
 
         split_off = frozenset({SPLIT_CLASS})
-        parts = run_jobs([partial(_read_pass, path, classes - split_off, extras=extras, node_ids=node_ids, where=where),
-                          partial(_read_pass, path, split_off, extras=frozenset(), node_ids=node_ids, where=where)], 2)
+        parts = run_jobs(
+            [
+                partial(_read_pass, path, classes - split_off, extras=extras, node_ids=node_ids, where=where),
+                partial(_read_pass, path, split_off, extras=frozenset(), node_ids=node_ids, where=where),
+            ],
+            2,
+        )
     else:
         parts = [_read_pass(path, classes, extras=extras, node_ids=node_ids, where=where)]
     for kind, (geoms, attrs) in parts[0].polygons.items():
@@ -219,8 +231,16 @@ def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: b
         append_id(w.id)
         append_code(code)
         if len(tags) > 1:  # most Liège-like street tables carry highway only
-            append_more((len(code_l) - 1, tags.get("name"), tags.get("layer"), tags.get("bridge"),
-                         tags.get("tunnel") or tags.get("covered"), tags.get("oneway")))
+            append_more(
+                (
+                    len(code_l) - 1,
+                    tags.get("name"),
+                    tags.get("layer"),
+                    tags.get("bridge"),
+                    tags.get("tunnel") or tags.get("covered"),
+                    tags.get("oneway"),
+                )
+            )
         if node_ids:
             refs.append(kept if kept is not None else [n.ref for n in w.nodes])
 
@@ -242,10 +262,17 @@ def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: b
         msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise InputDataError(f"cannot read OSM file {str(path)!r}: {msg}", where=where) from None
     lonlat, line = decode_lines(hex_wkb)
-    return _Ways(np.rint(lonlat * 1e7).astype(np.int32), np.bincount(line, minlength=len(code_l)),
-                 np.asarray(way_id, np.int64), np.asarray(code_l, np.int64), list(codes), more,
-                 np.fromiter((r for way in refs for r in way), np.int64) if node_ids else None, clipped[0],
-                 polygons)
+    return _Ways(
+        np.rint(lonlat * 1e7).astype(np.int32),
+        np.bincount(line, minlength=len(code_l)),
+        np.asarray(way_id, np.int64),
+        np.asarray(code_l, np.int64),
+        list(codes),
+        more,
+        np.fromiter((r for way in refs for r in way), np.int64) if node_ids else None,
+        clipped[0],
+        polygons,
+    )
 
 
 def _area_callback(wkb, extras: frozenset[str], polygons: dict):
@@ -269,11 +296,14 @@ def _area_callback(wkb, extras: frozenset[str], polygons: dict):
             return  # broken or clipped ring: skipped like osmium-tool does
         geoms, attrs = polygons[kind]
         geoms.append(geom)
-        attrs.append({
-            "osm_id": a.orig_id(), "name": tags.get("name", ""),
-            "height": parse_height(tags.get("height")),
-            "levels": int_tag(tags.get("building:levels")),
-        })
+        attrs.append(
+            {
+                "osm_id": a.orig_id(),
+                "name": tags.get("name", ""),
+                "height": parse_height(tags.get("height")),
+                "levels": int_tag(tags.get("building:levels")),
+            }
+        )
 
     return area
 
@@ -332,7 +362,9 @@ def _clipped_way(w, path, hex_wkb, where) -> list[int] | None:
         if loc.x != _UNDEFINED or loc.y != _UNDEFINED:  # present, but outside the valid range
             raise InputDataError(
                 f"OSM file {str(path)!r}: node {n.ref} has coordinates ({loc.x / 1e7}, {loc.y / 1e7}) "
-                "outside [-180, 180] x [-90, 90]", where=where)
+                "outside [-180, 180] x [-90, 90]",
+                where=where,
+            )
         runs.append(run)
         run = []
     runs.append(run)

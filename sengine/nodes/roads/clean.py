@@ -54,12 +54,23 @@ __all__ = ["crossing_points", "clean_streets", "RoadsClean"]
 log = logging.getLogger(__name__)
 
 #: Rank of highway classes when duplicates are merged: the first one wins.
-CLASS_RANK = ("motorway", "trunk", "primary", "secondary", "tertiary", "unclassified", "residential",
-              "living_street", "pedestrian", "service")
+CLASS_RANK = (
+    "motorway",
+    "trunk",
+    "primary",
+    "secondary",
+    "tertiary",
+    "unclassified",
+    "residential",
+    "living_street",
+    "pedestrian",
+    "service",
+)
 
 
-def crossing_points(xy: np.ndarray, line: np.ndarray, level: np.ndarray, key: np.ndarray | None = None,
-                    segs: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+def crossing_points(
+    xy: np.ndarray, line: np.ndarray, level: np.ndarray, key: np.ndarray | None = None, segs: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Where segments of lines on the same level meet without a shared node.
 
     Proper crossings get a new node shared by both segments; a segment end
@@ -137,9 +148,15 @@ def crossing_points(xy: np.ndarray, line: np.ndarray, level: np.ndarray, key: np
     return at, np.r_[t[in_i], u[in_j]], np.r_[pt[in_i], pt[in_j]], np.r_[node[in_i], node[in_j]], ncross
 
 
-def clean_streets(geoms: np.ndarray, *, ends: tuple[np.ndarray, np.ndarray] | None = None,
-                  level: np.ndarray | None = None, rank: np.ndarray | None = None,
-                  dup_tol: float = 0.5, dead_ends: bool = True) -> tuple[Pieces, np.ndarray, np.ndarray, dict]:
+def clean_streets(
+    geoms: np.ndarray,
+    *,
+    ends: tuple[np.ndarray, np.ndarray] | None = None,
+    level: np.ndarray | None = None,
+    rank: np.ndarray | None = None,
+    dup_tol: float = 0.5,
+    dead_ends: bool = True,
+) -> tuple[Pieces, np.ndarray, np.ndarray, dict]:
     """Node same-level crossings, split at junctions, merge duplicates, drop dead ends.
 
     Parameters
@@ -288,8 +305,9 @@ def _sort_by(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
     return argsort_int(packed)
 
 
-def _duplicates(pieces: Pieces, xy: np.ndarray, key: np.ndarray, rank: np.ndarray,
-                dup_tol: float) -> tuple[np.ndarray, int]:
+def _duplicates(
+    pieces: Pieces, xy: np.ndarray, key: np.ndarray, rank: np.ndarray, dup_tol: float
+) -> tuple[np.ndarray, int]:
     """Keep-mask of pieces: of pieces joining the same two nodes within ``dup_tol`` (Hausdorff, m), the lowest rank."""
     keep = np.ones(len(pieces), bool)
     if not len(pieces):
@@ -334,13 +352,24 @@ class RoadsClean(SENode):
         "slivers": Port("polygons", "medians and traffic islands: street surface, not blocks"),
     }
     params = {
-        "tunnels": Param("str", "drop", choices=("drop", "keep"),
-                         doc="tunnels pass under blocks: drop them, or keep them as block edges"),
-        "dup_tol": Param("float", 0.5, min=0.0, max=50.0, unit="m",
-                         doc="segments between the same junctions closer than this are duplicates"),
+        "tunnels": Param(
+            "str",
+            "drop",
+            choices=("drop", "keep"),
+            doc="tunnels pass under blocks: drop them, or keep them as block edges",
+        ),
+        "dup_tol": Param(
+            "float",
+            0.5,
+            min=0.0,
+            max=50.0,
+            unit="m",
+            doc="segments between the same junctions closer than this are duplicates",
+        ),
         "dead_ends": Param("bool", True, doc="drop dead ends iteratively"),
-        "sliver_width": Param("float", 8.0, min=0.0, max=100.0, unit="m",
-                              doc="faces thinner than this (2 area / perimeter) are medians"),
+        "sliver_width": Param(
+            "float", 8.0, min=0.0, max=100.0, unit="m", doc="faces thinner than this (2 area / perimeter) are medians"
+        ),
         "island_area": Param("float", 150.0, min=0.0, unit="m2", doc="faces smaller than this are traffic islands"),
         "find_slivers": Param("bool", True, doc="trace faces to find medians and islands"),
     }
@@ -360,21 +389,21 @@ class RoadsClean(SENode):
             if col in lay:
                 struct |= lay[col].astype(bool)
         # a bridge or tunnel meets other ways only at shared nodes: give each its own level
-        level = np.where(struct, -(10 ** 9) - np.arange(n), level)
+        level = np.where(struct, -(10**9) - np.arange(n), level)
         cls = lay.get("class")
         rank = np.zeros(n, np.int64)
         if cls is not None and n:
             lut = {c: i for i, c in enumerate(CLASS_RANK)}
             # a handful of distinct class objects (importers share them): rank each object once
-            obj, first, inv = np.unique(np.fromiter(map(id, cls), np.int64, n), return_index=True,
-                                        return_inverse=True)
+            obj, first, inv = np.unique(np.fromiter(map(id, cls), np.int64, n), return_index=True, return_inverse=True)
             ranks = [lut.get(str(cls[i]).removesuffix("_link"), len(CLASS_RANK)) for i in first.tolist()]
             rank = np.asarray(ranks, np.int64)[inv.ravel()]
         if "major" in lay:
             rank = rank - 100 * lay["major"].astype(np.int64)
         ends = (lay["u"], lay["v"]) if "u" in lay and "v" in lay else None
-        pieces, xy, key, counts = clean_streets(lay.geometry, ends=ends, level=level, rank=rank,
-                                                dup_tol=self.p.dup_tol, dead_ends=self.p.dead_ends)
+        pieces, xy, key, counts = clean_streets(
+            lay.geometry, ends=ends, level=level, rank=rank, dup_tol=self.p.dup_tol, dead_ends=self.p.dead_ends
+        )
         geoms = np.empty(len(pieces), dtype=object)
         whole = pieces.whole if pieces.whole is not None else np.zeros(len(pieces), bool)
         geoms[whole] = lay.geometry[pieces.line[whole]]  # untouched lines: the same (immutable) geometries
@@ -395,25 +424,44 @@ class RoadsClean(SENode):
             faces = find_blocks((graph["xy"], graph["u"], graph["v"]), node=False, decimals=None)
             graph["blocks"] = faces
         out = lay.take(pieces.line)
-        out = Layer(np.asarray(geoms, dtype=object), np.arange(len(pieces), dtype=np.int64), out.ids.copy(),
-                    {**out.attrs, "u": pu, "v": pv},
-                    {**meta, "planar": True, "nodes": nodes,
-                     # the plane straight-segment graph, valid for exactly these rows (see find_blocks):
-                     # segment k joins nodes u[k], v[k] (indices into graph xy) and lies on row[k];
-                     # its traced faces when found; xy numbered as find_blocks(lines, decimals) would
-                     "graph": graph})
+        out = Layer(
+            np.asarray(geoms, dtype=object),
+            np.arange(len(pieces), dtype=np.int64),
+            out.ids.copy(),
+            {**out.attrs, "u": pu, "v": pv},
+            {
+                **meta,
+                "planar": True,
+                "nodes": nodes,
+                # the plane straight-segment graph, valid for exactly these rows (see find_blocks):
+                # segment k joins nodes u[k], v[k] (indices into graph xy) and lies on row[k];
+                # its traced faces when found; xy numbered as find_blocks(lines, decimals) would
+                "graph": graph,
+            },
+        )
         counts["tunnels_dropped"] = int(n0 - n)
         slivers = Layer.empty(meta=meta, kind=object)
         counts["slivers_merged"] = counts["islands"] = counts["medians"] = 0
         if faces is not None:
-            polys, kind, nfaces = find_slivers(graph["xy"], graph["u"], graph["v"], sliver_width=self.p.sliver_width,
-                                               island_area=self.p.island_area, faces=faces)
+            polys, kind, nfaces = find_slivers(
+                graph["xy"],
+                graph["u"],
+                graph["v"],
+                sliver_width=self.p.sliver_width,
+                island_area=self.p.island_area,
+                faces=faces,
+            )
             slivers = Layer.from_geoms(polys, meta=meta, kind=kind)
             counts["faces"] = nfaces
             counts["islands"] = int((kind == "island").sum())
             counts["medians"] = int((kind == "median").sum())
             counts["slivers_merged"] = len(polys)
         self.report = counts
-        log.info("%s: %d roads -> %d street segments; %s", self.where, n0, len(out),
-                 ", ".join(f"{k} {v}" for k, v in counts.items()))
+        log.info(
+            "%s: %d roads -> %d street segments; %s",
+            self.where,
+            n0,
+            len(out),
+            ", ".join(f"{k} {v}" for k, v in counts.items()),
+        )
         return {"roads": out, "slivers": slivers}

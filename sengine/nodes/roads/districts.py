@@ -193,8 +193,12 @@ def parse_district(rule, index: int) -> DistrictStyle:
         where=rule.where,
         attrs=dict(rule.attrs),
     )
-    for key, val, lo in (("rings", style.rings, 0), ("spokes", style.spokes, 0), ("sites", style.sites, 1),
-                         ("relax", style.relax, 0)):
+    for key, val, lo in (
+        ("rings", style.rings, 0),
+        ("spokes", style.spokes, 0),
+        ("sites", style.sites, 1),
+        ("relax", style.relax, 0),
+    ):
         if val < lo:
             raise ConfigError(f"<district> {key}={val} is below the minimum {lo}", where=where)
     if style.weights < 0:
@@ -270,10 +274,16 @@ def city_regions(plan, styles: list[DistrictStyle], *, simplify: float = 1.0, gr
         img = read_map(spec, extent, colour=True)
         missing = [s for s in styles if s.colour is None]
         if missing:
-            raise ConfigError("<district> needs a color attribute when the plan has a district map",
-                              where=missing[0].where or None)
-        labels = classify(img, [s.colour for s in styles], tolerance=_tolerance(spec),
-                          names=[s.name for s in styles], what="district rules")
+            raise ConfigError(
+                "<district> needs a color attribute when the plan has a district map", where=missing[0].where or None
+            )
+        labels = classify(
+            img,
+            [s.colour for s in styles],
+            tolerance=_tolerance(spec),
+            names=[s.name for s in styles],
+            what="district rules",
+        )
         regions = vectorize(img, labels, simplify=simplify, grid_size=grid_size)
         districts = [regions.get(s.index, shapely.Polygon()) for s in styles]
     landuse: list[tuple[str, bool, shapely.Geometry]] = []
@@ -282,11 +292,17 @@ def city_regions(plan, styles: list[DistrictStyle], *, simplify: float = 1.0, gr
     if spec is not None:
         legend = landuse_classes(plan)
         if not legend:
-            raise ConfigError("the plan has a land-use map but no <landuse color=... class=...> rules",
-                              where=spec.where or None)
+            raise ConfigError(
+                "the plan has a land-use map but no <landuse color=... class=...> rules", where=spec.where or None
+            )
         img = read_map(spec, extent, colour=True)
-        labels = classify(img, [c for c, *_ in legend], tolerance=_tolerance(spec),
-                          names=[c for _, c, *_ in legend], what="land-use rules")
+        labels = classify(
+            img,
+            [c for c, *_ in legend],
+            tolerance=_tolerance(spec),
+            names=[c for _, c, *_ in legend],
+            what="land-use rules",
+        )
         regions = vectorize(img, labels, simplify=simplify, grid_size=grid_size)
         by_class: dict[str, list] = {}
         flags: dict[str, bool] = {}
@@ -308,8 +324,9 @@ def _tolerance(spec) -> float | None:
     try:
         return float(t)
     except ValueError:
-        raise InputDataError(f"map '{spec.src.name}': tolerance={t!r} is not a number",
-                             where=spec.where or None) from None
+        raise InputDataError(
+            f"map '{spec.src.name}': tolerance={t!r} is not a number", where=spec.where or None
+        ) from None
 
 
 def pattern_lines(style: DistrictStyle, district, region, rng: np.random.Generator) -> np.ndarray:
@@ -336,8 +353,15 @@ def pattern_lines(style: DistrictStyle, district, region, rng: np.random.Generat
         centre = style.center or tuple(shapely.centroid(district).coords[0])
         reach = shapely.hausdorff_distance(shapely.points(centre), shapely.boundary(district))
         reach = max(shapely.distance(shapely.points(centre), shapely.boundary(district)), reach)
-        return radial_lines(bounds, centre, rings=style.rings, ring_spacing=style.ring_spacing,
-                            spokes=style.spokes, angle=style.angle, max_radius=reach)
+        return radial_lines(
+            bounds,
+            centre,
+            rings=style.rings,
+            ring_spacing=style.ring_spacing,
+            spokes=style.spokes,
+            angle=style.angle,
+            max_radius=reach,
+        )
     seeds = organic_sites(region, style.sites, rng, relax=style.relax, weights=style.weights)
     return organic_lines(region, seeds)
 
@@ -398,13 +422,26 @@ def major_network(styles, districts, buildable, rngs, *, merge: float = 0.3, gri
     cells, region, merged = merge_small_cells(cells, region, min_area, min_width, grid_size=grid_size)
     cell_district = np.asarray(used, dtype=np.int64)[region] if len(cells) else np.empty(0, np.int64)
     edges = cell_edges(cells, grid_size=grid_size, noded=noded)
-    cls, dist, width = classify_edges(edges, cells, cell_district,
-                                      {s.index: s.major_width for s in styles})
+    cls, dist, width = classify_edges(edges, cells, cell_district, {s.index: s.major_width for s in styles})
     outline = shapely.union_all(regions, grid_size=grid_size)
-    log.info("major roads: %d districts, %d pattern lines, %d areas (%d slivers merged), %d road segments",
-             len(used), len(lines_arr), len(cells), merged, len(edges))
-    return {"cells": cells, "cell_district": cell_district, "edges": edges, "edge_class": cls,
-            "edge_district": dist, "edge_width": width, "outline": outline, "merged": merged}
+    log.info(
+        "major roads: %d districts, %d pattern lines, %d areas (%d slivers merged), %d road segments",
+        len(used),
+        len(lines_arr),
+        len(cells),
+        merged,
+        len(edges),
+    )
+    return {
+        "cells": cells,
+        "cell_district": cell_district,
+        "edges": edges,
+        "edge_class": cls,
+        "edge_district": dist,
+        "edge_width": width,
+        "outline": outline,
+        "merged": merged,
+    }
 
 
 def classify_edges(edges, cells, cell_district, widths: dict, *, offset: float = 0.05):
@@ -454,10 +491,17 @@ class RoadsDistricts(SENode):
         "landuse": Port("polygons", "non-buildable land-use regions (water ...), column kind"),
     }
     params = {
-        "merge": Param("float", 0.3, min=0.0, max=1.0, unit="1",
-                       doc="areas under this share of the district's typical area merge into a neighbour"),
-        "simplify": Param("float", 1.0, min=0.0, max=20.0, unit="px",
-                          doc="simplification of the map regions' pixel staircase"),
+        "merge": Param(
+            "float",
+            0.3,
+            min=0.0,
+            max=1.0,
+            unit="1",
+            doc="areas under this share of the district's typical area merge into a neighbour",
+        ),
+        "simplify": Param(
+            "float", 1.0, min=0.0, max=20.0, unit="px", doc="simplification of the map regions' pixel staircase"
+        ),
         "grid": Param("float", 0.001, min=1e-6, max=1.0, unit="m", doc="snap-rounding grid of the noding"),
     }
 
@@ -469,33 +513,48 @@ class RoadsDistricts(SENode):
             plan = CityPlan()
         styles = district_styles(plan)
         districts, landuse, buildable = city_regions(plan, styles, simplify=self.p.simplify, grid_size=self.p.grid)
-        net = major_network(styles, districts, buildable, lambda i: self.rng(i),
-                            merge=self.p.merge, grid_size=self.p.grid)
+        net = major_network(
+            styles, districts, buildable, lambda i: self.rng(i), merge=self.p.merge, grid_size=self.p.grid
+        )
         meta = plan_meta(plan)
         names = np.array([s.name for s in styles])
         pats = np.array([s.pattern for s in styles])
         cd = net["cell_district"]
-        areas = Layer.from_geoms(net["cells"], meta=meta, district=cd,
-                                 name=names[cd] if len(cd) else np.empty(0, "<U1"),
-                                 pattern=pats[cd] if len(cd) else np.empty(0, "<U1"),
-                                 area=shapely.area(net["cells"]))
-        roads = Layer.from_geoms(net["edges"], meta=meta, **{"class": net["edge_class"]},
-                                 major=np.ones(len(net["edges"]), bool), width=net["edge_width"],
-                                 district=net["edge_district"])
+        areas = Layer.from_geoms(
+            net["cells"],
+            meta=meta,
+            district=cd,
+            name=names[cd] if len(cd) else np.empty(0, "<U1"),
+            pattern=pats[cd] if len(cd) else np.empty(0, "<U1"),
+            area=shapely.area(net["cells"]),
+        )
+        roads = Layer.from_geoms(
+            net["edges"],
+            meta=meta,
+            **{"class": net["edge_class"]},
+            major=np.ones(len(net["edges"]), bool),
+            width=net["edge_width"],
+            district=net["edge_district"],
+        )
         outline = Layer.from_geoms([net["outline"]], meta=meta, kind="outline")
         park_geoms = [g for cls, _, g in landuse if cls == "park"]
         parks_parts = shapely.get_parts(np.array(park_geoms, dtype=object)) if park_geoms else np.empty(0, object)
-        parks = Layer.from_geoms(parks_parts, meta=meta, level=np.full(len(parks_parts), "district"),
-                                 district=_district_at(parks_parts, districts),
-                                 area=shapely.area(parks_parts) if len(parks_parts) else np.empty(0))
+        parks = Layer.from_geoms(
+            parks_parts,
+            meta=meta,
+            level=np.full(len(parks_parts), "district"),
+            district=_district_at(parks_parts, districts),
+            area=shapely.area(parks_parts) if len(parks_parts) else np.empty(0),
+        )
         cut = [(cls, g) for cls, ok, g in landuse if not ok and cls != "park"]
         lu_geoms, lu_kind = [], []
         for cls, g in cut:
             parts = shapely.get_parts(g)
             lu_geoms += list(parts)
             lu_kind += [cls] * len(parts)
-        lu = Layer.from_geoms(lu_geoms, meta=meta, kind=np.array(lu_kind, dtype=object).astype(str)
-                              if lu_kind else np.empty(0, "<U1"))
+        lu = Layer.from_geoms(
+            lu_geoms, meta=meta, kind=np.array(lu_kind, dtype=object).astype(str) if lu_kind else np.empty(0, "<U1")
+        )
         self.report = {
             "districts": int(sum(not g.is_empty for g in districts)),
             "areas": len(areas),

@@ -133,6 +133,13 @@ def take_pieces(pieces: Pieces, keep: np.ndarray) -> Pieces:
     renum = np.full(len(pieces), -1, np.int64)
     renum[kept] = np.arange(len(kept))
     sel = keep[pieces.piece]
-    return Pieces(pieces.vertex[sel], renum[pieces.piece[sel]], pieces.line[kept], pieces.first[kept],
-                  pieces.last[kept], None if pieces.whole is None else pieces.whole[kept],
-                  None if pieces.node is None else pieces.node[sel], pieces.node_key)
+    return Pieces(
+        pieces.vertex[sel],
+        renum[pieces.piece[sel]],
+        pieces.line[kept],
+        pieces.first[kept],
+        pieces.last[kept],
+        None if pieces.whole is None else pieces.whole[kept],
+        None if pieces.node is None else pieces.node[sel],
+        pieces.node_key,
+    )

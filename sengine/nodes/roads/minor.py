@@ -100,8 +100,9 @@ def minor_grid(areas, district, styles: list[DistrictStyle], rng_of) -> tuple[np
     return np.concatenate(lines), np.concatenate(owner), angles
 
 
-def minor_network(areas, district, major, major_attrs: dict, styles, rng_of, *, merge: float = 0.3,
-                  grid_size: float = 1e-3):
+def minor_network(
+    areas, district, major, major_attrs: dict, styles, rng_of, *, merge: float = 0.3, grid_size: float = 1e-3
+):
     """Cut each area with its minor grid and node everything into street segments.
 
     Parameters
@@ -153,7 +154,8 @@ def minor_network(areas, district, major, major_attrs: dict, styles, rng_of, *, 
     full = np.prod(np.where(spacing > 0, spacing, np.nan), axis=1) if len(spacing) else np.zeros(0)
     full = np.where(np.isfinite(full), full, pos**2)
     cells, cell_area, merged = merge_small_cells(
-        cells, cell_area, merge * full[cell_area], merge * pos[cell_area], grid_size=grid_size)
+        cells, cell_area, merge * full[cell_area], merge * pos[cell_area], grid_size=grid_size
+    )
     edges = cell_edges(cells, grid_size=grid_size, noded=noded)
     n = len(edges)
     source = np.full(n, -1, np.int64)
@@ -171,10 +173,24 @@ def minor_network(areas, district, major, major_attrs: dict, styles, rng_of, *, 
             edist[pi] = district[cell_area[ci]]
     if "district" in major_attrs and is_major.any():
         edist[is_major] = np.asarray(major_attrs["district"])[source[is_major]]
-    log.info("minor roads: %d grid lines, %d pieces, %d blocks (%d slivers merged), %d segments (%d minor)",
-             len(lines), len(pieces), len(cells), merged, n, int((~is_major).sum()))
-    return {"edges": edges, "major": is_major, "source": source, "district": edist, "cells": cells,
-            "cell_area": cell_area, "merged": merged}
+    log.info(
+        "minor roads: %d grid lines, %d pieces, %d blocks (%d slivers merged), %d segments (%d minor)",
+        len(lines),
+        len(pieces),
+        len(cells),
+        merged,
+        n,
+        int((~is_major).sum()),
+    )
+    return {
+        "edges": edges,
+        "major": is_major,
+        "source": source,
+        "district": edist,
+        "cells": cells,
+        "cell_area": cell_area,
+        "merged": merged,
+    }
 
 
 @register
@@ -197,24 +213,39 @@ class RoadsMinor(SENode):
         "areas": Port("areas", "the areas, passed through"),
     }
     params = {
-        "merge": Param("float", 0.3, min=0.0, max=1.0, unit="1",
-                       doc="blocks under this share of the grid cell (area, or width) merge into a neighbour"),
+        "merge": Param(
+            "float",
+            0.3,
+            min=0.0,
+            max=1.0,
+            unit="1",
+            doc="blocks under this share of the grid cell (area, or width) merge into a neighbour",
+        ),
         "grid": Param("float", 0.001, min=1e-6, max=1.0, unit="m", doc="snap-rounding grid of the noding"),
     }
 
     def run(self, *, areas: Layer, roads: Layer) -> dict[str, Layer]:
         plan = self.context.plan
         styles = district_styles(plan)
-        district = np.asarray(areas["district"], np.int64) if "district" in areas \
-            else np.zeros(len(areas), np.int64)
+        district = np.asarray(areas["district"], np.int64) if "district" in areas else np.zeros(len(areas), np.int64)
         ids = areas.ids
-        net = minor_network(areas.geometry, district, roads.geometry, dict(roads.attrs), styles,
-                            lambda i: self.rng(int(ids[i])), merge=self.p.merge, grid_size=self.p.grid)
+        net = minor_network(
+            areas.geometry,
+            district,
+            roads.geometry,
+            dict(roads.attrs),
+            styles,
+            lambda i: self.rng(int(ids[i])),
+            merge=self.p.merge,
+            grid_size=self.p.grid,
+        )
         n = len(net["edges"])
         src, is_major = net["source"], net["major"]
         cls = np.full(n, "minor", dtype=object)
-        width = np.array([styles[d].minor_width if 0 <= d < len(styles) else styles[0].minor_width
-                          for d in net["district"]], dtype=float)
+        width = np.array(
+            [styles[d].minor_width if 0 <= d < len(styles) else styles[0].minor_width for d in net["district"]],
+            dtype=float,
+        )
         if "class" in roads and is_major.any():
             cls[is_major] = np.asarray(roads["class"]).astype(str)[src[is_major]]
         elif is_major.any():
@@ -222,8 +253,14 @@ class RoadsMinor(SENode):
         if "width" in roads and is_major.any():
             width[is_major] = np.asarray(roads["width"], float)[src[is_major]]
         meta = dict(roads.meta or areas.meta)
-        out = Layer.from_geoms(net["edges"], meta=meta, **{"class": cls.astype(str) if n else np.empty(0, "<U5")},
-                               major=is_major, width=width, district=net["district"])
+        out = Layer.from_geoms(
+            net["edges"],
+            meta=meta,
+            **{"class": cls.astype(str) if n else np.empty(0, "<U5")},
+            major=is_major,
+            width=width,
+            district=net["district"],
+        )
         self.report = {
             "minor_segments": int((~is_major).sum()),
             "major_segments": int(is_major.sum()),

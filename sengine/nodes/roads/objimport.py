@@ -70,8 +70,9 @@ def load_obj(path: Path, *, where: str | None = None):
             try:
                 idx = np.array([int(p.split("/")[0]) for p in parts[1:]], np.int64)
             except ValueError:
-                raise InputDataError(f"OBJ file '{path}', line {lineno}: bad line element {raw.strip()!r}",
-                                     where=where) from None
+                raise InputDataError(
+                    f"OBJ file '{path}', line {lineno}: bad line element {raw.strip()!r}", where=where
+                ) from None
             idx = np.where(idx < 0, nverts + idx, idx - 1)
             if len(idx) >= 2:
                 lines.append(idx)
@@ -89,8 +90,9 @@ def load_obj(path: Path, *, where: str | None = None):
         raise InputDataError(f"OBJ file '{path}': read {len(vertices)} of {nverts} vertices", where=where)
     for idx in lines:
         if idx.min() < 0 or idx.max() >= nverts:
-            raise InputDataError(f"OBJ file '{path}': a line element refers to a vertex that does not exist",
-                                 where=where)
+            raise InputDataError(
+                f"OBJ file '{path}': a line element refers to a vertex that does not exist", where=where
+            )
     return vertices, faces, lines
 
 
@@ -109,8 +111,9 @@ def obj_lines(vertices: np.ndarray, lines: list[np.ndarray], *, up: str = "y", s
     return shapely.linestrings(xy[np.concatenate(lines)], indices=np.repeat(np.arange(len(lines)), sizes))
 
 
-def obj_polygons(vertices: np.ndarray, faces: np.ndarray, *, up: str = "y", scale: float = 1.0,
-                 min_area: float = 0.0) -> np.ndarray:
+def obj_polygons(
+    vertices: np.ndarray, faces: np.ndarray, *, up: str = "y", scale: float = 1.0, min_area: float = 0.0
+) -> np.ndarray:
     """One planar polygon per connected piece of a mesh (pieces share no vertex).
 
     The triangles of each piece are projected on the plan and merged
@@ -149,7 +152,7 @@ class _ObjNode(SENode):
         plan = self.context.plan
         spec = getattr(plan, "maps", {}).get("obj") if plan is not None else None
         if spec is None:
-            raise InputDataError("no OBJ file: set 'path' or add <map kind=\"obj\" src=\"...\"/>", where=self.where)
+            raise InputDataError('no OBJ file: set \'path\' or add <map kind="obj" src="..."/>', where=self.where)
         return Path(spec.src), spec.where or self.where
 
     def _meta(self) -> dict:
@@ -189,15 +192,23 @@ class ObjRoads(_ObjNode):
         if len(geoms):
             geoms = geoms[shapely.length(geoms) > 0]
         if not len(geoms):
-            raise InputDataError(f"OBJ file '{path}' has no line elements (l): obj.roads reads street centre lines",
-                                 where=where)
+            raise InputDataError(
+                f"OBJ file '{path}' has no line elements (l): obj.roads reads street centre lines", where=where
+            )
         n = len(geoms)
         self.report = {"lines": n}
         log.info("%s: %s: %d street lines", self.where, path.name, n)
-        return {"roads": Layer.from_geoms(
-            geoms, meta=self._meta(),
-            **{"class": np.full(n, self.p.road_class, dtype=object), "major": self.p.road_class == "major",
-               "width": np.full(n, self.p.width)})}
+        return {
+            "roads": Layer.from_geoms(
+                geoms,
+                meta=self._meta(),
+                **{
+                    "class": np.full(n, self.p.road_class, dtype=object),
+                    "major": self.p.road_class == "major",
+                    "width": np.full(n, self.p.width),
+                },
+            )
+        }
 
 
 @register
@@ -224,13 +235,22 @@ class ObjLots(_ObjNode):
         vertices, faces, _ = load_obj(path, where=where)
         polys = obj_polygons(vertices, faces, up=self.p.up, scale=self.p.scale, min_area=self.p.min_area)
         if not len(polys):
-            raise InputDataError(f"OBJ file '{path}' has no faces (f) of at least {self.p.min_area:g} m2 "
-                                 "on the plan", where=where)
+            raise InputDataError(
+                f"OBJ file '{path}' has no faces (f) of at least {self.p.min_area:g} m2 on the plan", where=where
+            )
         n = len(polys)
         meta = self._meta()
         # the file says nothing about streets: frontage unknown (NaN)
-        lots = Layer.from_geoms(polys, meta=meta, block=-1, district=-1, corner=False,
-                                frontage=np.full(n, np.nan), street_edges=0, method="obj")
+        lots = Layer.from_geoms(
+            polys,
+            meta=meta,
+            block=-1,
+            district=-1,
+            corner=False,
+            frontage=np.full(n, np.nan),
+            street_edges=0,
+            method="obj",
+        )
         blocks = Layer.from_geoms(polys, meta=meta, district=-1)
         self.report = {"polygons": n}
         log.info("%s: %s: %d polygons", self.where, path.name, n)

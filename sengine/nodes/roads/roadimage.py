@@ -125,8 +125,9 @@ def trace_polylines(n: int, u: np.ndarray, v: np.ndarray) -> list[np.ndarray]:
     return lines
 
 
-def image_roads(mask: np.ndarray, extent: tuple[float, float, float, float], *,
-                simplify: float, min_length: float) -> np.ndarray:
+def image_roads(
+    mask: np.ndarray, extent: tuple[float, float, float, float], *, simplify: float, min_length: float
+) -> np.ndarray:
     """Street centre lines (m) of a boolean road mask placed on ``extent``.
 
     Parameters
@@ -186,12 +187,13 @@ class RoadsImage(SENode):
     params = {
         "path": Param("path", "", doc="road-map image; empty: the plan's <map kind='roads'> src"),
         "color": Param("str", "#ffffff", doc="colour of the roads in the image"),
-        "tolerance": Param("float", 96.0, min=0.0, max=442.0, unit="1",
-                           doc="largest RGB distance from 'color' still counted as road"),
-        "simplify": Param("float", -1.0, min=-1.0, max=1000.0, unit="m",
-                          doc="simplification tolerance; -1: one pixel"),
-        "min_length": Param("float", -1.0, min=-1.0, unit="m",
-                            doc="drop dead-end spurs shorter than this; -1: three pixels"),
+        "tolerance": Param(
+            "float", 96.0, min=0.0, max=442.0, unit="1", doc="largest RGB distance from 'color' still counted as road"
+        ),
+        "simplify": Param("float", -1.0, min=-1.0, max=1000.0, unit="m", doc="simplification tolerance; -1: one pixel"),
+        "min_length": Param(
+            "float", -1.0, min=-1.0, unit="m", doc="drop dead-end spurs shorter than this; -1: three pixels"
+        ),
         "width": Param("float", 12.0, min=0.0, max=200.0, unit="m", doc="street width between block fronts"),
         "road_class": Param("str", "minor", choices=("major", "minor"), doc="class given to every street"),
     }
@@ -207,8 +209,9 @@ class RoadsImage(SENode):
         elif spec is not None:
             src, where = Path(spec.src), spec.where or self.where
         else:
-            raise InputDataError("no road-map image: set 'path' or add <map kind=\"roads\" src=\"...\"/>",
-                                 where=self.where)
+            raise InputDataError(
+                'no road-map image: set \'path\' or add <map kind="roads" src="..."/>', where=self.where
+            )
         attrs = dict(getattr(spec, "attrs", {}) or {}) if spec is not None and not self.p.path else {}
         colour = parse_colour(attrs.get("color", self.p.color), where=where)
         try:
@@ -223,16 +226,25 @@ class RoadsImage(SENode):
         min_length = 3 * px if self.p.min_length < 0 else self.p.min_length
         lines = image_roads(mask, image.extent, simplify=simplify, min_length=min_length)
         if len(lines) == 0:
-            raise InputDataError(f"road map '{src}' has no road pixels of colour {attrs.get('color', self.p.color)} "
-                                 f"(tolerance {tolerance:g})", where=where)
+            raise InputDataError(
+                f"road map '{src}' has no road pixels of colour {attrs.get('color', self.p.color)} "
+                f"(tolerance {tolerance:g})",
+                where=where,
+            )
         origin = tuple(plan.origin) if plan is not None else (0.0, 0.0)
         n = len(lines)
         self.report = {"road_pixels": int(mask.sum()), "segments": n}
         log.info("%s: %s: %d road pixels -> %d street lines", self.where, src.name, int(mask.sum()), n)
         roads = Layer.from_geoms(
-            lines, meta={"crs": local_crs(origin), "origin": origin, "source": "image"},
-            **{"class": np.full(n, self.p.road_class, dtype=object), "major": self.p.road_class == "major",
-               "width": np.full(n, self.p.width), "layer": np.zeros(n, np.int64),
-               "bridge": np.zeros(n, bool), "tunnel": np.zeros(n, bool)},
+            lines,
+            meta={"crs": local_crs(origin), "origin": origin, "source": "image"},
+            **{
+                "class": np.full(n, self.p.road_class, dtype=object),
+                "major": self.p.road_class == "major",
+                "width": np.full(n, self.p.width),
+                "layer": np.zeros(n, np.int64),
+                "bridge": np.zeros(n, bool),
+                "tunnel": np.zeros(n, bool),
+            },
         )
         return {"roads": roads}

@@ -52,8 +52,9 @@ def segment_graph(pieces: Pieces, xy: np.ndarray, key: np.ndarray):
     return nodes, inv[s], inv[s + 1], inv[starts], inv[ends], lab[s]
 
 
-def find_slivers(nodes: np.ndarray, u: np.ndarray, v: np.ndarray, *, sliver_width: float,
-                 island_area: float, faces=None) -> tuple[np.ndarray, np.ndarray, int]:
+def find_slivers(
+    nodes: np.ndarray, u: np.ndarray, v: np.ndarray, *, sliver_width: float, island_area: float, faces=None
+) -> tuple[np.ndarray, np.ndarray, int]:
     """Faces of the street graph that are street surface, not blocks.
 
     Parameters
