@@ -12,7 +12,6 @@ The engine knows nothing about what the kinds mean: ``"roads"`` or
 
 from __future__ import annotations
 
-import hashlib
 import inspect
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -23,16 +22,12 @@ import numpy as np
 
 from .errors import ParameterError
 from .layer import Layer
+from .random import generator
 
-__all__ = ["Param", "Port", "SENode", "Context", "stable_hash"]
+__all__ = ["Param", "Port", "SENode", "Context"]
 
 ANY = "any"
 _TYPES = {"float": float, "int": int, "str": str, "bool": bool, "path": str}
-
-
-def stable_hash(text: str) -> int:
-    """A 64-bit integer from a string, the same on every run and machine."""
-    return int.from_bytes(hashlib.blake2b(text.encode(), digest_size=8).digest(), "little")
 
 
 @dataclass(frozen=True)
@@ -255,9 +250,7 @@ class SENode:
         Called with a feature id it gives the per-feature generator, so a
         feature's draws do not depend on which other features share its batch.
         """
-        words = [int(self.context.seed) & 0xFFFFFFFFFFFFFFFF, stable_hash(self.id)]
-        words += [stable_hash(k) if isinstance(k, str) else int(k) & 0xFFFFFFFFFFFFFFFF for k in key]
-        return np.random.default_rng(np.random.SeedSequence(words))
+        return generator(self.context.seed, self.id, *key)
 
     # -- work ----------------------------------------------------------------
     def run(self, **inputs: Layer) -> dict[str, Layer]:  # pragma: no cover - abstract

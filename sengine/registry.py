@@ -25,7 +25,8 @@ from pathlib import Path
 from typing import TypeVar
 
 from .errors import RegistryError
-from .node import SENode, stable_hash
+from .node import SENode
+from .random import stable_hash
 
 __all__ = [
     "REGISTRY",

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 import sengine.nodes.buildings.extrude as B
 from sengine import Context, Layer
 from sengine.plan import CityPlan
+from sengine.random import uniform
 from sengine.registry import get
 
 Extrude = get("buildings.extrude")
@@ -99,8 +100,8 @@ def test_seeded_and_independent_of_chunking(city):
     assert not np.array_equal(run(lots, plan, node_id="towers")[0]["height"], a["height"])
 
 
-def test_feature_uniform_is_uniform():
-    u = B.feature_uniform(3, "n", np.arange(200_000))
+def test_uniform_is_uniform():
+    u = uniform(3, "n", np.arange(200_000))
     assert 0.0 <= u.min() and u.max() < 1.0
     hist = np.histogram(u, bins=10, range=(0, 1))[0]
     assert np.abs(hist / 20_000 - 1).max() < 0.03

@@ -24,46 +24,11 @@ import shapely
 
 from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import ConfigError
-from sengine.node import stable_hash
+from sengine.random import uniform
 
-__all__ = ["inset_footprints", "feature_uniform", "snap_floors", "sample_height_map", "BuildingsExtrude"]
+__all__ = ["inset_footprints", "snap_floors", "sample_height_map", "BuildingsExtrude"]
 
 log = logging.getLogger(__name__)
-
-_M64 = np.uint64(0xFFFFFFFFFFFFFFFF)
-
-
-def _splitmix64(x: np.ndarray) -> np.ndarray:
-    """SplitMix64 finaliser over a uint64 array (wrapping arithmetic)."""
-    x = np.asarray(x, dtype=np.uint64) + np.uint64(0x9E3779B97F4A7C15)
-    x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-    x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    return x ^ (x >> np.uint64(31))
-
-
-def feature_uniform(seed: int, key: str, ids: np.ndarray) -> np.ndarray:
-    """One uniform number in ``[0, 1)`` per feature id, independent of batching.
-
-    The number is a hash of ``(seed, key, id)`` (SplitMix64), so it depends on
-    the feature's own id only, never on which other features share its chunk
-    or their order: the same seed gives the same buildings however the
-    executor cuts the lots.  It is the vectorized counterpart of drawing one
-    number from ``SENode.rng(feature_id)``, at about 20 ns per feature.
-
-    Parameters
-    ----------
-    seed : int
-        The network seed.
-    key : str
-        Node id (and purpose) separating independent streams.
-    ids : array of int
-        Feature ids.
-    """
-    with np.errstate(over="ignore"):
-        k = _splitmix64(np.array([int(seed) & 0xFFFFFFFFFFFFFFFF], np.uint64))
-        k = _splitmix64(k ^ np.uint64(stable_hash(key)))
-        u = _splitmix64(k ^ _splitmix64(np.asarray(ids, np.int64).astype(np.uint64)))
-    return (u >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
 
 
 def inset_footprints(lots: np.ndarray, setback: float, *, min_area: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -233,7 +198,7 @@ class BuildingsExtrude(SENode):
             base, lo, hi = np.full(len(ids), p.height), None, None
         else:
             base, lo, hi = sampled
-        u = feature_uniform(self.context.seed, f"{self.id}/height", ids)
+        u = uniform(self.context.seed, f"{self.id}/height", ids)
         raw = base * (1.0 + p.variation * (2.0 * u - 1.0))
         if lo is not None:
             raw = np.clip(raw, lo, hi)

@@ -31,10 +31,11 @@ import shapely
 from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import ParameterError
 from sengine.geom.boundary import ring_segments, segments_on_boundary
+from sengine.random import mix64
 
 from .manhattan import manhattan_lots
 from .paris import paris_lots
-from .recursive import mix64, recursive_lots
+from .recursive import recursive_lots
 
 __all__ = [
     "lot_attributes",

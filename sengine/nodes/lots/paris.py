@@ -56,9 +56,9 @@ import shapely
 from sengine.geom.boundary import polygon_parts
 from sengine.geom.polygons import threaded
 from sengine.geom.split import RingSet, split
+from sengine.random import hash01
 
 from .contour import Contour, Marks, ramp
-from .recursive import hash01
 
 __all__ = ["paris_lots"]
 

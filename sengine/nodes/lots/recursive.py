@@ -21,23 +21,9 @@ import numpy as np
 
 from sengine.geom.boundary import polygon_parts
 from sengine.geom.split import RingSet, cut_lengths, split
+from sengine.random import hash01
 
-__all__ = ["recursive_lots", "mix64", "hash01"]
-
-
-def mix64(seed, key) -> np.ndarray:
-    """Well-mixed uint64 numbers from (seed, key) uint64 pairs (splitmix64)."""
-    with np.errstate(over="ignore"):
-        z = np.asarray(seed, np.uint64) ^ (np.asarray(key, np.uint64) * np.uint64(0x9E3779B97F4A7C15))
-        z = z + np.uint64(0x9E3779B97F4A7C15)
-        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-        return z ^ (z >> np.uint64(31))
-
-
-def hash01(seed, key) -> np.ndarray:
-    """Uniform [0, 1) numbers from (seed, key) uint64 pairs."""
-    return (mix64(seed, key) >> np.uint64(11)).astype(np.float64) / float(1 << 53)
+__all__ = ["recursive_lots"]
 
 
 def _longest(ln: np.ndarray, vp: np.ndarray, n: int) -> np.ndarray:
