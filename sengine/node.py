@@ -12,7 +12,10 @@ The engine knows nothing about what the kinds mean: ``"roads"`` or
 
 from __future__ import annotations
 
+import difflib
 import inspect
+import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
@@ -20,14 +23,16 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .errors import ParameterError
+from .errors import ParameterError, SEngineError
+from .geom.raster import parse_colour
 from .layer import Layer
 from .random import generator
 
 __all__ = ["Param", "Port", "SENode", "Context"]
 
 ANY = "any"
-_TYPES = {"float": float, "int": int, "str": str, "bool": bool, "path": str}
+_TYPES = {"float": float, "int": int, "str": str, "bool": bool, "path": str, "colour": str}
+_SPLIT = re.compile(r"[\s,]+")
 
 
 @dataclass(frozen=True)
@@ -58,9 +63,10 @@ class Param:
 
     Parameters
     ----------
-    type : {"float", "int", "str", "bool", "path"}
+    type : {"float", "int", "str", "bool", "path", "colour"}
         Python type of the value; ``path`` is a file path resolved against
-        the configuration file's folder.
+        the configuration file's folder; ``colour`` is ``#rrggbb``, ``#rgb``
+        or ``r g b`` (0-255), kept as written.
     default : object
         Value used when the configuration sets none; ``None`` means required.
     min, max : float, optional
@@ -71,6 +77,9 @@ class Param:
         ``m``, ``m2``, ``deg``, ``1`` ... (empty for none).
     doc : str
         One line for ``sengine nodes`` and error messages.
+    count : int
+        Numbers only: how many the value holds (``"800 260"`` is 2); the
+        value is then a tuple and the bounds hold for each number.
     """
 
     type: str
@@ -80,6 +89,7 @@ class Param:
     choices: tuple[str, ...] | None = None
     unit: str = ""
     doc: str = ""
+    count: int = 1
 
     def __post_init__(self):
         if self.type not in _TYPES:
@@ -87,6 +97,15 @@ class Param:
 
     def coerce(self, value: Any, where: str, name: str) -> Any:
         """Return ``value`` converted to the declared type, or raise ParameterError."""
+        if self.count > 1 and self.type in ("float", "int"):
+            parts = _SPLIT.split(value.strip()) if isinstance(value, str) else list(value)
+            parts = [p for p in parts if p != ""]
+            if len(parts) != self.count:
+                raise ParameterError(f"{name}={value!r} must be {self.count} numbers", where=where)
+            return tuple(self._coerce_one(v, where, name) for v in parts)
+        return self._coerce_one(value, where, name)
+
+    def _coerce_one(self, value: Any, where: str, name: str) -> Any:
         unit = f" {self.unit}" if self.unit and self.unit != "1" else ""
         try:
             if self.type == "bool" and isinstance(value, str):
@@ -98,19 +117,26 @@ class Param:
                 value = int(value.strip())
             elif self.type == "float" and isinstance(value, str):
                 value = float(value.strip())
+            elif self.type == "colour":
+                parse_colour(value, where=where)
+                value = str(value)
             else:
                 value = _TYPES[self.type](value)
         except (TypeError, ValueError):
             raise ParameterError(f"{name}={value!r} is not a valid {self.type}", where=where) from None
+        except SEngineError as exc:
+            raise ParameterError(f"{name}: {exc.message}", where=where) from None
         if self.type in ("float", "int"):
-            if value != value:
-                raise ParameterError(f"{name} is NaN", where=where)
+            if not math.isfinite(value):
+                raise ParameterError(f"{name}={value} is not a finite number", where=where)
             if self.min is not None and value < self.min:
                 raise ParameterError(f"{name}={value}{unit} is below the minimum {self.min}{unit}", where=where)
             if self.max is not None and value > self.max:
                 raise ParameterError(f"{name}={value}{unit} is above the maximum {self.max}{unit}", where=where)
         if self.choices is not None and value not in self.choices:
-            raise ParameterError(f"{name}={value!r} is not one of {', '.join(self.choices)}", where=where)
+            close = difflib.get_close_matches(str(value), self.choices, n=1, cutoff=0.6)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            raise ParameterError(f"{name}={value!r} is not one of {', '.join(self.choices)}{hint}", where=where)
         return value
 
     def describe(self, name: str) -> dict:
@@ -123,7 +149,15 @@ class Param:
             "choices": list(self.choices) if self.choices else None,
             "unit": self.unit,
             "doc": self.doc,
+            **({"count": self.count} if self.count > 1 else {}),
         }
+
+
+def unknown_name(what: str, name: str, known) -> str:
+    """``unknown parameter 'lot-aera'; did you mean 'lot-area'? (parameters: ...)``."""
+    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    return f"unknown {what} {name!r}{hint} ({what}s: {', '.join(known) or 'none'})"
 
 
 class Params(Mapping[str, Any]):
@@ -217,8 +251,7 @@ class SENode:
         """Check ``values`` against the declaration; fill in defaults."""
         unknown = sorted(set(values) - set(cls.params))
         if unknown:
-            known = ", ".join(cls.params) or "none"
-            raise ParameterError(f"unknown parameter {unknown[0]!r} (parameters: {known})", where=where)
+            raise ParameterError(unknown_name("parameter", unknown[0], cls.params), where=where)
         out = {}
         for name, decl in cls.params.items():
             if name in values:

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import TypeVar
 
 from .errors import RegistryError
-from .node import SENode
+from .node import Param, SENode
 from .random import stable_hash
 
 __all__ = [
@@ -47,6 +47,7 @@ NAME_RE = re.compile(r"^[a-z][a-z0-9_]*(\.[a-z][a-z0-9_]*)*$", re.IGNORECASE)
 
 REGISTRY: dict[str, type[SENode]] = {}
 NETWORKS: dict[str, type] = {}  # base name -> network class (``<network base="...">``)
+RULES: dict[str, dict[str, Param]] = {}  # plan element tag -> its declared attributes
 _loaded: dict[str, str] = {}  # plugin key -> module name
 _broken: dict[str, str] = {}
 _entry_points_loaded = False
@@ -231,3 +232,23 @@ def load_path(path: Path, *, module_name: str | None = None, where: str | None =
     _loaded[key] = module_name
     log.debug("loaded plugin %s as %s", path, module_name)
     return module_name
+
+
+def declare_rule(tag: str, params: dict[str, Param]) -> None:
+    """Declare attributes of a plan element (``<district>``, ``<landuse>`` ...).
+
+    Node modules declare the attributes they read, so that ``validate`` checks
+    every rule before anything runs and ``sengine nodes`` lists them. An
+    attribute declared twice must be declared the same way.
+    """
+    have = RULES.setdefault(tag, {})
+    for name, param in params.items():
+        if name in have and have[name] != param:
+            raise RegistryError(f"<{tag}> attribute {name!r} is declared twice, differently")
+        have[name] = param
+
+
+def rule_params(tag: str) -> dict[str, Param] | None:
+    """The declared attributes of ``<tag>``, or None when nothing declares the element."""
+    load_entry_points()
+    return RULES.get(tag)

@@ -19,8 +19,9 @@ from lxml import etree
 
 from .errors import ConfigError
 from .network import Network
+from .node import unknown_name
 from .plan import CityPlan, MapSpec, Rule
-from .registry import load_plugin, network_class
+from .registry import load_plugin, network_class, rule_params
 
 __all__ = ["load_config", "read_network_file", "SCHEMA_PATH"]
 
@@ -101,6 +102,17 @@ def _floats(text: str, n: int, what: str, where: str) -> tuple[float, ...]:
     return vals
 
 
+def check_rule(tag: str, attrs, where: str) -> None:
+    """Check a rule element's attributes against their declarations (see :func:`~sengine.registry.declare_rule`)."""
+    declared = rule_params(tag)
+    if declared is None:
+        return
+    for name, value in attrs.items():
+        if name not in declared:
+            raise ConfigError(f"<{tag}> " + unknown_name("attribute", name, declared), where=where)
+        declared[name].coerce(value, where, f"<{tag}> {name}")
+
+
 def _read_plan(city: etree._Element | None, label: str, base_dir: Path) -> tuple[CityPlan, int | None]:
     if city is None:
         return CityPlan(), None
@@ -129,6 +141,7 @@ def _read_plan(city: etree._Element | None, label: str, base_dir: Path) -> tuple
             extra = {k: v for k, v in el.attrib.items() if k not in ("kind", "src")}
             plan.maps[kind] = MapSpec(kind, (base_dir / el.get("src")).resolve(), extra, ew)
         else:
+            check_rule(el.tag, el.attrib, ew)
             plan.rules.append(Rule(el.tag, dict(el.attrib), ew))
     return plan, seed
 

@@ -32,6 +32,7 @@ from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import ParameterError
 from sengine.geom.boundary import ring_segments, segments_on_boundary
 from sengine.random import mix64
+from sengine.registry import declare_rule
 
 from .manhattan import manhattan_lots
 from .paris import paris_lots
@@ -509,3 +510,12 @@ class LotsDistrict(_Lots):
             flags.on,
             flags.known,
         )
+
+
+declare_rule(
+    "district",
+    {
+        "lots": Param("str", "manhattan", choices=_METHODS, doc="lot method for lots.district"),
+        **{attr: LotsDistrict.params[name] for attr, name in _RULE_ATTRS.items()},
+    },
+)
