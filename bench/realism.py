@@ -1,0 +1,159 @@
+"""Benchmark: how real the lots and buildings look, measured the way a planner would.
+
+For each case the whole network runs in memory (no files), then the final lots
+and generated buildings are measured:
+
+* lots: count, the share thinner than 1:10 (oriented box short side under a
+  tenth of its long side), of all lots and of street-facing ones (frontage > 0),
+  median area, frontage and depth (the oriented box's side more nearly
+  perpendicular to the lot's main frontage), the largest lot;
+* generated buildings (``source`` is not ``osm``): count, the share of each
+  building's perimeter that is a party wall (within 5 cm of another building's
+  outline), as a median and as the share of buildings that have one; the median
+  distance from a building to its block's edge (the street wall);
+* the ``planning`` node's city figures: FAR, coverage, GFA and residents.
+
+Real-world figures to compare with are in the README's realism section.
+
+Usage::
+
+    python bench/realism.py [--cases manhattan,helsinki,monaco,liege] [--out bench/results/realism.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import shapely
+from _results import RESULTS, write  # bench/ is on sys.path when run as a script
+
+import sengine
+from sengine.geom.polygons import obb_frame
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT / "configs" / "data"
+LIEGE = ROOT.parent / "shared" / "data" / "liege_streets.osm.pbf"
+PARTY_TOL = 0.05  # m: an outline this close to a neighbour's counts as a shared wall
+
+
+def _osm_network(path: Path, sets: list[str]):
+    """The network ``sengine osm FILE`` runs, with every lot built on (``buildings.keep=generated``)."""
+    import tempfile
+
+    from sengine.plan import MapSpec
+
+    with tempfile.TemporaryDirectory() as tmp:
+        config = Path(tmp) / "osm.xml"
+        config.write_text(f'<sengine version="1"><city name="{path.stem}"/><network base="loadmap"/></sengine>')
+        net = sengine.load(config, sets=["buildings.keep=generated", *sets])
+    net.plan.maps["osm"] = MapSpec("osm", path.resolve(), {}, where="bench")
+    return net
+
+
+CASES = {
+    "manhattan": lambda sets: sengine.load(ROOT / "configs" / "manhattan.xml", sets=sets),
+    "helsinki": lambda sets: _osm_network(DATA / "helsinki_centre.osm.pbf", sets),
+    "monaco": lambda sets: _osm_network(DATA / "monaco.osm.pbf", sets),
+    "liege": lambda sets: _osm_network(LIEGE, sets),
+}
+
+
+def lot_figures(lots) -> dict:
+    """Shape figures of a lots layer (see the module docstring)."""
+    geoms = lots.geometry
+    center, axis, length, width = obb_frame(geoms)
+    aspect = np.where(length > 0, width / np.maximum(length, 1e-12), 0.0)
+    thin = aspect < 0.1
+    frontage = np.asarray(lots["frontage"], float) if "frontage" in lots else np.zeros(len(lots))
+    street = frontage > 0
+    if "depth" in lots:
+        depth = np.asarray(lots["depth"], float)
+    else:
+        ang = np.radians(np.asarray(lots["front_angle"], float)) if "front_angle" in lots else np.zeros(len(lots))
+        front = np.c_[np.cos(ang), np.sin(ang)]
+        along = np.abs(np.einsum("ij,ij->i", front, axis))  # 1: the long side runs along the street
+        depth = np.where(along >= np.sqrt(0.5), width, length)
+    area = shapely.area(geoms)
+    sel = street & np.isfinite(depth)
+    return {
+        "lots": int(len(lots)),
+        "thin_share": round(float(thin.mean()), 4) if len(lots) else 0.0,
+        "thin_share_street_facing": round(float(thin[street].mean()), 4) if street.any() else 0.0,
+        "street_facing": int(street.sum()),
+        "median_area_m2": round(float(np.median(area)), 1) if len(lots) else 0.0,
+        "max_area_m2": round(float(area.max()), 1) if len(lots) else 0.0,
+        "median_frontage_m": round(float(np.median(frontage[street])), 2) if street.any() else 0.0,
+        "median_depth_m": round(float(np.median(depth[sel])), 2) if sel.any() else 0.0,
+        "below_1m2": int((area < 1.0).sum()),
+    }
+
+
+def building_figures(buildings, blocks) -> dict:
+    """Party walls and street walls of the generated buildings."""
+    gen = np.ones(len(buildings), bool)
+    if "source" in buildings:
+        gen = np.asarray(buildings["source"]).astype(str) != "osm"
+    geoms = buildings.geometry[gen]
+    n = len(geoms)
+    if n == 0:
+        return {"buildings": 0}
+    tree = shapely.STRtree(geoms)
+    a, b = tree.query(geoms, predicate="dwithin", distance=PARTY_TOL)
+    keep = a != b
+    a, b = a[keep], b[keep]
+    shared = shapely.length(shapely.intersection(shapely.boundary(geoms[a]), shapely.buffer(geoms[b], PARTY_TOL)))
+    perimeter = shapely.length(geoms)
+    party = np.minimum(np.bincount(a, weights=shared, minlength=n) / np.maximum(perimeter, 1e-12), 1.0)
+    out = {
+        "buildings": int(n),
+        "party_wall_share_median": round(float(np.median(party)), 4),
+        "with_party_wall": round(float((party > 0.01).mean()), 4),
+    }
+    if blocks is not None and len(blocks):
+        btree = shapely.STRtree(blocks.geometry)
+        nearest = btree.query_nearest(geoms, return_distance=False)
+        ai, bi = nearest
+        d = np.full(n, np.nan)
+        d[ai] = shapely.distance(geoms[ai], shapely.boundary(blocks.geometry[bi]))
+        out["median_distance_to_block_edge_m"] = round(float(np.nanmedian(d)), 2)
+        out["on_block_edge_share"] = round(float((d < 0.05).mean()), 4)
+    return out
+
+
+def measure(case: str, sets: list[str]) -> dict:
+    net = CASES[case](sets)
+    t = time.perf_counter()
+    layers, stats = net.run(workers=1)
+    seconds = time.perf_counter() - t
+    lots = layers["planning"]["lots"] if "planning" in layers else layers["lots"]["lots"]
+    buildings = layers["buildings"]["buildings"]
+    blocks = next((layers[k]["blocks"] for k in ("landuse", "blocks") if k in layers), None)
+    city = (stats.get("report", {}).get("planning") or {}).get("city", {})
+    return {
+        "seconds": round(seconds, 3),
+        "lots": lot_figures(lots),
+        "buildings": building_figures(buildings, blocks),
+        "planning": city,
+    }
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--cases", default="manhattan,helsinki,monaco")
+    ap.add_argument("--set", dest="sets", action="append", default=[], help="NODE.PARAM=VALUE for every case")
+    ap.add_argument("--out", type=Path, default=RESULTS / "realism.json")
+    args = ap.parse_args(argv)
+    figures = {}
+    for case in args.cases.split(","):
+        figures[case] = measure(case, args.sets)
+        print(case, figures[case], file=sys.stderr)
+    write(args.out, "realism", {"sets": args.sets, "cases": figures})
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
