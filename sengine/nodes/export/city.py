@@ -119,10 +119,19 @@ def city_origin(layers: dict[str, Layer], plan, crs: str) -> tuple[np.ndarray, t
     """The city's origin: planar ``(x, y)`` in ``crs`` rounded to the metre, and its ``(lat, lon)``.
 
     A layer's ``meta["origin"]`` (an OSM city's centre) wins over the plan's
-    origin (a synthetic city's planar ``(0, 0)``).
+    origin (a synthetic city's planar ``(0, 0)``); with neither, the centre
+    of the layers' bounds.
     """
+    import shapely
+
     origin = next((lay.meta["origin"] for lay in layers.values() if lay.meta.get("origin") is not None), None)
-    lat, lon = (float(v) for v in (origin if origin is not None else (plan or CityPlan()).origin))
+    if origin is None and plan is None:
+        b = [shapely.total_bounds(lay.geometry) for lay in layers.values() if len(lay)]
+        b = np.array([v for v in b if np.isfinite(v).all()] or [[0.0, 0.0, 0.0, 0.0]])
+        xy = np.round([(b[:, 0].min() + b[:, 2].max()) / 2, (b[:, 1].min() + b[:, 3].max()) / 2])
+        lon, lat = to_lonlat(crs)(xy[None])[0]
+        return xy, (float(lat), float(lon))
+    lat, lon = (float(v) for v in (origin if origin is not None else plan.origin))
     xy = from_lonlat(crs)(np.array([[lon, lat]]))[0]
     return np.round(xy), (lat, lon)
 
