@@ -23,11 +23,14 @@ that a GIS user finds in each file:
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from sengine.geom.cleanup import GRID, clean_geometries
+import shapely
+
+from sengine.geom.cleanup import GRID, clean_geometries, snap_to_type
+from sengine.geom.crs import layer_crs, to_lonlat
 from sengine.layer import Layer
 
 __all__ = ["DECIMALS", "REFERENCE_COLUMNS", "prepare_layer", "prepare_layers", "district_names", "built_landuse"]
@@ -68,6 +71,31 @@ def _nullable(col: np.ndarray, missing: np.ndarray) -> np.ndarray:
     return out
 
 
+#: Lines shorter, and polygons thinner (area / perimeter), than this (m) are also tried on the
+#: WGS84 grid of the GeoJSON output (1e-7 deg, about a centimetre): those it folds to nothing are dropped.
+PROBE_SIZE = 0.05
+
+
+def _collapse_in_wgs84(geoms: np.ndarray, to_ll: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """Which features the 1e-7 degree grid of WGS84 outputs would fold to nothing (only small ones are tried)."""
+    out = np.zeros(len(geoms), bool)
+    if len(geoms) == 0:
+        return out
+    dim = int(shapely.get_dimensions(geoms[0]))
+    if dim == 1:
+        small = shapely.length(geoms) < PROBE_SIZE
+    elif dim == 2:
+        small = shapely.area(geoms) < PROBE_SIZE * shapely.length(geoms)
+    else:
+        return out
+    if small.any():
+        type_id = int(shapely.get_type_id(geoms[0]))
+        ll = shapely.transform(geoms[small], to_ll)
+        _, collapsed = snap_to_type(ll, 1e-7, type_id)
+        out[np.flatnonzero(small)[collapsed]] = True
+    return out
+
+
 def prepare_layer(
     name: str,
     layer: Layer,
@@ -75,6 +103,7 @@ def prepare_layer(
     districts: list[str] | None = None,
     landuse: str | None = None,
     grid: float = GRID,
+    to_ll: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> tuple[Layer, dict]:
     """One layer cleaned for writing; returns the layer and its counts (see :func:`clean_geometries`).
 
@@ -90,8 +119,19 @@ def prepare_layer(
         Land-use class of every feature without one.
     grid : float
         Coordinate grid (m).
+    to_ll : callable, optional
+        Planar -> WGS84 lon / lat: small features that the WGS84 outputs'
+        grid would fold to nothing are dropped here (``dropped_degenerate``),
+        so that every format writes the same features.
     """
     geoms, keep, counts = clean_geometries(layer.geometry, grid)
+    if to_ll is not None:
+        gone = _collapse_in_wgs84(geoms, to_ll)
+        if gone.any():
+            kept = np.flatnonzero(keep)
+            keep[kept[gone]] = False
+            geoms = geoms[~gone]
+            counts["dropped_degenerate"] += int(gone.sum())
     lay = layer if keep.all() else layer.take(keep)
     cols: dict[str, np.ndarray] = {}
     null_negative = []
@@ -129,10 +169,12 @@ def prepare_layers(layers: Mapping[str, Layer], plan=None, *, grid: float = GRID
     """Every layer through :func:`prepare_layer`; returns the layers and ``{layer: counts}`` of the non-zero counts."""
     districts = district_names(plan)
     landuse = built_landuse(plan)
+    origin = getattr(plan, "origin", None) or (41.9794, 2.8214)
     out: dict[str, Layer] = {}
     report: dict[str, dict] = {}
     for name, lay in layers.items():
-        out[name], counts = prepare_layer(name, lay, districts=districts, landuse=landuse, grid=grid)
+        to_ll = to_lonlat(layer_crs(lay.meta, origin))
+        out[name], counts = prepare_layer(name, lay, districts=districts, landuse=landuse, grid=grid, to_ll=to_ll)
         counts = {k: v for k, v in counts.items() if v}
         if counts:
             report[name] = counts
