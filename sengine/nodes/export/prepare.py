@@ -26,7 +26,6 @@ import logging
 from collections.abc import Callable, Mapping
 
 import numpy as np
-
 import shapely
 
 from sengine.geom.cleanup import GRID, clean_geometries, snap_to_type
