@@ -226,7 +226,12 @@ def monaco(tmp_path_factory):
 def test_origin_local_puts_the_city_at_the_gltf_origin(monaco):
     local = trimesh.load(monaco / "local" / "city.glb").to_geometry()
     geo = trimesh.load(monaco / "geo" / "city.glb").to_geometry()
-    extras = _glb_json(monaco / "local" / "city.glb")["scenes"][0]["extras"]["sengine"]
+    doc = _glb_json(monaco / "local" / "city.glb")
+    extras = doc["scenes"][0]["extras"]["sengine"]
+    # materials named by layer, one per node; no node moved away from the origin
+    assert [m["name"] for m in doc["materials"]] == [n["name"] for n in doc["nodes"]]
+    assert {"roads", "buildings", "lots"} <= {m["name"] for m in doc["materials"]}
+    assert not any("translation" in n for n in doc["nodes"])
     ox, oy = extras["origin"]["planar"]
     assert ox > 1e5 and extras["crs"].startswith("EPSG:326")  # Monaco's UTM frame
     assert 43.6 < extras["origin"]["lat"] < 43.8 and 7.3 < extras["origin"]["lon"] < 7.5

@@ -70,7 +70,9 @@ def _parts_of_dimension(geoms: np.ndarray, dim: int) -> np.ndarray:
     return out
 
 
-def snap(geoms: np.ndarray, grid: float = GRID, dim: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+def snap(
+    geoms: np.ndarray, grid: float = GRID, dim: int | None = None, *, rounded: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
     """Round coordinates to ``grid`` and repair the features that this (or their input) made invalid.
 
     Parameters
@@ -82,6 +84,8 @@ def snap(geoms: np.ndarray, grid: float = GRID, dim: int | None = None) -> tuple
     dim : int, optional
         Dimension the features must keep (2 polygons, 1 lines); default
         :func:`dominant_dimension`.
+    rounded : bool
+        The coordinates are already on the grid: only repair.
 
     Returns
     -------
@@ -91,7 +95,7 @@ def snap(geoms: np.ndarray, grid: float = GRID, dim: int | None = None) -> tuple
     repaired : numpy.ndarray of bool
         The features that had to be repaired.
     """
-    out = round_coordinates(geoms, grid)
+    out = np.asarray(geoms, dtype=object).copy() if rounded else round_coordinates(geoms, grid)
     if len(out) == 0:
         return out, np.zeros(0, bool)
     dim = dominant_dimension(out) if dim is None else dim
@@ -223,7 +227,9 @@ def layer_type(geoms: np.ndarray) -> str:
     return "Unknown"
 
 
-def snap_to_type(geoms: np.ndarray, grid: float, type_id: int) -> tuple[np.ndarray, np.ndarray]:
+def snap_to_type(
+    geoms: np.ndarray, grid: float, type_id: int, *, rounded: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
     """Snap features already cleaned in another frame, keeping them valid and of the layer's type.
 
     A writer calls this after reprojecting a cleaned layer: rounding the new
@@ -239,6 +245,8 @@ def snap_to_type(geoms: np.ndarray, grid: float, type_id: int) -> tuple[np.ndarr
         Power of ten the output coordinates are rounded to.
     type_id : int
         The layer's shapely type id (:func:`shapely.get_type_id`).
+    rounded : bool
+        The coordinates are already on the grid: only repair.
 
     Returns
     -------
@@ -247,10 +255,10 @@ def snap_to_type(geoms: np.ndarray, grid: float, type_id: int) -> tuple[np.ndarr
         Features left empty (or degenerate) by the snap: the writer drops them.
     """
     if type_id not in _DIM_OF_TYPE:
-        out = round_coordinates(geoms, grid)
+        out = np.asarray(geoms, dtype=object) if rounded else round_coordinates(geoms, grid)
         return out, np.zeros(len(out), bool)
     dim = _DIM_OF_TYPE[type_id]
-    out, repaired = snap(geoms, grid, dim)
+    out, repaired = snap(geoms, grid, dim, rounded=rounded)
     collapsed = np.zeros(len(out), bool)
     if repaired.any():
         idx = np.flatnonzero(repaired)

@@ -88,9 +88,18 @@ def from_lonlat(crs: str) -> Callable[[np.ndarray], np.ndarray]:
 
 
 def reproject(src: str, dst: str) -> Callable[[np.ndarray], np.ndarray]:
-    """A function mapping ``(n, 2)`` arrays from frame ``src`` to frame ``dst`` (identity when equal)."""
+    """A function mapping ``(n, 2)`` arrays from frame ``src`` to frame ``dst``.
+
+    When the frames are the same it is the identity, and says so: its
+    attribute ``identity`` is True (writers then skip the work).
+    """
     if str(src) == str(dst):
-        return lambda xy: np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+
+        def same(xy: np.ndarray) -> np.ndarray:
+            return np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+
+        same.identity = True
+        return same
     return _apply(_transformer(str(src), str(dst)))
 
 

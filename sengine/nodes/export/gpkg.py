@@ -11,7 +11,7 @@ that exists, as a sharded city writes shard after shard.
 
 The feature id (``fid``) of each row is the feature's sengine ``id``.  Each
 table's description names the data's licence when it comes from
-OpenStreetMap.  GDAL's time stamps are fixed (``OGR_CURRENT_DATE``), so the
+OpenStreetMap.  GDAL's time stamps are fixed (:data:`GDAL_OPTIONS`), so the
 same layers give the same bytes.
 """
 
@@ -31,8 +31,15 @@ __all__ = ["write_gpkg_layer", "write_gpkg"]
 
 log = logging.getLogger(__name__)
 
-#: The date GDAL writes into ``gpkg_contents.last_change``: fixed, so runs give the same bytes.
-FIXED_DATE = "2000-01-01T00:00:00.000Z"
+#: GDAL settings while writing: the date it writes into ``gpkg_contents.last_change``, fixed so
+#: that runs give the same bytes; no SQLite journal nor sync, since the file is written into the
+#: run's temporary folder and moved into place only once complete; a larger page cache.
+GDAL_OPTIONS = {
+    "OGR_CURRENT_DATE": "2000-01-01T00:00:00.000Z",
+    "OGR_SQLITE_JOURNAL": "OFF",
+    "OGR_SQLITE_SYNCHRONOUS": "OFF",
+    "OGR_SQLITE_CACHE": "512",
+}
 
 
 def write_gpkg_layer(
@@ -82,8 +89,8 @@ def write_gpkg_layer(
     layer_options = {"FID": "id", "IDENTIFIER": name}
     if attribution:
         layer_options["DESCRIPTION"] = attribution
-    old = pyogrio.get_gdal_config_options(["OGR_CURRENT_DATE"]) if hasattr(pyogrio, "get_gdal_config_options") else {}
-    pyogrio.set_gdal_config_options({"OGR_CURRENT_DATE": FIXED_DATE})
+    old = {k: pyogrio.get_gdal_config_option(k) for k in GDAL_OPTIONS}
+    pyogrio.set_gdal_config_options(GDAL_OPTIONS)
     try:
         pyogrio.write_arrow(
             reader,
@@ -98,7 +105,7 @@ def write_gpkg_layer(
             layer_options=None if append else layer_options,
         )
     finally:
-        pyogrio.set_gdal_config_options({"OGR_CURRENT_DATE": old.get("OGR_CURRENT_DATE")})
+        pyogrio.set_gdal_config_options(old)
     counts = {"features": batches.written}
     if batches.collapsed:
         counts["collapsed"] = batches.collapsed

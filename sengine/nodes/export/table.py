@@ -20,7 +20,7 @@ import numpy as np
 import shapely
 
 from sengine.errors import SEngineError
-from sengine.geom.cleanup import layer_type, snap_to_type
+from sengine.geom.cleanup import GRID, layer_type, snap_to_type
 from sengine.layer import Layer
 
 __all__ = ["CHUNK", "OSM_ATTRIBUTION", "TYPE_IDS", "require", "attribute_arrays", "LayerBatches"]
@@ -96,7 +96,10 @@ class LayerBatches:
     layer : Layer
         A cleaned layer (:func:`sengine.nodes.export.prepare.prepare_layer`), planar.
     transform : callable
-        ``(n, 2)`` planar -> ``(n, 2)`` output coordinates.
+        ``(n, 2)`` planar -> ``(n, 2)`` output coordinates; one whose
+        ``identity`` attribute is True (:func:`sengine.geom.crs.reproject`
+        between equal frames) with the layer's own grid leaves the cleaned
+        geometries as they are.
     grid : float
         Output coordinate grid (0.001 m; 1e-7 deg).
     name : str
@@ -152,14 +155,24 @@ class LayerBatches:
         lo_all = np.full(2, np.inf)
         hi_all = np.full(2, -np.inf)
         step = max(int(self.chunk), 1)
+        # a layer cleaned on this grid and written in its own frame is ready as it is
+        ready = getattr(self.transform, "identity", False) and self.grid == GRID
+        decimals = int(round(-np.log10(self.grid)))
         for lo in range(0, len(geoms), step):
             hi = min(lo + step, len(geoms))
-            out = shapely.transform(geoms[lo:hi], self.transform)
-            out, collapsed = snap_to_type(out, self.grid, type_id)
-            keep = ~collapsed
-            self.collapsed += int(collapsed.sum())
-            out = out[keep]
-            arrays = [cols[k].slice(lo, hi - lo).filter(pa.array(keep)) for k in cols]
+            out = geoms[lo:hi]
+            if ready:
+                keep = np.ones(len(out), bool)
+            else:  # reproject and round in one pass over the coordinates, then repair what that folded
+                xy = np.round(self.transform(shapely.get_coordinates(out)), decimals)
+                out = shapely.set_coordinates(out.copy(), xy)
+                out, collapsed = snap_to_type(out, self.grid, type_id, rounded=True)
+                keep = ~collapsed
+                self.collapsed += int(collapsed.sum())
+                out = out[keep]
+            arrays = [
+                cols[k].slice(lo, hi - lo) if ready else cols[k].slice(lo, hi - lo).filter(pa.array(keep)) for k in cols
+            ]
             arrays.append(pa.array(shapely.to_wkb(out, output_dimension=2), type=pa.binary()))
             b = shapely.bounds(out)
             if len(out):
