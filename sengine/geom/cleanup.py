@@ -101,16 +101,23 @@ def snap(
     dim = dominant_dimension(out) if dim is None else dim
     bad = ~shapely.is_valid(out) & ~shapely.is_empty(out)
     if bad.any():
-        fixed = shapely.make_valid(np.asarray(geoms, dtype=object)[bad], method="structure", keep_collapsed=False)
-        fixed = shapely.set_precision(fixed, grid)
-        fixed = _parts_of_dimension(fixed, dim)
-        still = ~shapely.is_valid(fixed)
-        if still.any():  # snap rounding folded it again: GEOS's repair on the grid, then keep the right parts
-            fixed[still] = _parts_of_dimension(
-                shapely.set_precision(shapely.make_valid(fixed[still], method="structure"), grid), dim
-            )
-        out[bad] = fixed
+        with np.errstate(all="ignore"):  # GEOS's floating point on degenerate input is not an error here
+            return _repair(out, np.asarray(geoms, dtype=object), bad, grid, dim), bad
     return out, bad
+
+
+def _repair(out: np.ndarray, geoms: np.ndarray, bad: np.ndarray, grid: float, dim: int) -> np.ndarray:
+    """``out`` with its ``bad`` features rebuilt from ``geoms``: valid, on the grid, of dimension ``dim``."""
+    fixed = shapely.make_valid(geoms[bad], method="structure", keep_collapsed=False)
+    fixed = shapely.set_precision(fixed, grid)
+    fixed = _parts_of_dimension(fixed, dim)
+    still = ~shapely.is_valid(fixed)
+    if still.any():  # snap rounding folded it again: GEOS's repair on the grid, then keep the right parts
+        fixed[still] = _parts_of_dimension(
+            shapely.set_precision(shapely.make_valid(fixed[still], method="structure"), grid), dim
+        )
+    out[bad] = fixed
+    return out
 
 
 def dominant_dimension(geoms: np.ndarray) -> int:
