@@ -1,18 +1,30 @@
-"""Benchmark: buildings.extrude and every exporter on a Manhattan-sized grid city.
+"""Benchmark: every format of ``export.city``, on a Manhattan-sized grid city and on whole Liège.
 
-The Manhattan-like example of the paper (002 §8) has 931 blocks and 7,471 lots;
-this builds a grid city of the same size (930 blocks, 7,440 lots, each with a
-building), then times ``buildings.extrude`` and each format of ``export.city``.
-Writes ``bench/results/export.json``.
+Two cities:
 
-    python bench/export.py [--repeat 3]
+* ``grid``: the Manhattan-like example of the paper (002 §8: 931 blocks,
+  7,471 lots), a grid city of the same size (930 blocks, 7,440 lots, each
+  with a building); also times ``buildings.extrude``.
+* ``liege``: whole Liège from OpenStreetMap (about 80,000 highway ways ->
+  250,000 lots and 240,000 buildings), run through the load-map network in
+  memory, then exported.
+
+For each city and format the exporter is run alone (``--workers 1``,
+``--repeat`` times, the formats interleaved so that background load hits
+them alike) and the best writing seconds (the writer's own clock, as
+reported by :func:`sengine.nodes.export.city.export_layers`) and the megabytes
+written are kept; ``seconds_clean`` is the shared preparation of the layers
+(clean geometry, rounded values), done once per export whatever the formats.
+Issue 16's target: GeoPackage and GeoParquet each at least 3x faster to
+write than GeoJSON on whole Liège (``ratio_geojson_over_gpkg``,
+``ratio_geojson_over_parquet``).  Writes ``bench/results/export.json``.
+
+    python bench/export.py [--repeat 3] [--osm PATH.osm.pbf] [--city grid|liege|both]
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-import platform
 import sys
 import tempfile
 import time
@@ -22,52 +34,159 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 from _city import grid_city  # noqa: E402
+from _results import write  # noqa: E402
 
 from sengine import Context  # noqa: E402
 from sengine.registry import get  # noqa: E402
+
+DEFAULT_OSM = HERE.parent.parent / "shared" / "data" / "liege_streets.osm.pbf"
+FORMATS = ("glb", "geojson", "osm", "png", "obj", "cityjson", "gpkg", "parquet")
+TARGET = 3.0  # issue 16: GeoPackage and GeoParquet at least 3x faster to write than GeoJSON
+
+
+def grid_layers(tmp: Path, repeat: int) -> tuple[object, dict, dict]:
+    plan, layers = grid_city(nx=31, ny=30, lots_per_side=4, height_map=tmp)
+    extrude = get("buildings.extrude")("buildings", {}, Context(seed=7, plan=plan))
+    best = float("inf")
+    for _ in range(repeat):
+        t = time.perf_counter()
+        layers["buildings"] = extrude.run(lots=layers["lots"])["buildings"]
+        best = min(best, time.perf_counter() - t)
+    return plan, layers, {"seconds_buildings_extrude": round(best, 4)}
+
+
+def liege_layers(path: Path) -> tuple[object, dict, dict]:
+    """Whole Liège through the load-map network in memory: the exporter's inputs."""
+    from sengine.plan import MapSpec
+    from sengine.xmlconfig import load_config
+
+    with tempfile.TemporaryDirectory() as tmp:
+        cfg = Path(tmp) / "osm.xml"
+        cfg.write_text('<sengine version="1">\n  <city name="liege"/>\n  <network base="loadmap"/>\n</sengine>\n')
+        net = load_config(cfg)
+    net.plan.maps["osm"] = MapSpec("osm", path.resolve(), {}, where="bench")
+    net.specs.pop("export")  # the layers only: the bench calls the writers itself
+    net.connections = [c for c in net.connections if c.dst != "export"]
+    t = time.perf_counter()
+    res = net.run(workers=1)
+    seconds = time.perf_counter() - t
+    lay = res.layers
+    layers = {
+        "roads": lay["clean"]["roads"],
+        "streets": lay["blocks"]["streets"],
+        "sidewalks": lay["blocks"]["sidewalks"],
+        "blocks": lay["planning"]["blocks"],
+        "lots": lay["planning"]["lots"],
+        "buildings": lay["buildings"]["buildings"],
+        "parks": lay["majorRoads"]["parks"],
+        "water": lay["majorRoads"]["water"],
+    }
+    return net.plan, layers, {"seconds_city": round(seconds, 3)}
+
+
+def time_formats(plan, layers: dict, repeat: int, tmp: Path) -> dict:
+    from sengine.nodes.export.city import export_layers
+
+    best: dict[str, float] = {}
+    clean: float = float("inf")
+    sizes: dict[str, int] = {}
+    for k in range(repeat):
+        for fmt in FORMATS:
+            out = tmp / f"{fmt}-{k}"
+            out.mkdir()
+            rep = export_layers(out, layers, {fmt}, plan=plan)
+            best[fmt] = min(best.get(fmt, float("inf")), rep["seconds"][fmt])
+            clean = min(clean, rep["seconds"]["clean"])
+            sizes[fmt] = sum(p.stat().st_size for p in out.iterdir())
+            if k < repeat - 1 or fmt not in ("geojson", "gpkg", "parquet"):
+                for p in out.iterdir():
+                    p.unlink()
+    mb = {k: round(v / 1e6, 2) for k, v in sizes.items()}
+    result = {
+        "features": {name: len(lay) for name, lay in layers.items()},
+        "seconds_clean": round(clean, 3),
+        "seconds_per_format": {k: round(v, 3) for k, v in best.items()},
+        "mb_per_format": mb,
+        "ratio_geojson_over_gpkg": round(best["geojson"] / best["gpkg"], 2),
+        "ratio_geojson_over_parquet": round(best["geojson"] / best["parquet"], 2),
+        "bbox_query_lots": bbox_query(tmp, repeat - 1, layers["lots"]),
+    }
+    return result
+
+
+def bbox_query(tmp: Path, k: int, lots) -> dict:
+    """Seconds to read the lots in a 1 km x 1 km window around the city's centre from each file.
+
+    GeoJSON and GeoPackage through GDAL (pyogrio, ``bbox=``: the GeoPackage
+    uses its R-tree, the GeoJSON is parsed whole); GeoParquet through pyarrow
+    with a filter on its ``bbox`` covering columns.  Best of three.
+    """
+    import numpy as np
+    import pyarrow.dataset as ds
+    import pyogrio
+    import shapely
+
+    from sengine.geom.crs import layer_crs, output_crs, reproject, to_lonlat
+
+    planar = layer_crs(lots.meta, (0.0, 0.0))
+    x0, y0, x1, y1 = shapely.total_bounds(lots.geometry)
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+    box = np.array([[cx - 500, cy - 500], [cx + 500, cy + 500]])
+    utm = reproject(planar, output_crs("utm", planar))(box).ravel()
+    ll = to_lonlat(planar)(box).ravel()
+
+    def best(f):
+        t_best, n = float("inf"), 0
+        for _ in range(3):
+            t = time.perf_counter()
+            n = f()
+            t_best = min(t_best, time.perf_counter() - t)
+        return {"seconds": round(t_best, 4), "features": int(n)}
+
+    def parquet():
+        d = ds.dataset(tmp / f"parquet-{k}" / "lots.parquet")
+        f = (ds.field("bbox", "xmin") <= utm[2]) & (ds.field("bbox", "xmax") >= utm[0])
+        f &= (ds.field("bbox", "ymin") <= utm[3]) & (ds.field("bbox", "ymax") >= utm[1])
+        return d.to_table(filter=f).num_rows
+
+    return {
+        "geojson": best(lambda: len(pyogrio.read_arrow(tmp / f"geojson-{k}" / "lots.geojson", bbox=tuple(ll))[1])),
+        "gpkg": best(
+            lambda: len(pyogrio.read_arrow(tmp / f"gpkg-{k}" / "city.gpkg", layer="lots", bbox=tuple(utm))[1])
+        ),
+        "parquet": best(parquet),
+    }
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--osm", type=Path, default=DEFAULT_OSM, help="whole Liège (or another city) as .osm.pbf")
+    ap.add_argument("--city", choices=("grid", "liege", "both"), default="both")
+    ap.add_argument("--out", type=Path, default=HERE / "results" / "export.json")
     args = ap.parse_args()
     get("export.city")  # loads the built-in nodes (sengine.nodes)
-    from sengine.nodes.export.city import export_layers
-
+    results: dict = {"target_ratio": TARGET, "repeat": args.repeat}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        plan, layers = grid_city(nx=31, ny=30, lots_per_side=4, height_map=tmp)
-        extrude = get("buildings.extrude")("buildings", {}, Context(seed=7, plan=plan))
-        best_b = float("inf")
-        for _ in range(args.repeat):
-            t = time.perf_counter()
-            layers["buildings"] = extrude.run(lots=layers["lots"])["buildings"]
-            best_b = min(best_b, time.perf_counter() - t)
-        formats = ("glb", "geojson", "osm", "png", "obj", "cityjson")
-        best: dict[str, float] = {}
-        sizes: dict[str, int] = {}
-        for k in range(args.repeat):
-            out = tmp / f"out{k}"
-            out.mkdir()
-            rep = export_layers(out, layers, formats, plan=plan)
-            for f, s in rep["seconds"].items():
-                best[f] = min(best.get(f, float("inf")), s)
-            sizes = {p.name: p.stat().st_size for p in sorted(out.iterdir())}
-    default = sum(best[f] for f in ("glb", "geojson", "osm", "png"))
-    result = {
-        "city": {name: len(lay) for name, lay in layers.items()},
-        "seconds_buildings_extrude": round(best_b, 4),
-        "seconds_per_format": {k: round(v, 4) for k, v in best.items()},
-        "seconds_default_formats": round(default, 4),
-        "seconds_all_formats": round(sum(best.values()), 4),
-        "bytes": sizes,
-        "repeat": args.repeat,
-        "python": platform.python_version(),
-        "machine": platform.machine(),
-    }
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "export.json").write_text(json.dumps(result, indent=2, sort_keys=True) + "\n")
-    print(json.dumps(result, indent=2, sort_keys=True))
+        if args.city in ("grid", "both"):
+            plan, layers, extra = grid_layers(tmp, args.repeat)
+            (tmp / "grid").mkdir()
+            results["grid"] = {**extra, **time_formats(plan, layers, args.repeat, tmp / "grid")}
+        if args.city in ("liege", "both"):
+            if not args.osm.exists():
+                sys.exit(f"bench/export.py: {args.osm} not found (--osm PATH)")
+            plan, layers, extra = liege_layers(args.osm)
+            (tmp / "liege").mkdir()
+            results["liege"] = {"osm": args.osm.name, **extra, **time_formats(plan, layers, args.repeat, tmp / "liege")}
+            r = results["liege"]
+            results["liege"]["meets_target"] = (
+                min(r["ratio_geojson_over_gpkg"], r["ratio_geojson_over_parquet"]) >= TARGET
+            )
+    write(args.out, "export", results)
+    import json
+
+    print(json.dumps(results, indent=1, sort_keys=True))
 
 
 if __name__ == "__main__":

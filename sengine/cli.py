@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from functools import partial
 from pathlib import Path
 
-from . import __version__
+from . import __version__, registry
 from .errors import SEngineError
 from .parallel import available_cores, run_jobs
 from .plan import MapSpec
@@ -67,7 +67,22 @@ def _run_options(p: argparse.ArgumentParser) -> None:
         "--format",
         dest="formats",
         default="",
-        help="comma list of outputs: glb,geojson,osm,png,obj,cityjson (default: the exporter's)",
+        help="comma list of outputs: glb,geojson,osm,png,obj,cityjson,gpkg,parquet (default: the exporter's)",
+    )
+    p.add_argument(
+        "--crs",
+        type=_crs,
+        default=None,
+        metavar="CRS",
+        help="frame of the vector outputs: utm (the city's projected frame), wgs84 or EPSG:n "
+        "(default: utm for gpkg and parquet, wgs84 for geojson as RFC 7946 asks)",
+    )
+    p.add_argument(
+        "--origin",
+        choices=("local", "geo"),
+        default="local",
+        help="3D outputs (glb, obj) around the city's origin (local, the default) or in the planar frame's "
+        "own coordinates (geo: UTM for an OSM city); the origin is kept as metadata",
     )
 
 
@@ -133,6 +148,21 @@ def _formats(text: str) -> frozenset[str]:
     return frozenset(f.strip().lower() for f in text.split(",") if f.strip())
 
 
+def _crs(text: str) -> str:
+    """``--crs``: utm, wgs84 or EPSG:n."""
+    from .geom.crs import parse_crs_option
+
+    try:
+        return parse_crs_option(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+
+
+def _options(args: argparse.Namespace) -> dict:
+    """The exporters' options of a run command (``--crs``, ``--origin``)."""
+    return {"crs": args.crs, "origin": args.origin}
+
+
 def _workers(text: str) -> int:
     """``--workers``: a whole number of processes, at least 1."""
     try:
@@ -159,7 +189,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     from .xmlconfig import load_config
 
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin, seed=args.seed)
-    result = net.run(out=args.out, formats=_formats(args.formats), progress=_progress(args), workers=args.workers)
+    result = net.run(
+        out=args.out,
+        formats=_formats(args.formats),
+        progress=_progress(args),
+        workers=args.workers,
+        options=_options(args),
+    )
     if not args.quiet:
         counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
         print(f"{args.out}: {counts} in {result.stats['seconds']['total']:.2f} s")
@@ -173,12 +209,15 @@ def cmd_batch(args: argparse.Namespace) -> int:
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin)
     net.validate()
     seeds = _seeds(args.seeds)
-    formats = _formats(args.formats)
+    formats = registry.check_formats(_formats(args.formats))
+    options = _options(args)
     if args.workers > 1 and len(seeds) > 1:  # seeds side by side, each run in one process
-        jobs = [partial(_batch_run, net, seed, args.out, formats) for seed in seeds]
+        jobs = [partial(_batch_run, net, seed, args.out, formats, options=options) for seed in seeds]
         stats = run_jobs(jobs, args.workers)
     else:
-        stats = [_batch_run(net, seed, args.out, formats, _progress(args), args.workers) for seed in seeds]
+        stats = [
+            _batch_run(net, seed, args.out, formats, _progress(args), args.workers, options=options) for seed in seeds
+        ]
     rows = [
         {"seed": seed, "counts": st["counts"], "areas": st["areas"], "report": st["report"]}
         for seed, st in zip(seeds, stats)
@@ -190,8 +229,12 @@ def cmd_batch(args: argparse.Namespace) -> int:
     return 0
 
 
-def _batch_run(net, seed: int, out: Path, formats: frozenset[str], progress=None, workers: int = 1) -> dict:
-    return net.run(seed=seed, out=out / f"seed-{seed}", formats=formats, progress=progress, workers=workers).stats
+def _batch_run(
+    net, seed: int, out: Path, formats: frozenset[str], progress=None, workers: int = 1, options=None
+) -> dict:
+    return net.run(
+        seed=seed, out=out / f"seed-{seed}", formats=formats, progress=progress, workers=workers, options=options
+    ).stats
 
 
 def cmd_osm(args: argparse.Namespace) -> int:
@@ -210,7 +253,13 @@ def cmd_osm(args: argparse.Namespace) -> int:
         # errors about the file name the command, not the temporary config
         net.plan.maps["osm"] = MapSpec("osm", args.file.resolve(), {}, where="sengine osm")
         net.source = str(args.file)
-        result = net.run(out=args.out, formats=_formats(args.formats), progress=_progress(args), workers=args.workers)
+        result = net.run(
+            out=args.out,
+            formats=_formats(args.formats),
+            progress=_progress(args),
+            workers=args.workers,
+            options=_options(args),
+        )
     if not args.quiet:
         counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
         print(f"{args.out}: {counts} in {result.stats['seconds']['total']:.2f} s")

@@ -197,7 +197,7 @@ class Layer:
         geoms = shapely.from_geojson([json.dumps(f["geometry"]) for f in feats]) if feats else []
         props = [dict(f.get("properties") or {}) for f in feats]
         ids = [p.pop("id", i) for i, p in enumerate(props)]
-        parent = [p.pop("parent_id", -1) for p in props]
+        parent = [-1 if v is None else v for v in (p.pop("parent_id", -1) for p in props)]
         names: list[str] = []
         for p in props:
             names += [k for k in p if k not in names]

@@ -303,9 +303,22 @@ class Network:
         )
 
     # -- running --------------------------------------------------------------
-    def _context(self, seed: int, out: Path | None = None, formats: Iterable[str] = (), workers: int = 1) -> Context:
+    def _context(
+        self,
+        seed: int,
+        out: Path | None = None,
+        formats: Iterable[str] = (),
+        workers: int = 1,
+        options: Mapping[str, Any] | None = None,
+    ) -> Context:
         return Context(
-            seed=int(seed), plan=self.plan, base_dir=self.base_dir, out=out, formats=frozenset(formats), workers=workers
+            seed=int(seed),
+            plan=self.plan,
+            base_dir=self.base_dir,
+            out=out,
+            formats=frozenset(formats),
+            workers=workers,
+            options=dict(options or {}),
         )
 
     def run(
@@ -316,6 +329,7 @@ class Network:
         formats: Iterable[str] = (),
         progress: ProgressFn | None = None,
         workers: int = 1,
+        options: Mapping[str, Any] | None = None,
     ) -> Result:
         """Validate, then run every node in topological order.
 
@@ -335,15 +349,23 @@ class Network:
             Worker processes: nodes that map features one by one get their
             first input cut into chunks, exporters write their files side by
             side.  The result is the same for any number of workers.
+        options : mapping, optional
+            Output options for exporter nodes (``crs``, ``origin``).
+
+        Raises
+        ------
+        ParameterError
+            A format no registered node writes (with a suggestion).
         """
         seed = self.seed if seed is None else int(seed)
+        formats = registry.check_formats(formats)
         out_dir = Path(out) if out is not None else None
         tmp = None
         if out_dir is not None:
             out_dir.parent.mkdir(parents=True, exist_ok=True)
             tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
         try:
-            result = self._run(seed, tmp, formats, progress, max(1, int(workers)))
+            result = self._run(seed, tmp, formats, progress, max(1, int(workers)), options)
             if tmp is not None:
                 _write_json(tmp / "stats.json", result.stats)
                 _move_into(tmp, out_dir)
@@ -353,10 +375,16 @@ class Network:
                 shutil.rmtree(tmp, ignore_errors=True)
 
     def _run(
-        self, seed: int, tmp: Path | None, formats: Iterable[str], progress: ProgressFn | None, workers: int
+        self,
+        seed: int,
+        tmp: Path | None,
+        formats: Iterable[str],
+        progress: ProgressFn | None,
+        workers: int,
+        options: Mapping[str, Any] | None = None,
     ) -> Result:
         t_start = time.perf_counter()
-        context = self._context(seed, tmp, formats, workers)
+        context = self._context(seed, tmp, formats, workers, options)
         bound = self.validate(context)
         incoming: dict[str, list[tuple[str, str, str]]] = {k: [] for k in bound.nodes}
         for s, sp, d, dp in bound.edges:

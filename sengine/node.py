@@ -17,7 +17,7 @@ import inspect
 import math
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Any, ClassVar
 
@@ -208,6 +208,8 @@ class Context:
         Output formats asked for (``--format``).
     workers : int
         Processes the run may use (``--workers``); exporters write files side by side.
+    options : dict
+        Output options for exporter nodes (``--crs``, ``--origin``: ``{"crs": "utm", "origin": "local"}``).
     """
 
     seed: int = 0
@@ -216,6 +218,7 @@ class Context:
     out: Any = None
     formats: frozenset = frozenset()
     workers: int = 1
+    options: dict = field(default_factory=dict)
 
 
 class SENode:

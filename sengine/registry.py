@@ -32,6 +32,7 @@ __all__ = [
     "REGISTRY",
     "register",
     "get",
+    "check_formats",
     "load_plugin",
     "load_entry_points",
     "broken_plugins",
@@ -97,6 +98,39 @@ def get(name: str, *, where: str | None = None) -> type[SENode]:
 def names() -> list[str]:
     load_entry_points()
     return sorted(REGISTRY)
+
+
+def check_formats(formats) -> frozenset[str]:
+    """The output formats asked for, lower case, each written by some registered node.
+
+    A node declares the formats it writes as its class attribute ``formats``
+    (and may suggest one for a common other name in ``format_hints``, e.g.
+    ``{"shp": "gpkg"}``).  With no such node registered nothing is checked.
+
+    Raises
+    ------
+    ParameterError
+        One line naming the unknown format, a suggestion and the known ones.
+    """
+    from .errors import ParameterError
+
+    asked = frozenset(str(f).strip().lower() for f in formats or () if str(f).strip())
+    if not asked:
+        return asked
+    known: list[str] = []
+    hints: dict[str, str] = {}
+    for name in names():
+        cls = get(name)
+        known += [f for f in getattr(cls, "formats", ()) if f not in known]
+        hints.update(getattr(cls, "format_hints", {}) or {})
+    if not known:
+        return asked
+    for f in sorted(asked):
+        if f not in known:
+            near = hints.get(f) or next(iter(difflib.get_close_matches(f, known, n=1, cutoff=0.5)), None)
+            hint = f" (did you mean {near}?)" if near else ""
+            raise ParameterError(f"unknown format {f!r}{hint}; formats: {', '.join(known)}", where="--format")
+    return asked
 
 
 def register_network(name: str) -> Callable[[type], type]:

@@ -17,6 +17,7 @@ from sengine import Context, Layer
 from sengine.geom.crs import from_lonlat, local_crs, to_lonlat
 from sengine.nodes.export import mesh
 from sengine.nodes.export.gltf import COLOURS
+from sengine.nodes.export.prepare import prepare_layers
 from sengine.plan import CityPlan
 from sengine.registry import get
 
@@ -32,8 +33,10 @@ def city(tmp_path_factory):
     return plan, layers
 
 
-def export(out, plan, layers, formats=ALL, **params):
-    node = Export("export", params, Context(seed=3, plan=plan, out=out, formats=frozenset(formats)))
+def export(out, plan, layers, formats=ALL, options=None, **params):
+    node = Export(
+        "export", params, Context(seed=3, plan=plan, out=out, formats=frozenset(formats), options=dict(options or {}))
+    )
     assert node.run(**layers) == {}
     return node.report
 
@@ -108,7 +111,7 @@ def test_glb_large_coordinates_keep_precision(tmp_path):
     b = Extrude("b", {"setback": 0.5, "min_area": 5.0}, Context(seed=1)).run(
         lots=Layer.from_geoms(g, ids=lots.ids, meta={"crs": utm})
     )["buildings"]
-    export(tmp_path, None, {"buildings": b}, {"glb"})
+    export(tmp_path, None, {"buildings": b}, {"glb"}, options={"origin": "geo"})
     scene = trimesh.load(tmp_path / "city.glb")
     world = scene.to_geometry()
     lo, hi = shapely.total_bounds(b.geometry).reshape(2, 2)
@@ -158,12 +161,14 @@ def check_rfc7946(path, layer, origin):
 
 def test_geojson_every_layer(city, written):
     plan, layers = city
-    for name, layer in layers.items():
+    prepared, _ = prepare_layers(layers, plan)
+    for name, layer in prepared.items():
         data = check_rfc7946(written / f"{name}.geojson", layer, plan.origin)
         props = data["features"][0]["properties"]
-        for col in layer.columns:
+        for col in layers[name].columns:
             v = layer[col][0]
-            assert props[col] == (v.item() if hasattr(v, "item") else v)
+            v = v.item() if hasattr(v, "item") else v
+            assert props[col] == (None if col in layer.meta.get("null_negative", ()) and v < 0 else v)
     # planar (0, 0) is the city's origin
     lon, lat = to_lonlat(local_crs(plan.origin))(np.zeros((1, 2)))[0]
     assert (lat, lon) == pytest.approx(plan.origin, abs=1e-9)
@@ -175,7 +180,7 @@ def test_geojson_real_polygons_with_holes(tmp_path):
     flipped = lots.with_geometry(shapely.orient_polygons(lots.geometry, exterior_cw=True))
     flipped = flipped.with_columns(height=np.where(np.arange(len(lots)) % 5 == 0, np.nan, 10.0))
     export(tmp_path, CityPlan(origin=MONACO_ORIGIN), {"lots": flipped}, {"geojson"})
-    data = check_rfc7946(tmp_path / "lots.geojson", flipped, MONACO_ORIGIN)
+    data = check_rfc7946(tmp_path / "lots.geojson", prepare_layers({"lots": flipped})[0]["lots"], MONACO_ORIGIN)
     assert data["features"][0]["properties"]["height"] is None
 
 
@@ -185,7 +190,7 @@ def test_geojson_written_in_chunks_is_the_same_text(city, written, chunk):
 
     plan, layers = city
     text = (written / "lots.geojson").read_text(encoding="utf-8")
-    lots = layers["lots"]
+    lots = prepare_layers(layers, plan)[0]["lots"]
     assert len(lots) > 100  # so that chunks of 100 split it too
     pieces = list(feature_collection_chunks(lots, to_lonlat(lots.meta["crs"]), name="lots", chunk=chunk))
     assert len(pieces) == 2 + -(-len(lots) // chunk)

@@ -19,7 +19,19 @@ from functools import lru_cache
 import numpy as np
 from pyproj import CRS, Transformer
 
-__all__ = ["local_crs", "utm_crs", "to_lonlat", "from_lonlat", "registered_frame", "layer_crs", "WGS84"]
+__all__ = [
+    "local_crs",
+    "utm_crs",
+    "to_lonlat",
+    "from_lonlat",
+    "reproject",
+    "registered_frame",
+    "layer_crs",
+    "output_crs",
+    "parse_crs_option",
+    "is_geographic",
+    "WGS84",
+]
 
 WGS84 = "EPSG:4326"
 
@@ -73,6 +85,90 @@ def to_lonlat(crs: str) -> Callable[[np.ndarray], np.ndarray]:
 def from_lonlat(crs: str) -> Callable[[np.ndarray], np.ndarray]:
     """A function mapping WGS84 ``(lon, lat)`` ``(n, 2)`` arrays to planar ``crs``."""
     return _apply(_transformer(WGS84, str(crs)))
+
+
+def reproject(src: str, dst: str) -> Callable[[np.ndarray], np.ndarray]:
+    """A function mapping ``(n, 2)`` arrays from frame ``src`` to frame ``dst``.
+
+    When the frames are the same it is the identity, and says so: its
+    attribute ``identity`` is True (writers then skip the work).
+    """
+    if str(src) == str(dst):
+
+        def same(xy: np.ndarray) -> np.ndarray:
+            return np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+
+        same.identity = True
+        return same
+    return _apply(_transformer(str(src), str(dst)))
+
+
+def is_geographic(crs: str) -> bool:
+    """Whether ``crs`` has angular (degree) coordinates, like WGS84."""
+    return bool(_crs(str(crs)).is_geographic)
+
+
+@lru_cache(maxsize=32)
+def _crs(text: str) -> CRS:
+    return CRS.from_user_input(text)
+
+
+def parse_crs_option(text: str) -> str:
+    """Check an output CRS option: ``utm``, ``wgs84`` or ``EPSG:n`` (any code PROJ knows).
+
+    Returns the normalised option (``"utm"``, ``"wgs84"`` or ``"EPSG:n"``).
+
+    Raises
+    ------
+    ValueError
+        With a one-line reason.
+    """
+    t = str(text).strip()
+    if t.lower() in ("utm", "wgs84"):
+        return t.lower()
+    if t.lower() in ("epsg:4326", "4326"):
+        return "wgs84"
+    head, _, code = t.partition(":")
+    if head.lower() != "epsg" or not code.strip().isdigit():
+        raise ValueError(f"{text!r} is not utm, wgs84 or EPSG:<code>")
+    try:
+        crs = _crs(f"EPSG:{int(code)}")
+    except Exception:  # pyproj.exceptions.CRSError
+        raise ValueError(f"EPSG:{int(code)} is not a coordinate reference system PROJ knows") from None
+    if not (crs.is_projected or crs.is_geographic):
+        raise ValueError(f"EPSG:{int(code)} is neither a projected nor a geographic 2D frame")
+    return f"EPSG:{int(code)}"
+
+
+def output_crs(option: str | None, crs: str, *, default: str = "utm") -> str:
+    """The frame an output is written in.
+
+    Parameters
+    ----------
+    option : str or None
+        ``"utm"`` (the city's projected frame with an EPSG code: an OSM
+        city's UTM zone, or the UTM zone of a synthetic city's origin),
+        ``"wgs84"`` (EPSG:4326, lon / lat), ``"EPSG:n"``; None for ``default``.
+    crs : str
+        The layer's planar frame.
+    default : str
+        The option used when ``option`` is None.
+
+    Returns
+    -------
+    str
+        ``"EPSG:n"``.
+    """
+    option = parse_crs_option(option or default)
+    if option == "wgs84":
+        return WGS84
+    if option == "utm":
+        code = _crs(str(crs)).to_epsg()
+        if code and _crs(str(crs)).is_projected:
+            return f"EPSG:{code}"
+        lon, lat = to_lonlat(crs)(np.zeros((1, 2)))[0]
+        return utm_crs(lat, lon)
+    return option
 
 
 def registered_frame(crs: str, xy: np.ndarray) -> tuple[int, np.ndarray]:

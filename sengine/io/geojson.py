@@ -4,9 +4,16 @@ Each layer is written to ``<name>.geojson`` as one FeatureCollection.  Planar
 coordinates go to WGS84 through :mod:`sengine.geom.crs` from the layer's
 ``meta["crs"]`` (or the city's geographic origin), are rounded to 7 decimals
 (about 1 cm), and polygon exteriors are counter-clockwise with clockwise holes
-(RFC 7946 §3.1.6).  Properties are the feature's ``id``, ``parent_id`` and
-every attribute column; NaN becomes ``null``.  Keys are sorted, so the same
-layer always gives the same bytes.
+(RFC 7946 §3.1.6).  Rounding can fold a thin polygon: the few features it
+makes invalid are repaired on the grid (:func:`sengine.geom.cleanup.snap_to_type`)
+and a feature it leaves empty is dropped.  Properties are the feature's
+``id``, ``parent_id`` (``null`` for none) and every attribute column; NaN,
+``None`` and the negative values of the integer columns named in
+``meta["null_negative"]`` become ``null``.  Keys are sorted, so the same layer always
+gives the same bytes.  Another frame than WGS84 can be asked for (``crs``):
+the file then names it in the ``crs`` member GDAL reads (the 2008 GeoJSON
+convention), and an ``attribution`` member carries the data's licence
+notice when there is one.
 
 Geometries are serialised by GEOS in one vectorized call and attribute values
 column by column, so a layer of thousands of features takes milliseconds; a
@@ -24,10 +31,12 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import shapely
 
+from ..geom.cleanup import snap_to_type
+
 if TYPE_CHECKING:
     from ..layer import Layer
 
-__all__ = ["to_wgs84", "feature_collection_chunks", "feature_collection_text", "write_geojson"]
+__all__ = ["to_wgs84", "output_geometries", "feature_collection_chunks", "feature_collection_text", "write_geojson"]
 
 log = logging.getLogger(__name__)
 
@@ -67,6 +76,28 @@ def to_wgs84(geoms: np.ndarray, to_lonlat: Callable[[np.ndarray], np.ndarray], *
     if (~poly).any():
         out[~poly] = shapely.orient_polygons(shapely.transform(geoms[~poly], f), exterior_cw=False)
     return out
+
+
+def output_geometries(
+    geoms: np.ndarray, to_lonlat: Callable[[np.ndarray], np.ndarray], *, precision: int = 7
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`to_wgs84`, then the features that rounding made invalid repaired on the grid.
+
+    Returns the geometries and a mask of those to write (a feature the
+    rounding left empty is not).
+    """
+    out = to_wgs84(geoms, to_lonlat, precision=precision)
+    keep = np.ones(len(out), bool)
+    if len(out) == 0:
+        return out, keep
+    bad = ~shapely.is_valid(out) & ~shapely.is_empty(out)
+    if bad.any():
+        types = np.unique(shapely.get_type_id(out))
+        type_id = int(types[0]) if len(types) == 1 else -1
+        fixed, collapsed = snap_to_type(out[bad], 10.0**-precision, type_id)
+        out[bad] = shapely.orient_polygons(fixed, exterior_cw=False)
+        keep[np.flatnonzero(bad)[collapsed]] = False
+    return out, keep
 
 
 def _orient_closed(xy: np.ndarray, counts: np.ndarray, ring_poly: np.ndarray) -> np.ndarray:
@@ -136,6 +167,9 @@ def feature_collection_chunks(
     name: str | None = None,
     precision: int = 7,
     chunk: int = CHUNK,
+    crs: str | None = None,
+    attribution: str | None = None,
+    counts: dict | None = None,
 ) -> Iterator[str]:
     """The RFC 7946 FeatureCollection of ``layer`` as pieces of JSON text (sorted keys).
 
@@ -144,21 +178,45 @@ def feature_collection_chunks(
     distinct value) and features are assembled with one ``%`` template, which
     keeps a layer of thousands of features in the milliseconds.  ``chunk``
     features at a time, so that a whole city's layer never sits in memory as
-    text; the pieces join to the same text for any ``chunk``.
+    text; the pieces join to the same text for any ``chunk``.  ``crs``
+    (``"EPSG:n"``) names a frame other than WGS84 that ``to_lonlat`` maps
+    to; ``attribution`` is the data's licence notice.
     """
-    geoms = to_wgs84(layer.geometry, to_lonlat, precision=precision)
-    cols = {"id": layer.ids, "parent_id": layer.parent, **dict(layer.attrs)}
+    geoms, keep = output_geometries(layer.geometry, to_lonlat, precision=precision)
+    parent = layer.parent
+    if (parent < 0).any():
+        parent = parent.astype(object)
+        parent[layer.parent < 0] = None
+    cols = {"id": layer.ids, "parent_id": parent, **dict(layer.attrs)}
+    for key in layer.meta.get("null_negative", ()):  # integer references where negative means none
+        col = np.asarray(cols[key])
+        cols[key] = np.where(col < 0, None, col.astype(object))
+    ids = layer.ids
+    if not keep.all():
+        geoms, ids = geoms[keep], ids[keep]
+        cols = {k: np.asarray(v)[keep] for k, v in cols.items()}
+        log.info("%s: %d features left empty by rounding, not written", name or "layer", int((~keep).sum()))
+    if counts is not None:
+        counts.update(features=int(keep.sum()), collapsed=int((~keep).sum()))
     keys = sorted(cols)
     props = "{" + ",".join(_dumps(k).replace("%", "%%") + ":%s" for k in keys) + "}"
     feature = '{"geometry":%s,"id":%s,"properties":%s,"type":"Feature"}'
-    yield '{"features":['
+    head = "{"
+    if attribution:
+        head += '"attribution":' + _dumps(attribution) + ","
+    if crs and crs.upper() not in ("EPSG:4326", "OGC:CRS84"):
+        code = crs.split(":")[-1]
+        head += '"crs":{"properties":{"name":' + _dumps(f"urn:ogc:def:crs:EPSG::{code}") + '},"type":"name"},'
+    yield head + '"features":['
     for lo in range(0, len(geoms), max(int(chunk), 1)):
         part = slice(lo, lo + max(int(chunk), 1))
         geo_texts = [("null" if t is None else t) for t in shapely.to_geojson(geoms[part]).tolist()]
         texts = [_column_texts(cols[k][part]) for k in keys]
         prop_texts = [props % row for row in zip(*texts, strict=False)]
-        ids = _column_texts(layer.ids[part])
-        yield ("," if lo else "") + ",".join([feature % row for row in zip(geo_texts, ids, prop_texts, strict=False)])
+        id_texts = _column_texts(ids[part])
+        yield ("," if lo else "") + ",".join(
+            [feature % row for row in zip(geo_texts, id_texts, prop_texts, strict=False)]
+        )
     yield "]" + (',"name":' + _dumps(name) if name else "") + ',"type":"FeatureCollection"}'
 
 
@@ -176,11 +234,17 @@ def write_geojson(
     *,
     name: str | None = None,
     precision: int = 7,
+    crs: str | None = None,
+    attribution: str | None = None,
 ) -> int:
-    """Write ``layer`` as RFC 7946 GeoJSON, a chunk of features at a time; return the number of features."""
+    """Write ``layer`` as RFC 7946 GeoJSON, a chunk of features at a time; return the number of features written."""
+    counts: dict = {}
     with open(path, "w", encoding="utf-8") as f:
-        for piece in feature_collection_chunks(layer, to_lonlat, name=name, precision=precision):
+        for piece in feature_collection_chunks(
+            layer, to_lonlat, name=name, precision=precision, crs=crs, attribution=attribution, counts=counts
+        ):
             f.write(piece)
         f.write("\n")
-    log.info("wrote %s: %d features", path, len(layer))
-    return len(layer)
+    written = counts["features"]
+    log.info("wrote %s: %d features", path, written)
+    return written

@@ -14,14 +14,36 @@ osm        ``streets.osm`` (roads, OSM XML)        :mod:`sengine.nodes.export.os
 png        ``preview.png`` (plan view)             :mod:`sengine.nodes.export.preview`
 obj        ``city.obj`` + ``city.mtl``             :mod:`sengine.nodes.export.obj`
 cityjson   ``buildings.city.json`` (LoD1)          :mod:`sengine.nodes.export.cityjson`
+gpkg       ``city.gpkg`` (a table per layer)       :mod:`sengine.nodes.export.gpkg`
+parquet    ``<layer>.parquet`` (GeoParquet 1.1)    :mod:`sengine.nodes.export.parquet`
 ========== ======================================= ========================
 
-WGS84 coordinates come from each layer's ``meta["crs"]``, or the local frame
-of the plan's geographic origin.  ``stats.json`` is the executor's.
+Every layer is first made fit to open (:mod:`sengine.nodes.export.prepare`:
+valid, non-degenerate geometry of one type per layer on a millimetre grid,
+rounded values, nulls, district and land-use names); what was repaired or
+dropped is counted in the report (``clean``).
+
+The run's export options (``context.options``, from the command line):
+
+* ``crs`` (``--crs utm|wgs84|EPSG:n``): the frame of the vector outputs.
+  GeoPackage and GeoParquet default to ``utm``, the city's projected frame
+  with an EPSG code; GeoJSON stays WGS84 (RFC 7946) unless asked; OSM XML
+  is always WGS84.  Projected coordinates are rounded to the millimetre,
+  geographic ones to 1e-7 degree (about a centimetre, OSM's precision).
+* ``origin`` (``--origin local|geo``): ``local`` (default) places glb and
+  OBJ vertices relative to the city's origin (its geographic origin in its
+  planar frame, to the metre), kept as metadata (the glb's scene
+  ``extras``, the OBJ's header, CityJSON's ``transform.translate``); ``geo``
+  keeps the planar frame's coordinates (UTM for an OSM city).
+
+Outputs made from OpenStreetMap carry "© OpenStreetMap contributors, ODbL"
+(:data:`sengine.nodes.export.table.OSM_ATTRIBUTION`), as its licence asks.
+``stats.json`` is the executor's.
 """
 
 from __future__ import annotations
 
+import difflib
 import logging
 import time
 from collections.abc import Callable
@@ -29,16 +51,89 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from sengine import CityPlan, Layer, Param, Port, SENode, register
-from sengine.geom.crs import layer_crs, to_lonlat
+from sengine.errors import ParameterError
+from sengine.geom.crs import from_lonlat, is_geographic, layer_crs, output_crs, reproject, to_lonlat
 from sengine.parallel import run_jobs
 
-__all__ = ["FORMATS", "DEFAULT_FORMATS", "export_layers", "ExportCity"]
+from .prepare import prepare_layers
+from .table import OSM_ATTRIBUTION
+
+__all__ = [
+    "FORMATS",
+    "DEFAULT_FORMATS",
+    "FORMAT_HINTS",
+    "ORIGINS",
+    "check_formats",
+    "city_origin",
+    "export_layers",
+    "ExportCity",
+]
 
 log = logging.getLogger(__name__)
 
-FORMATS = ("glb", "geojson", "osm", "png", "obj", "cityjson")
+FORMATS = ("glb", "geojson", "osm", "png", "obj", "cityjson", "gpkg", "parquet")
 DEFAULT_FORMATS = frozenset({"glb", "geojson", "osm", "png"})
+#: What to suggest for a format sengine does not write.
+FORMAT_HINTS = {
+    "shp": "gpkg",
+    "shapefile": "gpkg",
+    "geopackage": "gpkg",
+    "geoparquet": "parquet",
+    "gltf": "glb",
+    "fbx": "glb",
+    "dae": "glb",
+    "3ds": "obj",
+    "stl": "obj",
+    "ply": "obj",
+    "json": "geojson",
+    "citygml": "cityjson",
+    "pbf": "osm",
+    "xml": "osm",
+    "jpg": "png",
+    "jpeg": "png",
+}
+ORIGINS = ("local", "geo")
+
+
+def check_formats(formats) -> frozenset[str]:
+    """The asked-for formats, lower case; an unknown one is a one-line error with a suggestion.
+
+    Raises
+    ------
+    ParameterError
+        ``--format: unknown format 'fbx' (did you mean glb?); formats: ...``
+    """
+    asked = frozenset(str(f).strip().lower() for f in formats or () if str(f).strip())
+    for f in sorted(asked):
+        if f not in FORMATS:
+            near = FORMAT_HINTS.get(f) or next(iter(difflib.get_close_matches(f, FORMATS, n=1, cutoff=0.5)), None)
+            hint = f" (did you mean {near}?)" if near else ""
+            raise ParameterError(f"unknown format {f!r}{hint}; formats: {', '.join(FORMATS)}", where="--format")
+    return asked
+
+
+def city_origin(layers: dict[str, Layer], plan, crs: str) -> tuple[np.ndarray, tuple[float, float]]:
+    """The city's origin: planar ``(x, y)`` in ``crs`` rounded to the metre, and its ``(lat, lon)``.
+
+    A layer's ``meta["origin"]`` (an OSM city's centre) wins over the plan's
+    origin (a synthetic city's planar ``(0, 0)``); with neither, the centre
+    of the layers' bounds.
+    """
+    import shapely
+
+    origin = next((lay.meta["origin"] for lay in layers.values() if lay.meta.get("origin") is not None), None)
+    if origin is None and plan is None:
+        b = [shapely.total_bounds(lay.geometry) for lay in layers.values() if len(lay)]
+        b = np.array([v for v in b if np.isfinite(v).all()] or [[0.0, 0.0, 0.0, 0.0]])
+        xy = np.round([(b[:, 0].min() + b[:, 2].max()) / 2, (b[:, 1].min() + b[:, 3].max()) / 2])
+        lon, lat = to_lonlat(crs)(xy[None])[0]
+        return xy, (float(lat), float(lon))
+    lat, lon = (float(v) for v in (origin if origin is not None else plan.origin))
+    xy = from_lonlat(crs)(np.array([[lon, lat]]))[0]
+    return np.round(xy), (lat, lon)
 
 
 def export_layers(
@@ -50,6 +145,9 @@ def export_layers(
     line_width: float = 1.0,
     preview_size: int = 1600,
     workers: int = 1,
+    crs: str | None = None,
+    origin: str = "local",
+    attribution: str | None = None,
 ) -> dict:
     """Write ``layers`` into folder ``out`` in each of ``formats``.
 
@@ -61,57 +159,169 @@ def export_layers(
         Layers by name (``roads``, ``streets``, ``sidewalks``, ``blocks``,
         ``lots``, ``buildings``, ``parks``, ``water``); ``None`` ones are skipped.
     formats : iterable of str
-        Names among :data:`FORMATS`; others are ignored, empty means
-        :data:`DEFAULT_FORMATS`.
+        Names among :data:`FORMATS` (another is a :class:`ParameterError`),
+        empty means :data:`DEFAULT_FORMATS`.
     plan : CityPlan, optional
-        Its ``origin`` places layers that carry no ``meta["crs"]``.
+        Its ``origin`` places layers that carry no ``meta["crs"]``; its
+        district and land-use rules name the features'.
     workers : int
         Processes writing files side by side (:func:`sengine.parallel.run_jobs`);
         the files are the same for any number.
+    crs : str, optional
+        ``utm``, ``wgs84`` or ``EPSG:n`` for every vector output (see the module notes).
+    origin : {"local", "geo"}
+        Where the glb and OBJ vertices are placed (see the module notes).
+    attribution : str, optional
+        The data's licence notice; default :data:`OSM_ATTRIBUTION` when a
+        layer (or the plan) comes from OpenStreetMap.
 
     Returns
     -------
     dict
-        Counts per format (features, triangles, nodes ...) and ``seconds``.
+        Counts per format (features, triangles, nodes ...), ``clean`` (what
+        was repaired or dropped per layer) and ``seconds``.
     """
     from sengine.io import geojson
 
-    from . import cityjson, gltf, obj, osmxml, preview
+    from . import cityjson, gltf, gpkg, obj, osmxml, parquet, preview
 
     out = Path(out)
-    formats = set(formats or ()) & set(FORMATS) or set(DEFAULT_FORMATS)
+    formats = set(check_formats(formats)) or set(DEFAULT_FORMATS)
+    if origin not in ORIGINS:
+        raise ParameterError(f"origin {origin!r} is not one of {', '.join(ORIGINS)}", where="--origin")
     layers = {k: v for k, v in layers.items() if v is not None}
-    origin = (plan or CityPlan()).origin
-    crs = {k: layer_crs(v.meta, origin) for k, v in layers.items()}
-    any_crs = next(iter(crs.values()), layer_crs({}, origin))
+    t = time.perf_counter()
+    layers, cleaned = prepare_layers(layers, plan)
+    t_clean = time.perf_counter() - t
+    origin_ll = (plan or CityPlan()).origin
+    crs_of = {k: layer_crs(v.meta, origin_ll) for k, v in layers.items()}
+    any_crs = next(iter(crs_of.values()), layer_crs({}, origin_ll))
+    if attribution is None and _from_osm(layers, plan):
+        attribution = OSM_ATTRIBUTION
+    centre, centre_ll = city_origin(layers, plan, any_crs)
+    offset = centre if origin == "local" else None
     jobs: list[tuple[str, str | None, Callable[[], Any]]] = []  # (format, layer, write)
     if "png" in formats:
         # the plan's extent frames a synthetic city; data in another frame (OSM in UTM) frames itself
         extent = plan.extent if plan is not None else None
         extent = extent if extent is not None and not _outside(layers, extent) else None
         jobs.append(
-            ("png", None, partial(preview.write_preview, out / "preview.png", layers, size=preview_size, extent=extent))
+            (
+                "png",
+                None,
+                partial(
+                    preview.write_preview,
+                    out / "preview.png",
+                    layers,
+                    size=preview_size,
+                    extent=extent,
+                    attribution=attribution,
+                ),
+            )
         )
     if "glb" in formats:
         jobs.append(
-            ("glb", None, partial(gltf.write_glb, out / "city.glb", layers, line_width=line_width, crs=any_crs))
+            (
+                "glb",
+                None,
+                partial(
+                    gltf.write_glb,
+                    out / "city.glb",
+                    layers,
+                    line_width=line_width,
+                    crs=any_crs,
+                    origin=None if offset is None else (offset, centre_ll),
+                    copyright=attribution,
+                ),
+            )
         )
     if "obj" in formats:
-        jobs.append(("obj", None, partial(obj.write_obj, out / "city.obj", layers, line_width=line_width)))
+        jobs.append(
+            (
+                "obj",
+                None,
+                partial(
+                    obj.write_obj,
+                    out / "city.obj",
+                    layers,
+                    line_width=line_width,
+                    offset=offset,
+                    crs=any_crs,
+                    attribution=attribution,
+                ),
+            )
+        )
     if "geojson" in formats:  # one job per layer, the largest first
+        target = output_crs(crs, any_crs, default="wgs84")
+        decimals = 7 if is_geographic(target) else 3
         for name in sorted(layers, key=lambda k: -len(layers[k])):
             jobs.append(
                 (
                     "geojson",
                     name,
                     partial(
-                        geojson.write_geojson, out / f"{name}.geojson", layers[name], to_lonlat(crs[name]), name=name
+                        geojson.write_geojson,
+                        out / f"{name}.geojson",
+                        layers[name],
+                        reproject(crs_of[name], target),
+                        name=name,
+                        precision=decimals,
+                        crs=target,
+                        attribution=attribution,
                     ),
                 )
             )
+    if "gpkg" in formats or "parquet" in formats:
+        target = output_crs(crs, any_crs, default="utm")
+        grid = 1e-7 if is_geographic(target) else 1e-3
+        transforms = {k: reproject(crs_of[k], target) for k in layers}
+        if "gpkg" in formats:  # one file: one job
+            jobs.append(
+                (
+                    "gpkg",
+                    None,
+                    partial(
+                        gpkg.write_gpkg,
+                        out / "city.gpkg",
+                        layers,
+                        transforms,
+                        target,
+                        grid=grid,
+                        attribution=attribution,
+                    ),
+                )
+            )
+        if "parquet" in formats:
+            for name in sorted(layers, key=lambda k: -len(layers[k])):
+                jobs.append(
+                    (
+                        "parquet",
+                        name,
+                        partial(
+                            parquet.write_parquet,
+                            out / f"{name}.parquet",
+                            layers[name],
+                            transforms[name],
+                            target,
+                            name=name,
+                            grid=grid,
+                            attribution=attribution,
+                        ),
+                    )
+                )
     if "osm" in formats and "roads" in layers:
         jobs.append(
-            ("osm", None, partial(osmxml.write_osm, out / "streets.osm", layers["roads"], to_lonlat(crs["roads"])))
+            (
+                "osm",
+                None,
+                partial(
+                    osmxml.write_osm,
+                    out / "streets.osm",
+                    layers["roads"],
+                    to_lonlat(crs_of["roads"]),
+                    attribution=attribution,
+                ),
+            )
         )
     if "cityjson" in formats and "buildings" in layers:
         jobs.append(
@@ -119,7 +329,12 @@ def export_layers(
                 "cityjson",
                 None,
                 partial(
-                    cityjson.write_cityjson, out / "buildings.city.json", layers["buildings"], crs=crs["buildings"]
+                    cityjson.write_cityjson,
+                    out / "buildings.city.json",
+                    layers["buildings"],
+                    crs=crs_of["buildings"],
+                    origin=None if offset is None else (offset, any_crs),
+                    attribution=attribution,
                 ),
             )
         )
@@ -133,14 +348,24 @@ def export_layers(
             report[fmt][name] = result
         seconds[fmt] += dt
     log.info(
-        "exported %s in %.3f s of writing with %d worker(s) (%s)",
+        "exported %s in %.3f s of writing with %d worker(s) (%s), %.3f s cleaning",
         ", ".join(sorted(seconds)),
         sum(seconds.values()),
         max(1, min(workers, len(jobs))),
         ", ".join(f"{k} {v:.3f}" for k, v in seconds.items()),
+        t_clean,
     )
+    report["clean"] = cleaned
+    seconds["clean"] = t_clean
     report["seconds"] = seconds
     return report
+
+
+def _from_osm(layers: dict[str, Layer], plan) -> bool:
+    """Whether the city is made from OpenStreetMap data (a layer read from it, or an OSM map in the plan)."""
+    if any(lay.meta.get("source") == "osm" for lay in layers.values()):
+        return True
+    return "osm" in getattr(plan, "maps", {})
 
 
 def _timed(write: Callable[[], Any]) -> tuple[Any, float]:
@@ -150,7 +375,6 @@ def _timed(write: Callable[[], Any]) -> tuple[Any, float]:
 
 def _outside(layers: dict[str, Layer], extent) -> bool:
     """Whether some layer reaches more than 10 % beyond ``extent`` (another frame, or no city extent)."""
-    import numpy as np
     import shapely
 
     x0, y0, x1, y1 = extent
@@ -165,10 +389,11 @@ def _outside(layers: dict[str, Layer], extent) -> bool:
 
 @register
 class ExportCity(SENode):
-    """Write the city's layers: city.glb, <layer>.geojson, streets.osm, preview.png (and OBJ, CityJSON).
+    """Write the city's layers: city.glb, <layer>.geojson, streets.osm, preview.png (and OBJ, CityJSON, GPKG, GeoParquet).
 
     Formats come from ``--format`` (the run context); with none given the
-    defaults are glb, geojson, osm and png.
+    defaults are glb, geojson, osm and png.  ``--crs`` and ``--origin``
+    come as the context's ``options``.
     """
 
     name = "export.city"
@@ -183,6 +408,8 @@ class ExportCity(SENode):
         "water": Port("polygons", "water areas (rivers, lakes, harbours)", required=False),
     }
     outputs = {}
+    formats = FORMATS
+    format_hints = FORMAT_HINTS
     params = {
         "line_width": Param(
             "float", 1.0, min=0.05, max=50.0, unit="m", doc="width of road centre-line ribbons in the 3D exports"
@@ -209,6 +436,7 @@ class ExportCity(SENode):
             return {}
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
+        options = dict(getattr(self.context, "options", None) or {})
         layers = {
             "roads": roads,
             "streets": streets,
@@ -227,6 +455,8 @@ class ExportCity(SENode):
             line_width=self.p.line_width,
             preview_size=self.p.preview_size,
             workers=self.context.workers,
+            crs=options.get("crs"),
+            origin=options.get("origin") or "local",
         )
         report.pop("seconds", None)  # timings would make stats.json differ between runs
         self.report = _flat_counts(report)

@@ -8,7 +8,10 @@ own when it has an EPSG code (UTM, for an OSM city), else the UTM zone of the
 city's origin (a synthetic city's local transverse Mercator has no code); the
 code goes into ``metadata.referenceSystem``.  z is up, in metres.
 Attributes: ``measuredHeight``, ``storeysAboveGround``, ``roofType`` and every
-layer column.  Keys are sorted; the output is deterministic.
+layer column.  ``transform.translate`` is the city's origin when one is
+given (``--origin local``), else the floor of the model's lowest corner;
+the data's licence notice goes into ``metadata.title``.  Keys are sorted;
+the output is deterministic.
 """
 
 from __future__ import annotations
@@ -37,8 +40,19 @@ def _value(v):
     return v
 
 
-def city_model(buildings: Layer, *, crs: str | None = None, scale: float = 0.001) -> dict:
-    """The CityJSON 2.0 document of a buildings layer (needs a ``height`` column) in planar frame ``crs``."""
+def city_model(
+    buildings: Layer,
+    *,
+    crs: str | None = None,
+    scale: float = 0.001,
+    origin: tuple | None = None,
+    attribution: str | None = None,
+) -> dict:
+    """The CityJSON 2.0 document of a buildings layer (needs a ``height`` column) in planar frame ``crs``.
+
+    ``origin`` is ``((x, y), frame)``: the city's origin (m) in planar
+    ``frame``, used as ``transform.translate``.
+    """
     rings = ring_arrays(buildings.geometry)
     m = len(rings.xy)
     code, planar = registered_frame(crs, rings.xy) if crs else (None, rings.xy)
@@ -47,6 +61,15 @@ def city_model(buildings: Layer, *, crs: str | None = None, scale: float = 0.001
     z1 = height[rings.feature[vpoly]] if m else np.empty(0)
     xyz = np.concatenate([np.column_stack([planar, np.zeros(m)]), np.column_stack([planar, z1])])
     translate = np.floor(xyz.min(axis=0)) if m else np.zeros(3)
+    if origin is not None and crs:
+        (ox, oy), frame = origin
+        o = np.array([[ox, oy]], np.float64)
+        if str(frame) != str(crs):
+            from sengine.geom.crs import reproject
+
+            o = reproject(frame, crs)(o)
+        o = registered_frame(crs, o)[1] if code else o
+        translate = np.array([*np.round(o[0]), 0.0])
     ints = np.rint((xyz - translate) / scale).astype(np.int64)
     rs = rings.ring_start.tolist()
     pr = rings.poly_ring.tolist()
@@ -85,6 +108,8 @@ def city_model(buildings: Layer, *, crs: str | None = None, scale: float = 0.001
     if m:
         lo, hi = xyz.min(axis=0), xyz.max(axis=0)
         meta["geographicalExtent"] = [float(v) for v in np.concatenate([lo, hi])]
+    if attribution:
+        meta["title"] = f"buildings (LoD1); {attribution}"
     if code:
         meta["referenceSystem"] = f"https://www.opengis.net/def/crs/EPSG/0/{code}"
     return {
@@ -97,9 +122,16 @@ def city_model(buildings: Layer, *, crs: str | None = None, scale: float = 0.001
     }
 
 
-def write_cityjson(path: str | Path, buildings: Layer, *, crs: str | None = None) -> int:
-    """Write ``buildings`` as CityJSON 2.0; return the number of city objects."""
-    doc = city_model(buildings, crs=crs)
+def write_cityjson(
+    path: str | Path,
+    buildings: Layer,
+    *,
+    crs: str | None = None,
+    origin: tuple | None = None,
+    attribution: str | None = None,
+) -> int:
+    """Write ``buildings`` as CityJSON 2.0; return the number of city objects (see :func:`city_model`)."""
+    doc = city_model(buildings, crs=crs, origin=origin, attribution=attribution)
     Path(path).write_text(
         json.dumps(doc, sort_keys=True, separators=(",", ":"), allow_nan=False) + "\n", encoding="utf-8"
     )

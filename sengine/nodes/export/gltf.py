@@ -6,11 +6,16 @@ polygons (water, streets, sidewalks, blocks, lots, parks) become flat surfaces a
 slightly different heights so they do not z-fight.  Units are metres; the
 frame is glTF's: x east, **y up**, z south (planar y -> -Z, height -> Y).
 
-When the planar coordinates are far from zero (a UTM frame), the vertices are
-stored relative to a round offset and each node carries that offset as its
-translation, so float32 vertex buffers keep centimetre precision while the
-scene's world coordinates stay those of the planar frame.  The offset and the
-CRS are also stored in the scene's ``extras``.
+With ``origin`` (``--origin local``, the default of ``export.city``) the
+vertices are relative to the city's origin and the scene sits at the glTF
+origin, where Blender and web viewers look; the origin (planar and lat /
+lon) and the CRS are stored in the scene's ``extras``.  Without it
+(``--origin geo``), when the planar coordinates are far from zero (a UTM
+frame), the vertices are stored relative to a round offset and each node
+carries that offset as its translation, so float32 vertex buffers keep
+centimetre precision while the scene's world coordinates stay those of the
+planar frame.  Materials are named by layer; ``asset.copyright`` holds the
+data's licence notice.
 
 The writer is a few dozen lines of ``struct`` and ``json`` (glTF 2.0 §4.4,
 GLB file format) rather than trimesh's exporter: importing trimesh (and
@@ -95,15 +100,26 @@ def _offset(vertices: list[np.ndarray]) -> np.ndarray:
     return np.round((lo + hi) / 2.0, -3)
 
 
-def glb_bytes(layers: Mapping[str, Layer], *, line_width: float = 1.0, crs: str | None = None) -> tuple[bytes, dict]:
+def glb_bytes(
+    layers: Mapping[str, Layer],
+    *,
+    line_width: float = 1.0,
+    crs: str | None = None,
+    origin: tuple | None = None,
+    copyright: str | None = None,
+) -> tuple[bytes, dict]:
     """The binary glTF of ``layers`` and the vertex / triangle counts of each mesh.
 
-    One node, one mesh and one material per non-empty layer, in :data:`LAYERS`
-    order; float32 positions and uint32 indices, no normals (viewers shade flat).
+    One node, one mesh and one material (named by layer) per non-empty layer,
+    in :data:`LAYERS` order; float32 positions and uint32 indices, no normals
+    (viewers shade flat).  ``origin`` is ``((x, y), (lat, lon))``, the city's
+    origin planar (m) and geographic (deg): vertices are placed relative to
+    it.  ``copyright`` goes into ``asset.copyright``.
     """
     meshes = {name: layer_mesh(name, lay, line_width=line_width) for name, lay in layers.items() if lay is not None}
     meshes = {k: v for k, v in meshes.items() if len(v[1])}
-    off = _offset([v for v, _ in meshes.values()])
+    local = origin is not None
+    off = np.asarray(origin[0], np.float64) if local else _offset([v for v, _ in meshes.values()])
     order = [n for n in LAYERS if n in meshes] + sorted(n for n in meshes if n not in LAYERS)
     blobs: list[bytes] = []
     views, accessors, gl_meshes, materials, nodes = [], [], [], [], []
@@ -157,24 +173,23 @@ def glb_bytes(layers: Mapping[str, Layer], *, line_width: float = 1.0, crs: str 
             }
         )
         node = {"name": name, "mesh": k}
-        if off.any():
+        if off.any() and not local:
             node["translation"] = translation
         nodes.append(node)
         counts[name] = {"vertices": int(len(pos)), "triangles": int(len(f))}
+    extras = {"units": "m", "up": "y", "crs": crs or "", "planar_offset": [float(off[0]), float(off[1])]}
+    if local:
+        extras["origin"] = {"planar": [float(off[0]), float(off[1])], "lat": origin[1][0], "lon": origin[1][1]}
+    asset = {"version": "2.0", "generator": "sengine"}
+    if copyright:
+        asset["copyright"] = copyright
     doc = {
-        "asset": {"version": "2.0", "generator": "sengine"},
+        "asset": asset,
         "scene": 0,
         "scenes": [
             {
                 "name": "city",
-                "extras": {
-                    "sengine": {
-                        "units": "m",
-                        "up": "y",
-                        "crs": crs or "",
-                        "planar_offset": [float(off[0]), float(off[1])],
-                    }
-                },
+                "extras": {"sengine": extras},
             }
         ],
     }
@@ -201,10 +216,16 @@ def glb_bytes(layers: Mapping[str, Layer], *, line_width: float = 1.0, crs: str 
 
 
 def write_glb(
-    path: str | Path, layers: Mapping[str, Layer], *, line_width: float = 1.0, crs: str | None = None
+    path: str | Path,
+    layers: Mapping[str, Layer],
+    *,
+    line_width: float = 1.0,
+    crs: str | None = None,
+    origin: tuple | None = None,
+    copyright: str | None = None,
 ) -> dict:
-    """Write ``layers`` to a binary glTF file; return vertex and face counts per layer."""
-    data, counts = glb_bytes(layers, line_width=line_width, crs=crs)
+    """Write ``layers`` to a binary glTF file; return vertex and face counts per layer (see :func:`glb_bytes`)."""
+    data, counts = glb_bytes(layers, line_width=line_width, crs=crs, origin=origin, copyright=copyright)
     Path(path).write_bytes(data)
     log.info("wrote %s: %d meshes, %d triangles", path, len(counts), sum(c["triangles"] for c in counts.values()))
     return counts

@@ -6,9 +6,21 @@ way per street segment, one node per distinct location.  Locations are
 WGS84 at OSM's fixed precision (1e-7 deg); segments meeting at a junction
 share its node, so the file reads back as a connected graph.  Ids are
 negative, as for new data not yet in the OSM database (JOSM, osmium and
-osmnx accept them).  The ``highway`` tag comes from the ``class`` column:
-sengine's synthetic classes map to OSM values (:data:`HIGHWAY`), OSM values
-pass through.  Written with pyosmium's :class:`osmium.SimpleWriter`.
+osmnx accept them), and the file says ``upload="never"`` so that JOSM
+refuses to upload generated streets to the OSM database.  sengine reads the
+file back (``sengine osm streets.osm``; :mod:`sengine.nodes.osm.stream`
+resolves negative node ids), and ``osmium check-refs`` finds every node a
+way uses.
+
+The ``highway`` tag comes from the ``class`` column: sengine's synthetic
+classes map to OSM values (:data:`HIGHWAY`), OSM values pass through.  The
+other columns of a roads layer become ``oneway=yes``, ``layer``,
+``bridge=yes``, ``tunnel=yes``, ``width`` (m), ``name``, and
+``sengine:osm_id``, the OSM way a street segment was cut from (an OSM
+city's).  A street network made from OpenStreetMap says so in the
+attributes the OSM API itself writes (``copyright``, ``attribution``,
+``license``).  The XML is written by numpy string formatting, a few lines
+per way; the same layer gives the same bytes.
 """
 
 from __future__ import annotations
@@ -16,9 +28,9 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from pathlib import Path
+from xml.sax.saxutils import quoteattr
 
 import numpy as np
-import osmium
 import shapely
 
 from sengine.layer import Layer
@@ -87,61 +99,107 @@ def street_graph(
     return nodes, ways, feat[way_line]
 
 
+def _texts(layer: Layer, key: str, fmt) -> list[str | None]:
+    """``fmt(value)`` of each feature's ``key`` column (None where the column or the value is missing)."""
+    n = len(layer)
+    if key not in layer.attrs:
+        return [None] * n
+    col = np.asarray(layer[key])
+    nulls = set(layer.meta.get("null_negative", ()))
+    out = []
+    for v in col.tolist():
+        if v is None or (isinstance(v, float) and not np.isfinite(v)) or (key in nulls and v < 0):
+            out.append(None)
+        else:
+            out.append(fmt(v))
+    return out
+
+
 def way_tags(layer: Layer) -> list[dict[str, str]]:
-    """OSM tags of every feature of a roads layer (``highway``, ``width`` ...)."""
+    """OSM tags of every feature of a roads layer (``highway``, ``oneway``, ``layer``, ``width`` ...)."""
     n = len(layer)
     classes = [str(c) for c in layer["class"].tolist()] if "class" in layer.attrs else [""] * n
     ids = layer.ids.tolist()
-    widths = names = None
-    if "width" in layer.attrs:
-        w = np.asarray(layer["width"], np.float64)
-        widths = [f"{v:.6g}" if np.isfinite(v) and v > 0 else None for v in w.tolist()]
-    if "name" in layer.attrs:
-        names = [str(v) if v else None for v in layer["name"].tolist()]
+    optional = {
+        "oneway": _texts(layer, "oneway", lambda v: "yes" if v else None),
+        "layer": _texts(layer, "layer", lambda v: str(int(v)) if int(v) else None),
+        "bridge": _texts(layer, "bridge", lambda v: "yes" if v else None),
+        "tunnel": _texts(layer, "tunnel", lambda v: "yes" if v else None),
+        "width": _texts(layer, "width", lambda v: f"{v:.6g}" if v > 0 else None),
+        "name": _texts(layer, "name", lambda v: str(v) if v else None),
+        "sengine:osm_id": _texts(layer, "osm_id", lambda v: str(int(v)) if int(v) > 0 else None),
+    }
     tags = []
     for i in range(n):
-        cls = classes[i]
+        cls = classes[i] if classes[i] not in ("None", "nan") else ""
         t = {"highway": HIGHWAY.get(cls, cls), "sengine:id": str(ids[i])}
         if cls in HIGHWAY and cls:
             t["sengine:class"] = cls
-        if widths is not None and widths[i] is not None:
-            t["width"] = widths[i]
-        if names is not None and names[i] is not None:
-            t["name"] = names[i]
-        tags.append(t)
+        for key, values in optional.items():
+            if values[i] is not None:
+                t[key] = values[i]
+        tags.append(dict(sorted(t.items())))
     return tags
 
 
+#: The attributes with which the OSM API marks its data (for a street network made from it).
+OSM_NOTICE = (
+    'copyright="OpenStreetMap and contributors" attribution="https://www.openstreetmap.org/copyright" '
+    'license="https://opendatacommons.org/licenses/odbl/1-0/"'
+)
+
+
+def _degrees(fixed: np.ndarray) -> list[str]:
+    """OSM fixed-point coordinates (deg * 1e7) as decimal text, trailing zeros dropped ("40.720113")."""
+    fixed = np.asarray(fixed, np.int64)
+    whole, frac = np.divmod(np.abs(fixed), 10_000_000)
+    sign = np.where(fixed < 0, "-", "")
+    return [
+        f"{s}{w}.{f:07d}".rstrip("0").rstrip(".")
+        for s, w, f in zip(sign.tolist(), whole.tolist(), frac.tolist(), strict=True)
+    ]
+
+
 def write_osm(
-    path: str | Path, layer: Layer, to_lonlat: Callable[[np.ndarray], np.ndarray], *, generator: str = "sengine"
+    path: str | Path,
+    layer: Layer,
+    to_lonlat: Callable[[np.ndarray], np.ndarray],
+    *,
+    generator: str = "sengine",
+    attribution: str | None = None,
 ) -> dict:
     """Write a roads layer as OSM XML; return node, way and junction counts.
 
     Junctions are nodes used by more than one way, or twice by one way.
+    ``attribution`` (a street network made from OpenStreetMap) adds the OSM
+    API's ``copyright``, ``attribution`` and ``license`` attributes.
     """
     nodes, ways, feat = street_graph(layer.geometry, to_lonlat)
     path = Path(path)
-    header = osmium.io.Header()
-    header.set("generator", generator)
+    head = f'<osm version="0.6" generator={quoteattr(generator)} upload="never"'
+    head += f" {OSM_NOTICE}>" if attribution else ">"
+    parts = ['<?xml version="1.0" encoding="UTF-8"?>\n', head, "\n"]
     if len(nodes):
-        lo, hi = nodes.min(axis=0) / 1e7, nodes.max(axis=0) / 1e7
-        header.add_box(osmium.osm.Box(osmium.osm.Location(lo[0], lo[1]), osmium.osm.Location(hi[0], hi[1])))
-    writer = osmium.SimpleWriter(str(path), header=header, overwrite=True)
-    try:
-        lonlat = (nodes / 1e7).tolist()
-        Node = osmium.osm.mutable.Node
-        for i, (lon, lat) in enumerate(lonlat):
-            writer.add_node(Node(id=-(i + 1), location=(lon, lat)))
-        Way = osmium.osm.mutable.Way
-        tags = way_tags(layer)
-        refs = (-(np.concatenate(ways) + 1)).tolist() if ways else []
-        ends = np.cumsum([len(w) for w in ways]).tolist()
-        start = 0
-        for k, (end, f) in enumerate(zip(ends, feat.tolist(), strict=False)):
-            writer.add_way(Way(id=-(k + 1), nodes=refs[start:end], tags=tags[f]))
-            start = end
-    finally:
-        writer.close()
+        lo, hi = _degrees(nodes.min(axis=0)), _degrees(nodes.max(axis=0))
+        parts.append(f'  <bounds minlat="{lo[1]}" minlon="{lo[0]}" maxlat="{hi[1]}" maxlon="{hi[0]}"/>\n')
+        lon, lat = _degrees(nodes[:, 0]), _degrees(nodes[:, 1])
+        node_xml = '  <node id="-%d" lat="%s" lon="%s"/>\n'
+        parts.append("".join([node_xml % row for row in zip(range(1, len(nodes) + 1), lat, lon, strict=True)]))
+    tags = way_tags(layer)
+    quoted: dict[str, str] = {}
+
+    def q(v: str) -> str:
+        t = quoted.get(v)
+        if t is None:
+            t = quoted[v] = quoteattr(v)
+        return t
+
+    for k, (w, f) in enumerate(zip(ways, feat.tolist(), strict=True), 1):
+        nds = "".join([f'    <nd ref="-{r}"/>\n' for r in (w + 1).tolist()])
+        tg = "".join([f"    <tag k={q(a)} v={q(b)}/>\n" for a, b in tags[f].items()])
+        parts.append(f'  <way id="-{k}">\n{nds}{tg}  </way>\n')
+    parts.append("</osm>\n")
+    path.write_text("".join(parts), encoding="utf-8")
     uses = np.bincount(np.concatenate(ways), minlength=len(nodes)) if ways else np.zeros(0, int)
     counts = {"nodes": int(len(nodes)), "ways": int(len(ways)), "junctions": int((uses > 1).sum())}
     log.info("wrote %s: %d nodes, %d ways (%d junctions)", path, counts["nodes"], counts["ways"], counts["junctions"])

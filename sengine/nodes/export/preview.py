@@ -107,7 +107,9 @@ def _draw_lines(draw: ImageDraw.ImageDraw, geoms: np.ndarray, to_px, value: int,
             line(pix[2 * a : 2 * b], fill=value, width=int(w[k]))
 
 
-def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Image.Image:
+def render(
+    layers: Mapping[str, Layer], *, size: int = 1600, extent=None, attribution: str | None = None
+) -> Image.Image:
     """The plan view as a palette image, ``size`` px on its long side (plus a footer).
 
     Parameters
@@ -120,6 +122,8 @@ def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Ima
     extent : tuple of float, optional
         ``(xmin, ymin, xmax, ymax)`` (m) to show at least (the city extent);
         the view also covers every layer's bounds.
+    attribution : str, optional
+        The data's licence notice, written in the footer's right corner.
     """
     layers = {k: v for k, v in layers.items() if v is not None and len(v)}
     bounds = [shapely.total_bounds(v.geometry) for v in layers.values()]
@@ -187,6 +191,9 @@ def render(layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> Ima
     image = Image.fromarray(np.vstack([canvas, np.zeros((64, w), np.uint8)]), "P")
     image.putpalette(PALETTE.ravel().tolist())
     _footer(image, h, w, scale, hmin, hmax, [n for n in _ORDER if n in layers], map_buildings=has_map)
+    if attribution:
+        draw = ImageDraw.Draw(image)
+        draw.text((w - 8, h + 60), attribution, fill=_FIXED["ink"], font=ImageFont.load_default(size=12), anchor="rd")
     return image
 
 
@@ -235,9 +242,11 @@ def _footer(
         x += 24 + int(draw.textlength(name, font=font)) + 12
 
 
-def write_preview(path: str | Path, layers: Mapping[str, Layer], *, size: int = 1600, extent=None) -> tuple[int, int]:
+def write_preview(
+    path: str | Path, layers: Mapping[str, Layer], *, size: int = 1600, extent=None, attribution: str | None = None
+) -> tuple[int, int]:
     """Render and save ``preview.png``; return its pixel size."""
-    image = render(layers, size=size, extent=extent)
+    image = render(layers, size=size, extent=extent, attribution=attribution)
     image.save(Path(path), format="PNG", optimize=False, compress_level=1)
     log.info("wrote %s: %dx%d px", path, *image.size)
     return image.size

@@ -17,6 +17,13 @@ first appearance: the extract does not depend on the number of processes.
 
 Water, parks and buildings (areas assembled by pyosmium) are read in the
 same pass as the other classes' ways.
+
+Negative ids are those of objects not yet in the OSM database (JOSM's
+convention, and that of sengine's own ``streets.osm``): libosmium's node
+location index keeps positive ids only, so a file whose ways use negative
+nodes is read a second time, its negative nodes' locations kept by a node
+callback (:func:`_read_pass` with ``negative``).  Files without them cost
+nothing more.
 """
 
 from __future__ import annotations
@@ -118,6 +125,7 @@ class _Ways:
     node_ids: np.ndarray | None
     clipped: int
     polygons: dict  # the areas of the pass (see OsmExtract.polygons), empty without extras
+    negative: bool = False  # some way uses a node with a negative id that the location index cannot hold
 
 
 def read_osm(
@@ -182,6 +190,8 @@ def read_osm(
         )
     else:
         parts = [_read_pass(path, classes, extras=extras, node_ids=node_ids, where=where)]
+    if any(p.negative for p in parts):  # new objects (negative ids): read again, keeping their locations
+        parts = [_read_pass(path, classes, extras=extras, node_ids=node_ids, where=where, negative=True)]
     for kind, (geoms, attrs) in parts[0].polygons.items():
         out.polygons[kind] = (geoms, attrs)
     _merge(out, parts, node_ids=node_ids)
@@ -193,11 +203,14 @@ def _free_cores() -> int:
     return 1 if in_worker() or not can_fork() else min(2, available_cores())
 
 
-def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: bool, where) -> _Ways:
+def _read_pass(
+    path: Path, select: frozenset[str] | None, *, extras, node_ids: bool, where, negative: bool = False
+) -> _Ways:
     """One pyosmium pass: the highway ways whose class is in ``select`` (all when None), and the ``extras`` areas.
 
     The class filter runs in libosmium (C++), so that other ways never
-    reach Python.
+    reach Python.  With ``negative``, a node callback keeps the locations
+    of the nodes with negative ids, which the ways then use.
     """
     import osmium
 
@@ -211,6 +224,12 @@ def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: b
     codes: dict = {}
     append_line, append_id, append_code, append_more = hex_wkb.append, way_id.append, code_l.append, more.append
     clipped = [0]
+    neg: dict | None = {} if negative else None
+    uses_negative = [False]
+
+    def node(n):
+        if n.id < 0 and n.location.valid():
+            neg[n.id] = (n.location.lon, n.location.lat, n.id)
 
     def way(w):
         tags = w.tags
@@ -222,8 +241,11 @@ def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: b
         try:
             append_line(create(w, every))
         except osmium.InvalidLocationError:
-            kept = _clipped_way(w, path, hex_wkb, where)
-            clipped[0] += 1
+            if neg is None and not uses_negative[0] and any(n.ref < 0 for n in w.nodes):
+                uses_negative[0] = True
+            kept = _clipped_way(w, path, hex_wkb, where, neg)
+            if neg is None or len(kept or ()) < len(w.nodes):
+                clipped[0] += 1
             if kept is None:
                 return
         except RuntimeError:  # libosmium geometry_error: a way of fewer than two nodes
@@ -245,6 +267,8 @@ def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: b
             refs.append(kept if kept is not None else [n.ref for n in w.nodes])
 
     callbacks = {"way": way}
+    if negative:
+        callbacks["node"] = node
     polygons: dict = {}
     if extras:
         polygons = {k: ([], []) for k in ("water", "parks", "buildings")}
@@ -272,6 +296,7 @@ def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: b
         np.fromiter((r for way in refs for r in way), np.int64) if node_ids else None,
         clipped[0],
         polygons,
+        uses_negative[0],
     )
 
 
@@ -348,9 +373,10 @@ def _merge(out: OsmExtract, parts: list[_Ways], *, node_ids: bool) -> None:
             out.tags[k][i] = col
 
 
-def _clipped_way(w, path, hex_wkb, where) -> list[int] | None:
+def _clipped_way(w, path, hex_wkb, where, negative: dict | None = None) -> list[int] | None:
     """Slow path for a way with missing node locations: keep its longest run of located nodes.
 
+    ``negative`` holds the ``(lon, lat, id)`` of the nodes with negative ids.
     Returns the OSM ids of the kept nodes, or None when fewer than two are left.
     """
     runs, run = [], []
@@ -358,6 +384,9 @@ def _clipped_way(w, path, hex_wkb, where) -> list[int] | None:
         loc = n.location
         if loc.valid():
             run.append((loc.lon, loc.lat, n.ref))
+            continue
+        if negative is not None and n.ref in negative:
+            run.append(negative[n.ref])
             continue
         if loc.x != _UNDEFINED or loc.y != _UNDEFINED:  # present, but outside the valid range
             raise InputDataError(
