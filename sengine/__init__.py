@@ -8,13 +8,14 @@ __version__ = "0.1.0"
 
 from .errors import SEngineError  # noqa: E402
 from .layer import Layer  # noqa: E402
-from .node import Context, Param, Port, SENode  # noqa: E402
+from .node import Context, NodeResult, Param, Port, SENode  # noqa: E402
 from .plan import CityPlan, MapSpec, Rule  # noqa: E402
 from .registry import register  # noqa: E402
 
 __all__ = [
     "Layer",
     "SENode",
+    "NodeResult",
     "Param",
     "Port",
     "Context",

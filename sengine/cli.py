@@ -16,7 +16,7 @@ from functools import partial
 from pathlib import Path
 
 from . import __version__
-from .errors import SEngineError
+from .errors import Problems, SEngineError
 from .parallel import available_cores, run_jobs
 from .plan import MapSpec
 
@@ -206,9 +206,9 @@ def cmd_osm(args: argparse.Namespace) -> int:
             f'<sengine version="1">\n  <city name="{_xml_attr(args.file.name)}"/>\n'
             '  <network base="loadmap"/>\n</sengine>\n'
         )
-        net = load_config(config, sets=args.sets, plugins=args.plugin, seed=args.seed)
         # errors about the file name the command, not the temporary config
-        net.plan.maps["osm"] = MapSpec("osm", args.file.resolve(), {}, where="sengine osm")
+        osm = MapSpec("osm", args.file.resolve(), {}, where="sengine osm")
+        net = load_config(config, sets=args.sets, maps=[osm], plugins=args.plugin, seed=args.seed)
         net.source = str(args.file)
         result = net.run(out=args.out, formats=_formats(args.formats), progress=_progress(args), workers=args.workers)
     if not args.quiet:
@@ -295,7 +295,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SEngineError as err:
         if args.debug:
             raise
-        print(f"sengine: error: {_one_line(str(err))}", file=sys.stderr)
+        lines = err.lines if isinstance(err, Problems) else [str(err)]
+        print(f"sengine: error: {_one_line(lines[0])}", file=sys.stderr)
+        for line in lines[1:]:
+            print(f"  {_one_line(line)}", file=sys.stderr)
         return EXIT_USER_ERROR
     except KeyboardInterrupt:
         print("sengine: interrupted", file=sys.stderr)

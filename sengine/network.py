@@ -31,9 +31,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import __version__, registry
-from .errors import NetworkError, SEngineError
+from .errors import NetworkError, NodeError, Problems, SEngineError
 from .layer import Layer
-from .node import Context, SENode
+from .node import Context, NodeResult, SENode
 from .parallel import run_jobs
 from .plan import CityPlan
 
@@ -193,7 +193,7 @@ class Network:
 
     # -- validation -------------------------------------------------------------
     def validate(self, context: Context | None = None) -> _Bound:
-        """Check the whole network; raise the first problem, counting the others.
+        """Check the whole network; raise every problem at once (:class:`~sengine.errors.Problems`).
 
         Checks: unknown node type, unknown or missing port, port kind
         mismatch, missing required input, input connected twice, unknown
@@ -212,16 +212,22 @@ class Network:
                 problems.append(type(err)(err.message, where=where or err.where))
         edges: list[tuple[str, str, str, str]] = []
         taken: dict[tuple[str, str], Connection] = {}
+        tainted: set[str] = set()  # nodes with a connection that failed: a missing input would only echo it
         for conn in self.connections:
             try:
                 edge = self._resolve(conn, nodes, taken)
             except SEngineError as err:
                 problems.append(err)
+                tainted.add(conn.dst)
                 continue
             if edge is not None:
                 taken[(edge[2], edge[3])] = conn
                 edges.append(edge)
+            else:
+                tainted.add(conn.dst)
         for node_id, node in nodes.items():
+            if node_id in tainted:
+                continue
             for port_name, port in node.inputs.items():
                 if port.required and (node_id, port_name) not in taken:
                     problems.append(
@@ -237,14 +243,7 @@ class Network:
             problems.append(
                 NetworkError(f"the network has a cycle: {' -> '.join(cycle.args[1])}", where=self.source or None)
             )
-        if problems:
-            first = problems[0]
-            more = (
-                f" (and {len(problems) - 1} more problem{'s' if len(problems) > 2 else ''})"
-                if len(problems) > 1
-                else ""
-            )
-            raise type(first)(first.message + more, where=first.where)
+        Problems.raise_if(problems, where=self.source or None)
         return _Bound(nodes, edges, order)
 
     @staticmethod
@@ -302,6 +301,90 @@ class Network:
             f"port kind mismatch: '{conn.src}' gives {out_kinds} but '{conn.dst}' takes {in_kinds}", where=where
         )
 
+    # -- the plan's inputs -------------------------------------------------------
+    def wire_plan(self) -> list[str]:
+        """Give the plan's inputs source nodes on the graph; return the ids of the nodes added.
+
+        One node per map of the plan, ``<kind>Map``, of the type that is the
+        source of the map kind's port kind (:func:`~sengine.registry.declare_map_kind`,
+        :attr:`SENode.source_for`), even when nothing takes it yet (so
+        ``validate`` reads it).  Then every unconnected input port named
+        ``<key>_<suffix>`` whose kind some class is the source of is
+        connected to node ``<key><Suffix>`` (``height_map`` <- ``heightMap``,
+        ``district_rules`` <- ``districtRules``), made by that class's
+        :meth:`~sengine.node.SENode.plan_source` when missing.  Ports the
+        plan has nothing for stay unconnected.  Idempotent; unknown node
+        types are left for :meth:`validate`.
+        """
+        sources = registry.source_classes()
+        added: list[str] = []
+
+        def ensure(node_id: str, cls: type[SENode], key: str) -> bool:
+            if node_id in self.specs:
+                return True
+            made = cls.plan_source(key, self.plan)
+            if made is None:
+                return False
+            params, where = made
+            self.add(node_id, cls.name, params, where=where)
+            added.append(node_id)
+            return True
+
+        for kind in self.plan.maps:
+            port_kind = registry.MAP_KINDS.get(kind, (None, ""))[0]
+            if port_kind in sources:
+                ensure(f"{kind}Map", sources[port_kind], kind)
+        named = {(c.dst, c.dst_port) for c in self.connections if c.dst_port}
+        for spec in list(self.specs.values()):
+            cls = registry.REGISTRY.get(spec.type)
+            if cls is None or cls.source_for:
+                continue
+            for port_name, port in cls.inputs.items():
+                src_cls = sources.get(port.kind)
+                key, _, suffix = port_name.rpartition("_")
+                if src_cls is None or not key or (spec.id, port_name) in named:
+                    continue
+                node_id = f"{key}{suffix.capitalize()}"
+                if ensure(node_id, src_cls, key):
+                    self.connect(f"{node_id}", f"{spec.id}.{port_name}", where=self.specs[node_id].where)
+        return added
+
+    def check(self) -> Result:
+        """Every check that needs no geometry, as ``sengine validate`` runs it.
+
+        Validates the network, runs the plan's source nodes (they read the
+        image maps and rules: missing, unreadable or misshapen files fail
+        here) and then each node's :meth:`~sengine.node.SENode.check` with
+        the source layers it takes (known map colours ...).  Every problem is
+        collected and raised at once.  Returns the source layers.
+        """
+        bound = self.validate()
+        problems: list[SEngineError] = []
+        layers: dict[str, dict[str, Layer]] = {}
+        for node_id in bound.order:
+            node = bound.nodes[node_id]
+            if node.source_for is None or node.inputs:
+                continue
+            try:
+                layers[node_id] = dict(_call_run(node, {}).layers)
+            except SEngineError as err:
+                problems.append(err)
+        feeds: dict[str, dict[str, Layer | None]] = {}
+        for s, sp, d, dp in bound.edges:
+            if s in layers:
+                feeds.setdefault(d, {})[dp] = layers[s][sp]
+        for node_id in bound.order:
+            node = bound.nodes[node_id]
+            if node_id in layers or type(node).check is SENode.check:
+                continue
+            kwargs = {p: feeds.get(node_id, {}).get(p) for p in node.inputs}
+            try:
+                node.check(**kwargs)
+            except SEngineError as err:
+                problems.append(err)
+        Problems.raise_if(problems, where=self.source or None)
+        return Result(layers, {})
+
     # -- running --------------------------------------------------------------
     def _context(self, seed: int, out: Path | None = None, formats: Iterable[str] = (), workers: int = 1) -> Context:
         return Context(
@@ -316,6 +399,7 @@ class Network:
         formats: Iterable[str] = (),
         progress: ProgressFn | None = None,
         workers: int = 1,
+        check_kinds: bool = False,
     ) -> Result:
         """Validate, then run every node in topological order.
 
@@ -335,6 +419,9 @@ class Network:
             Worker processes: nodes that map features one by one get their
             first input cut into chunks, exporters write their files side by
             side.  The result is the same for any number of workers.
+        check_kinds : bool
+            Check every output layer against its port kind's declared
+            columns and dtypes (``--debug``; see :func:`sengine.registry.declare_kind`).
         """
         seed = self.seed if seed is None else int(seed)
         out_dir = Path(out) if out is not None else None
@@ -343,7 +430,7 @@ class Network:
             out_dir.parent.mkdir(parents=True, exist_ok=True)
             tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
         try:
-            result = self._run(seed, tmp, formats, progress, max(1, int(workers)))
+            result = self._run(seed, tmp, formats, progress, max(1, int(workers)), check_kinds)
             if tmp is not None:
                 _write_json(tmp / "stats.json", result.stats)
                 _move_into(tmp, out_dir)
@@ -353,7 +440,13 @@ class Network:
                 shutil.rmtree(tmp, ignore_errors=True)
 
     def _run(
-        self, seed: int, tmp: Path | None, formats: Iterable[str], progress: ProgressFn | None, workers: int
+        self,
+        seed: int,
+        tmp: Path | None,
+        formats: Iterable[str],
+        progress: ProgressFn | None,
+        workers: int,
+        check_kinds: bool = False,
     ) -> Result:
         t_start = time.perf_counter()
         context = self._context(seed, tmp, formats, workers)
@@ -373,26 +466,23 @@ class Network:
             for s, sp, dp in incoming[node_id]:
                 kwargs[dp] = layers[s][sp]
             t0 = time.perf_counter()
-            outputs = _run_node(node, kwargs, workers)
+            result = _run_node(node, kwargs, workers)
             dt = time.perf_counter() - t0
-            missing = [p for p in node.outputs if p not in outputs]
-            extra = [p for p in outputs if p not in node.outputs]
-            if missing or extra or not all(isinstance(v, Layer) for v in outputs.values()):
-                raise TypeError(
-                    f"node '{node_id}' ({node.name}) returned ports {sorted(outputs)}, declared {sorted(node.outputs)}"
-                )
-            layers[node_id] = {p: outputs[p] for p in node.outputs}
+            if check_kinds:
+                for port_name, lay in result.layers.items():
+                    registry.check_kind(lay, node.outputs[port_name].kind, where=f"{node.where} output {port_name!r}")
+            layers[node_id] = dict(result.layers)
             first = next(iter(layers[node_id].values()), None)
             count = len(first) if first is not None else 0
-            if node.outputs:  # sinks (exporters) have nothing to count
+            if node.outputs and not node.source_for:  # sinks (exporters) and the plan's inputs count no features
                 counts[node_id] = count
             seconds[node_id] = round(dt, 4)
             if first is not None and count:
                 area = first.area()
                 if area > 0:
                     areas[node_id] = round(area, 1)
-            if getattr(node, "report", None):
-                report[node_id] = node.report
+            if result.report:
+                report[node_id] = result.report
             log.info("%s (%s): %d features in %.3f s", node_id, node.name, count, dt)
             if progress is not None:
                 progress(i, n, node_id, node.name, count, dt)
@@ -454,7 +544,7 @@ MIN_CHUNK = 256  # features; the executor times a first chunk of this size befor
 FORK_AFTER = 0.25  # s; the rest of a node's work must take about this long for workers to pay off
 
 
-def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> dict[str, Layer]:
+def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> NodeResult:
     """Run one node, in chunks over worker processes when it maps features and that pays off.
 
     The first input is cut into contiguous chunks; other inputs go whole to
@@ -462,14 +552,14 @@ def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> di
     would take more than ``FORK_AFTER`` seconds does it go to the workers
     (starting them and sending the results back costs some 0.1 s).  Outputs
     are concatenated in chunk order (renumbered when the node numbers its
-    features per call), which gives the single-process result because a
-    mapping node draws its random numbers per feature (``self.rng(feature_id)``)
-    and writes no files.
+    features per call), and the chunks' reports summed, which gives the
+    single-process result because a mapping node draws its random numbers
+    per feature (``self.rng(feature_id)``) and writes no files.
     """
     first = next(iter(node.inputs), None)
     layer = kwargs.get(first) if first else None
     if workers <= 1 or not node.maps_features or layer is None or len(layer) < 2 * MIN_CHUNK:
-        return node.run(**kwargs) or {}
+        return _call_run(node, kwargs)
     t = time.perf_counter()
     parts = [_call_run(node, {**kwargs, first: layer.take(np.arange(MIN_CHUNK))})]
     rest = len(layer) - MIN_CHUNK
@@ -483,20 +573,40 @@ def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> di
             for a, b in zip(bounds[:-1], bounds[1:])
         ]
         parts += run_jobs(jobs, workers)  # forked workers inherit the registry and plugins
-    reports = [r for _, r in parts if r]
-    if reports:
-        node.report = _sum_reports(reports)
+    reports = [dict(r.report) for r in parts if r.report]
     merged = {}
     for port in node.outputs:
-        layers = [out[port] for out, _ in parts]
+        layers = [r.layers[port] for r in parts]
         ids = np.concatenate([lay.ids for lay in layers])
         merged[port] = Layer.concat(layers, renumber=len(np.unique(ids)) != len(ids))
-    return merged
+    return NodeResult(merged, _sum_reports(reports) if reports else None)
 
 
-def _call_run(node: SENode, kwargs: dict[str, Layer | None]) -> tuple[dict[str, Layer], dict | None]:
-    outputs = node.run(**kwargs) or {}
-    return outputs, getattr(node, "report", None)
+def _call_run(node: SENode, kwargs: dict[str, Layer | None]) -> NodeResult:
+    """``node.run(**kwargs)`` as a NodeResult.
+
+    A plugin's node (a class from outside the ``sengine`` package) that
+    raises anything but an :class:`~sengine.errors.SEngineError` fails with
+    a one-line :class:`~sengine.errors.NodeError` naming the node; the
+    built-in nodes' exceptions are bugs and keep their traceback.  Running
+    out of memory is one line for every node.
+    """
+    if "report" in vars(node):  # the old form: a report left by a previous call must not leak into this one
+        node.report = None
+    try:
+        value = node.run(**kwargs)
+    except SEngineError:
+        raise
+    except MemoryError:
+        raise NodeError("ran out of memory (try smaller inputs or fewer --workers)", where=node.where) from None
+    except Exception as exc:
+        if type(node).__module__.split(".")[0] == "sengine":
+            raise
+        raise NodeError(
+            f"failed: {type(exc).__name__}: {exc} (a bug in the plugin; --debug shows the traceback)",
+            where=node.where,
+        ) from exc
+    return NodeResult.of(node, value)
 
 
 def _sum_reports(reports: list[dict]) -> dict:

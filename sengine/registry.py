@@ -38,6 +38,16 @@ __all__ = [
     "register_network",
     "network_class",
     "network_names",
+    "declare_rule",
+    "rule_params",
+    "declare_kind",
+    "kinds",
+    "check_kind",
+    "source_classes",
+    "declare_formats",
+    "declare_map_kind",
+    "map_kinds",
+    "formats",
 ]
 
 log = logging.getLogger(__name__)
@@ -48,6 +58,9 @@ NAME_RE = re.compile(r"^[a-z][a-z0-9_]*(\.[a-z][a-z0-9_]*)*$", re.IGNORECASE)
 REGISTRY: dict[str, type[SENode]] = {}
 NETWORKS: dict[str, type] = {}  # base name -> network class (``<network base="...">``)
 RULES: dict[str, dict[str, Param]] = {}  # plan element tag -> its declared attributes
+KINDS: dict[str, dict[str, tuple[str, bool, str]]] = {}  # layer kind -> column -> (dtype kinds, required, doc)
+FORMATS: dict[str, str] = {}  # output format -> what writes it
+MAP_KINDS: dict[str, tuple[str, str]] = {}  # <map kind=...> -> (kind of the port that carries it, doc)
 _loaded: dict[str, str] = {}  # plugin key -> module name
 _broken: dict[str, str] = {}
 _entry_points_loaded = False
@@ -252,3 +265,105 @@ def rule_params(tag: str) -> dict[str, Param] | None:
     """The declared attributes of ``<tag>``, or None when nothing declares the element."""
     load_entry_points()
     return RULES.get(tag)
+
+
+def declare_kind(kind: str, columns: dict[str, tuple[str, bool, str]], *, doc: str = "") -> None:
+    """Declare the attribute columns of a layer kind.
+
+    Parameters
+    ----------
+    kind : str
+        The port kind (``"lots"``, ``"roads"`` ...).
+    columns : dict of str to (str, bool, str)
+        Column name -> (numpy dtype kinds allowed, as in ``"iu"`` or ``"U"``
+        or ``"O"``; whether every layer of the kind must have it; one-line doc).
+    doc : str
+        What a layer of the kind holds.
+
+    A column declared twice must be declared the same way.
+    """
+    have = KINDS.setdefault(kind, {})
+    for name, decl in columns.items():
+        if name in have and have[name] != decl:
+            raise RegistryError(f"layer kind {kind!r}: column {name!r} is declared twice, differently")
+        have[name] = decl
+    if doc:
+        KIND_DOCS[kind] = doc
+
+
+KIND_DOCS: dict[str, str] = {}
+
+
+def kinds() -> dict[str, dict[str, tuple[str, bool, str]]]:
+    """Every declared layer kind and its columns."""
+    load_entry_points()
+    return {k: dict(v) for k, v in KINDS.items()}
+
+
+def check_kind(layer, kind: str, *, where: str | None = None) -> None:
+    """Raise NetworkError when ``layer`` lacks a required column of ``kind`` or has one of the wrong dtype.
+
+    Undeclared kinds (``any``, a plugin's own) and undeclared columns pass:
+    a kind declares what its consumers may rely on, not all a layer may carry.
+    """
+    from .errors import NetworkError
+
+    decl = KINDS.get(kind)
+    if decl is None:
+        return
+    problems = []
+    for name, (dtypes, required, _) in decl.items():
+        col = layer.attrs.get(name)
+        if col is None:
+            if required and len(layer):
+                problems.append(f"column {name!r} is missing")
+            continue
+        if col.dtype.kind not in dtypes:
+            problems.append(f"column {name!r} has dtype {col.dtype} (kind {col.dtype.kind!r}), declared {dtypes!r}")
+    if problems:
+        raise NetworkError(f"layer of kind {kind!r}: " + "; ".join(problems), where=where)
+
+
+def source_classes() -> dict[str, type[SENode]]:
+    """Layer kind -> the registered node class that is the plan's source of it (:attr:`SENode.source_for`)."""
+    load_entry_points()
+    return {c.source_for: c for c in REGISTRY.values() if c.source_for}
+
+
+def declare_formats(formats: dict[str, str]) -> None:
+    """Declare output formats an exporter writes (``{"glb": "city.glb, one node per layer"}``).
+
+    ``--format`` accepts only declared formats; a plugin's exporter declares
+    its own the same way.  A format declared twice must be described the same.
+    """
+    for name, doc in formats.items():
+        if not re.fullmatch(r"[a-z0-9][a-z0-9_.-]*", name):
+            raise RegistryError(f"output format {name!r} must be lower-case letters, digits, '_', '.' or '-'")
+        if name in FORMATS and FORMATS[name] != doc:
+            raise RegistryError(f"output format {name!r} is declared twice, differently")
+        FORMATS[name] = doc
+
+
+def formats() -> dict[str, str]:
+    """Every declared output format and what writes it."""
+    load_entry_points()
+    return dict(FORMATS)
+
+
+def declare_map_kind(kind: str, port_kind: str, doc: str = "") -> None:
+    """Declare a ``<map kind=...>`` of the plan and the port kind that carries it (``raster``, ``file``).
+
+    A configuration's map of an undeclared kind is an error with a "did you
+    mean"; the node registered as the source of ``port_kind``
+    (:attr:`SENode.source_for`) turns each such map into a node.
+    """
+    old = MAP_KINDS.get(kind)
+    if old is not None and old[0] != port_kind:
+        raise RegistryError(f"map kind {kind!r} is declared twice, differently")
+    MAP_KINDS[kind] = (port_kind, doc)
+
+
+def map_kinds() -> dict[str, tuple[str, str]]:
+    """Every declared map kind: its port kind and doc."""
+    load_entry_points()
+    return dict(MAP_KINDS)

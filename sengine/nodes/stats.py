@@ -25,7 +25,7 @@ import logging
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.geom.polygons import obb_frame, shared_areas, threaded
 
 __all__ = ["shape_stats", "building_shares", "built_on_sites", "planning_columns", "StatsShape", "StatsPlanning"]
@@ -78,10 +78,10 @@ class StatsShape(SENode):
     params = {}
     maps_features = True
 
-    def run(self, *, input: Layer) -> dict[str, Layer]:
+    def run(self, *, input: Layer) -> tuple[dict[str, Layer], dict]:
         st = shape_stats(input.geometry, frontage=input.get("frontage"), front_angle=input.get("front_angle"))
-        self.report = {"features": len(input), "area": float(st["area"].sum()), "frontage": float(st["frontage"].sum())}
-        return {"output": input.with_columns(**st)}
+        report = {"features": len(input), "area": float(st["area"].sum()), "frontage": float(st["frontage"].sum())}
+        return NodeResult({"output": input.with_columns(**st)}, report)
 
 
 def building_shares(sites: Layer, buildings: Layer) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -167,7 +167,7 @@ class StatsPlanning(SENode):
         ),
     }
 
-    def run(self, *, lots: Layer, buildings: Layer, blocks: Layer | None = None) -> dict[str, Layer]:
+    def run(self, *, lots: Layer, buildings: Layer, blocks: Layer | None = None) -> tuple[dict[str, Layer], dict]:
         per_resident = self.p.m2_per_resident
         lot_area = shapely.area(lots.geometry) if len(lots) else np.zeros(0)
         shares = building_shares(lots, buildings)
@@ -205,7 +205,6 @@ class StatsPlanning(SENode):
             else:
                 bf, bg = built_on_sites(blocks, buildings)
             out_blocks = blocks.with_columns(**planning_columns(shapely.area(blocks.geometry), bf, bg))
-        self.report = report
         c = report["city"]
         log.info(
             "%s: FAR %.2f, coverage %.0f %%, %.0f m2 of floor area on %.0f m2 of lots",
@@ -215,4 +214,4 @@ class StatsPlanning(SENode):
             c["floor_area_m2"],
             c["site_area_m2"],
         )
-        return {"lots": out_lots, "blocks": out_blocks}
+        return NodeResult({"lots": out_lots, "blocks": out_blocks}, report)

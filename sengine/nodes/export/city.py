@@ -17,7 +17,10 @@ cityjson   ``buildings.city.json`` (LoD1)          :mod:`sengine.nodes.export.ci
 ========== ======================================= ========================
 
 WGS84 coordinates come from each layer's ``meta["crs"]``, or the local frame
-of the plan's geographic origin.  ``stats.json`` is the executor's.
+of the layers' geographic origin (``meta["origin"]``); ``preview.png`` is
+framed on the layers' city extent (``meta["extent"]``, set by synthetic
+cities).  The formats are declared (:func:`sengine.registry.declare_formats`),
+so ``--format`` knows them.  ``stats.json`` is the executor's.
 """
 
 from __future__ import annotations
@@ -29,16 +32,25 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from sengine import CityPlan, Layer, Param, Port, SENode, register
+from sengine import CityPlan, Layer, NodeResult, Param, Port, SENode, register
 from sengine.geom.crs import layer_crs, to_lonlat
 from sengine.parallel import run_jobs
+from sengine.registry import declare_formats
 
 __all__ = ["FORMATS", "DEFAULT_FORMATS", "export_layers", "ExportCity"]
 
 log = logging.getLogger(__name__)
 
-FORMATS = ("glb", "geojson", "osm", "png", "obj", "cityjson")
+FORMATS = {
+    "glb": "city.glb: binary glTF, one node per layer, Y up, metres",
+    "geojson": "<layer>.geojson: RFC 7946, WGS84 lon/lat",
+    "osm": "streets.osm: the roads as OSM XML",
+    "png": "preview.png: the plan view",
+    "obj": "city.obj + city.mtl: Wavefront OBJ",
+    "cityjson": "buildings.city.json: CityJSON LoD1",
+}
 DEFAULT_FORMATS = frozenset({"glb", "geojson", "osm", "png"})
+declare_formats(FORMATS)
 
 
 def export_layers(
@@ -47,6 +59,8 @@ def export_layers(
     formats,
     *,
     plan=None,
+    extent=None,
+    origin=None,
     line_width: float = 1.0,
     preview_size: int = 1600,
     workers: int = 1,
@@ -64,7 +78,11 @@ def export_layers(
         Names among :data:`FORMATS`; others are ignored, empty means
         :data:`DEFAULT_FORMATS`.
     plan : CityPlan, optional
-        Its ``origin`` places layers that carry no ``meta["crs"]``.
+        Its ``origin`` and ``extent``, when ``origin`` and ``extent`` are not given.
+    extent : tuple of float, optional
+        The city extent (m) that frames ``preview.png`` (none: the layers' bounds).
+    origin : tuple of float, optional
+        Latitude and longitude placing layers that carry no ``meta["crs"]``.
     workers : int
         Processes writing files side by side (:func:`sengine.parallel.run_jobs`);
         the files are the same for any number.
@@ -81,13 +99,15 @@ def export_layers(
     out = Path(out)
     formats = set(formats or ()) & set(FORMATS) or set(DEFAULT_FORMATS)
     layers = {k: v for k, v in layers.items() if v is not None}
-    origin = (plan or CityPlan()).origin
+    if origin is None:
+        origin = (plan or CityPlan()).origin
+    if extent is None and plan is not None:
+        extent = plan.extent
     crs = {k: layer_crs(v.meta, origin) for k, v in layers.items()}
     any_crs = next(iter(crs.values()), layer_crs({}, origin))
     jobs: list[tuple[str, str | None, Callable[[], Any]]] = []  # (format, layer, write)
     if "png" in formats:
         # the plan's extent frames a synthetic city; data in another frame (OSM in UTM) frames itself
-        extent = plan.extent if plan is not None else None
         extent = extent if extent is not None and not _outside(layers, extent) else None
         jobs.append(
             ("png", None, partial(preview.write_preview, out / "preview.png", layers, size=preview_size, extent=extent))
@@ -205,8 +225,7 @@ class ExportCity(SENode):
         out = self.context.out
         if out is None:  # an in-memory run (tests, notebooks): nothing to write
             log.info("%s: no output folder, nothing written", self.where)
-            self.report = {}
-            return {}
+            return NodeResult({}, {})
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         layers = {
@@ -219,18 +238,21 @@ class ExportCity(SENode):
             "parks": parks,
             "water": water,
         }
+        metas = [lay.meta for lay in layers.values() if lay is not None]
+        extent = next((m["extent"] for m in metas if "extent" in m), None)
+        origin = next((tuple(m["origin"]) for m in metas if "origin" in m), CityPlan().origin)
         report = export_layers(
             out,
             layers,
             self.context.formats,
-            plan=self.context.plan,
+            extent=extent,
+            origin=origin,
             line_width=self.p.line_width,
             preview_size=self.p.preview_size,
             workers=self.context.workers,
         )
         report.pop("seconds", None)  # timings would make stats.json differ between runs
-        self.report = _flat_counts(report)
-        return {}
+        return NodeResult({}, _flat_counts(report))
 
 
 def _flat_counts(report: dict) -> dict:

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import InputDataError
 from sengine.geom.crs import from_lonlat, utm_crs
 from sengine.geom.segments import lines_from_groups
@@ -247,7 +247,7 @@ class OsmRead(SENode):
     """
 
     name = "osm.read"
-    inputs = {}
+    inputs = {"osm_map": Port("file", "the OSM file of the plan (<map kind='osm'>)", required=False)}
     outputs = {
         "roads": Port("roads", "street segments between junctions, with their OSM class"),
         "water": Port("polygons", "water areas (natural=water, waterway=riverbank)"),
@@ -272,24 +272,20 @@ class OsmRead(SENode):
         ),
     }
 
-    def _path(self) -> Path:
+    def _path(self, osm_map: Layer | None) -> tuple[Path, str]:
         if self.p.path:
             path = Path(self.p.path)
             if not path.is_absolute() and self.context.base_dir is not None:
                 path = Path(self.context.base_dir) / path
-            return path
-        plan = self.context.plan
-        spec = getattr(plan, "maps", {}).get("osm") if plan is not None else None
-        if spec is None:
+            return path, self.where
+        if osm_map is None or not len(osm_map):
             raise InputDataError(
                 'no OSM file: set the \'path\' parameter or add <map kind="osm" src="..."/>', where=self.where
             )
-        return Path(spec.src)
+        return Path(str(osm_map["src"][0])), osm_map.meta.get("where") or self.where
 
-    def run(self) -> dict[str, Layer]:
-        path = self._path()
-        where = getattr(getattr(self.context.plan, "maps", {}).get("osm"), "where", None) if not self.p.path else None
-        where = where or self.where
+    def run(self, *, osm_map: Layer | None = None):
+        path, where = self._path(osm_map)
         major, minor = _classes(self.p.major), _classes(self.p.minor)
         extras = _classes(self.p.extras)
         bad = extras - {"water", "parks", "buildings"}
@@ -334,10 +330,10 @@ class OsmRead(SENode):
             out[kind] = polygons_layer(
                 ext, kind, small, floor_height=self.p.floor_height, default_height=self.p.default_height
             )
-        self.report = {
+        report = {
             "ways": len(ext.code),
             "segments": len(roads),
             "clipped_ways": ext.clipped,
             **{kind: len(out[kind]) for kind in ("water", "parks", "buildings")},
         }
-        return out
+        return NodeResult(out, report)
