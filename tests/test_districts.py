@@ -11,8 +11,8 @@ from PIL import Image, ImageDraw
 
 from sengine import CityPlan, Context, Rule
 from sengine.errors import ConfigError, InputDataError
-from sengine.plan import MapSpec
 from sengine.nodes.maps import plan_inputs
+from sengine.plan import MapSpec
 from sengine.registry import get
 
 SETTINGS = settings(
