@@ -67,7 +67,8 @@ def _run_options(p: argparse.ArgumentParser) -> None:
         "--format",
         dest="formats",
         default="",
-        help="comma list of outputs: glb,geojson,osm,png,obj,cityjson (default: the exporter's)",
+        help="comma list of outputs, e.g. glb,geojson,osm,png,obj,cityjson (sengine nodes lists every format; "
+        "default: the exporter's)",
     )
 
 
@@ -112,6 +113,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("nodes", help="list every registered node with its ports and parameters")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--check", action="store_true", help="also list plugins that failed to load")
+    p.add_argument(
+        "--all", action="store_true", help="with --json: also the rule attributes, map kinds, layer kinds, formats"
+    )
     _common(p)
 
     p = sub.add_parser("graph", help="draw a config's network (.dot, .svg or .png)")
@@ -130,7 +134,16 @@ def _progress(args: argparse.Namespace):
 
 
 def _formats(text: str) -> frozenset[str]:
-    return frozenset(f.strip().lower() for f in text.split(",") if f.strip())
+    """``--format``: formats some exporter declared (:func:`sengine.registry.declare_formats`), or an error."""
+    from . import registry
+    from .node import unknown_name
+
+    asked = [f.strip().lower() for f in text.split(",") if f.strip()]
+    known = sorted(registry.formats())
+    bad = [f for f in asked if f not in known]
+    if bad:
+        raise SEngineError(unknown_name("format", bad[0], known), where="--format")
+    return frozenset(asked)
 
 
 def _workers(text: str) -> int:
@@ -158,8 +171,11 @@ def _seeds(text: str) -> list[int]:
 def cmd_run(args: argparse.Namespace) -> int:
     from .xmlconfig import load_config
 
+    formats = _formats(args.formats)
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin, seed=args.seed)
-    result = net.run(out=args.out, formats=_formats(args.formats), progress=_progress(args), workers=args.workers)
+    result = net.run(
+        out=args.out, formats=formats, progress=_progress(args), workers=args.workers, check_kinds=args.debug
+    )
     if not args.quiet:
         counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
         print(f"{args.out}: {counts} in {result.stats['seconds']['total']:.2f} s")
@@ -170,10 +186,10 @@ def cmd_batch(args: argparse.Namespace) -> int:
     """One run per seed; with ``--workers N`` the seeds run side by side in N processes."""
     from .xmlconfig import load_config
 
+    formats = _formats(args.formats)
+    seeds = _seeds(args.seeds)
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin)
     net.validate()
-    seeds = _seeds(args.seeds)
-    formats = _formats(args.formats)
     if args.workers > 1 and len(seeds) > 1:  # seeds side by side, each run in one process
         jobs = [partial(_batch_run, net, seed, args.out, formats) for seed in seeds]
         stats = run_jobs(jobs, args.workers)
@@ -198,6 +214,7 @@ def cmd_osm(args: argparse.Namespace) -> int:
     """Run ``networks/loadmap.xml`` on one OSM file with default parameters."""
     from .xmlconfig import load_config
 
+    formats = _formats(args.formats)
     if not args.file.exists():
         raise SEngineError(f"{args.file}: file not found")
     with tempfile.TemporaryDirectory() as tmp:
@@ -210,7 +227,9 @@ def cmd_osm(args: argparse.Namespace) -> int:
         osm = MapSpec("osm", args.file.resolve(), {}, where="sengine osm")
         net = load_config(config, sets=args.sets, maps=[osm], plugins=args.plugin, seed=args.seed)
         net.source = str(args.file)
-        result = net.run(out=args.out, formats=_formats(args.formats), progress=_progress(args), workers=args.workers)
+        result = net.run(
+            out=args.out, formats=formats, progress=_progress(args), workers=args.workers, check_kinds=args.debug
+        )
     if not args.quiet:
         counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
         print(f"{args.out}: {counts} in {result.stats['seconds']['total']:.2f} s")
@@ -225,19 +244,42 @@ def cmd_validate(args: argparse.Namespace) -> int:
     from .xmlconfig import load_config
 
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin)
+    net.check()  # the network, then every input the plan names: files, images, colours
     bound = net.validate()
     print(f"{args.config}: valid, {len(bound.nodes)} nodes, {len(bound.edges)} connections")
     return 0
 
 
+def _param_line(name: str, p: dict, unset: str = "required") -> str:
+    bounds = ""
+    if p["min"] is not None or p["max"] is not None:
+        bounds = f" [{'' if p['min'] is None else p['min']}, {'' if p['max'] is None else p['max']}]"
+    if p["choices"]:
+        bounds = f" {{{', '.join(p['choices'])}}}"
+    unit = f" {p['unit']}" if p["unit"] else ""
+    default = unset if p["default"] is None else repr(p["default"])
+    return f"    - {name}: {p['type']} = {default}{unit}{bounds}  {p['doc']}"
+
+
 def cmd_nodes(args: argparse.Namespace) -> int:
+    """List every registered node, then the plan's rule attributes, map kinds, layer kinds and output formats."""
     from . import registry
 
     for spec in args.plugin:
         registry.load_plugin(spec, base_dir=Path.cwd(), where=f"--plugin {spec}")
     described = [registry.get(name).describe() for name in registry.names()]
+    rules = {tag: [p.describe(k) for k, p in decl.items()] for tag, decl in sorted(registry.RULES.items())}
+    kinds = {
+        k: {c: {"dtype": d, "required": r, "doc": doc} for c, (d, r, doc) in cols.items()}
+        for k, cols in sorted(registry.kinds().items())
+    }
+    maps = {k: {"port_kind": pk, "doc": doc} for k, (pk, doc) in sorted(registry.map_kinds().items())}
+    formats = dict(sorted(registry.formats().items()))
     if args.json:
-        print(json.dumps(described, indent=2))
+        if args.all:
+            print(json.dumps({"nodes": described, "rules": rules, "kinds": kinds, "maps": maps, "formats": formats}))
+        else:
+            print(json.dumps(described, indent=2))
     else:
         for d in described:
             ins = ", ".join(f"{p['name']}:{p['kind']}{'' if p['required'] else '?'}" for p in d["inputs"])
@@ -246,13 +288,21 @@ def cmd_nodes(args: argparse.Namespace) -> int:
             if d["doc"]:
                 print(f"    {d['doc']}")
             for p in d["params"]:
-                bounds = ""
-                if p["min"] is not None or p["max"] is not None:
-                    bounds = f" [{'' if p['min'] is None else p['min']}, {'' if p['max'] is None else p['max']}]"
-                if p["choices"]:
-                    bounds = f" {{{', '.join(p['choices'])}}}"
-                unit = f" {p['unit']}" if p["unit"] else ""
-                print(f"    - {p['name']}: {p['type']} = {p['default']!r}{unit}{bounds}  {p['doc']}")
+                print(_param_line(p["name"], p))
+        for tag, params in rules.items():
+            print(f"<{tag}> attributes of the plan")
+            for p in params:
+                print(_param_line(p["name"], p, unset="unset"))
+        print("<map kind=...> of the plan")
+        for k, m in maps.items():
+            print(f"    - {k} (port {k}_map:{m['port_kind']})  {m['doc']}")
+        print("layer kinds (required columns*)")
+        for k, cols in kinds.items():
+            listed = ", ".join(f"{c}{'*' if v['required'] else ''}:{v['dtype']}" for c, v in cols.items())
+            print(f"    - {k}: {listed}")
+        print("--format")
+        for k, doc in formats.items():
+            print(f"    - {k}  {doc}")
     if args.check:
         broken = registry.broken_plugins()
         for name, why in broken.items():

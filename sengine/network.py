@@ -244,6 +244,8 @@ class Network:
                 NetworkError(f"the network has a cycle: {' -> '.join(cycle.args[1])}", where=self.source or None)
             )
         Problems.raise_if(problems, where=self.source or None)
+        # the plan's inputs first: a missing or broken map fails before any work is done
+        order = [k for k in order if nodes[k].source_for] + [k for k in order if not nodes[k].source_for]
         return _Bound(nodes, edges, order)
 
     @staticmethod
