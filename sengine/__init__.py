@@ -2,6 +2,12 @@
 
 A city is a DAG of registered nodes wired by an XML network file; geometry
 streams between them as :class:`~sengine.layer.Layer` batches.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 __version__ = "0.1.0"

@@ -73,6 +73,7 @@ def _run_options(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``sengine`` argument parser with its six commands."""
     parser = _Parser(prog="sengine", description="A procedural city engine after skylineEngine.")
     parser.add_argument("--version", action="version", version=f"sengine {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -169,6 +170,7 @@ def _seeds(text: str) -> list[int]:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    """``sengine run``: read a config, run it into ``--out``."""
     from .xmlconfig import load_config
 
     formats = _formats(args.formats)
@@ -241,6 +243,7 @@ def _xml_attr(text: str) -> str:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    """``sengine validate``: every check that needs no geometry, every problem at once."""
     from .xmlconfig import load_config
 
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin)
@@ -312,6 +315,7 @@ def cmd_nodes(args: argparse.Namespace) -> int:
 
 
 def cmd_graph(args: argparse.Namespace) -> int:
+    """``sengine graph``: draw a config's network, the plan's inputs included."""
     from .graphview import write_graph
     from .xmlconfig import load_config
 
@@ -333,6 +337,7 @@ COMMANDS = {
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one ``sengine`` command; return the exit status (0, 1 for ``nodes --check``, 2 user error, 130)."""
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as done:  # --help, --version, or a usage error already printed

@@ -134,10 +134,12 @@ class Layer:
         return name in self.attrs or name in ("id", "parent_id")
 
     def get(self, name: str, default: Any = None) -> Any:
+        """The attribute column ``name``, or ``default`` when the layer has none."""
         return self.attrs.get(name, default)
 
     @property
     def columns(self) -> list[str]:
+        """The attribute columns' names, in order."""
         return list(self.attrs)
 
     def rows_of(self, ids) -> np.ndarray:
@@ -174,6 +176,7 @@ class Layer:
         return Layer(g, self.ids, self.parent, dict(self.attrs), dict(self.meta))
 
     def with_meta(self, **meta: Any) -> Layer:
+        """A copy with meta entries added or replaced."""
         return Layer(self.geometry, self.ids, self.parent, dict(self.attrs), {**self.meta, **meta})
 
     def area(self) -> float:

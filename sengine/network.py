@@ -9,6 +9,12 @@ keeps per-node counts and seconds.
 The standard networks of the paper (stdNetwork, patternNetwork,
 stdLoadMapNetwork) are city knowledge: they live in the node library
 (:mod:`sengine.nodes.standard`) and are found through the registry.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
@@ -56,6 +62,7 @@ class NodeSpec:
     param_where: dict[str, str] = field(default_factory=dict)
 
     def label(self) -> str:
+        """``file:line: node 'id' (type)`` for messages."""
         return f"{self.where}: node '{self.id}' ({self.type})" if self.where else f"node '{self.id}' ({self.type})"
 
 
@@ -71,6 +78,7 @@ class Connection:
 
     @classmethod
     def parse(cls, src: str, dst: str, where: str = "") -> Connection:
+        """A connection from ``"node"`` or ``"node.port"`` to ``"node"`` or ``"node.port"``."""
         s, _, sp = src.partition(".")
         d, _, dp = dst.partition(".")
         return cls(s, sp or None, d, dp or None, where)
@@ -612,8 +620,10 @@ def _call_run(node: SENode, kwargs: dict[str, Layer | None]) -> NodeResult:
 
 
 def _sum_reports(reports: list[dict]) -> dict:
-    """Merge the reports of a node's chunks: numbers add up (``max_*`` ones take the largest), the rest is taken
-    from the first."""
+    """Merge the reports of a node's chunks.
+
+    Numbers add up (``max_*`` ones take the largest); the rest is taken from the first.
+    """
     total: dict = {}
     for rep in reports:
         for key, value in rep.items():

@@ -8,6 +8,12 @@ dict of output layers keyed by output port name.
 
 The engine knows nothing about what the kinds mean: ``"roads"`` or
 ``"blocks"`` are just labels that must match between connected ports.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
@@ -54,6 +60,7 @@ class Port:
     required: bool = True
 
     def accepts(self, kind: str) -> bool:
+        """Whether a layer of ``kind`` may flow through this port."""
         return ANY in (self.kind, kind) or self.kind == kind
 
 
@@ -140,6 +147,7 @@ class Param:
         return value
 
     def describe(self, name: str) -> dict:
+        """The declaration as plain data (``sengine nodes --json``)."""
         return {
             "name": name,
             "type": self.type,

@@ -8,6 +8,12 @@ nodes when imported; they arrive four ways, all through :func:`load_plugin`:
 * ``<plugin module="..."/>`` in a configuration file;
 * ``<plugin path="..."/>`` (a ``.py`` file or a package folder);
 * ``--plugin MODULE_OR_PATH`` on the command line.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
@@ -144,6 +150,7 @@ def network_class(name: str, *, where: str | None = None) -> type:
 
 
 def network_names() -> list[str]:
+    """The registered network bases, sorted."""
     load_entry_points()
     return sorted(NETWORKS)
 
@@ -174,6 +181,7 @@ def load_entry_points() -> None:
 
 
 def broken_plugins() -> dict[str, str]:
+    """Entry-point plugins that failed to load, with why (``sengine nodes --check``)."""
     load_entry_points()
     return dict(_broken)
 

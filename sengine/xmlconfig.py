@@ -5,6 +5,12 @@ validated against ``sengine/schema/sengine.xsd``.  Configurations are treated
 as untrusted: the parser expands no entities, loads no DTD and touches no
 network, and a file that declares a DOCTYPE is refused outright.  Every error
 names the file and line.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations

@@ -22,6 +22,12 @@ Every problem a user can cause (missing or unreadable file, an aspect ratio
 that disagrees with the city, a colour not in the legend) is a one-line
 :class:`~sengine.errors.InputDataError` naming the file, and the configuration
 line when the caller passes it as ``where``.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
@@ -95,10 +101,11 @@ class ImageMap:
 
     @property
     def lossy(self) -> bool:
+        """Whether the file format is lossy (JPEG ...): colours near borders are blended."""
         return self.format in LOSSY_FORMATS
 
     def edges(self) -> tuple[np.ndarray, np.ndarray]:
-        """x of the ``cols + 1`` column edges and y of the ``rows + 1`` row edges (m).
+        """X of the ``cols + 1`` column edges and y of the ``rows + 1`` row edges (m).
 
         Row edge 0 is the north edge ``ymax``; the arrays are the only source
         of pixel-corner coordinates, so equal corners are equal floats.

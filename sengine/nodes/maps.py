@@ -22,6 +22,12 @@ connects it to every input port named ``<k>_map`` or ``<t>_rules``.  A
 ``meta["image"]`` (a :class:`sengine.geom.raster.ImageMap`); a ``rules``
 layer has one row per rule element, in file order, a column per attribute
 (``None`` where a rule leaves it out) and ``where``, the file and line.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations

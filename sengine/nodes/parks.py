@@ -10,8 +10,11 @@ one ``parks`` stream reaches the exporter.
 
 References
 ----------
-.. [1] skylineEngine (paper 002), §4 (Parks module at district, block and lot
-   level) and Fig. 3.
+§4 (one Parks module at district, block and lot level) and Fig. 3 of [1]_.
+
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations

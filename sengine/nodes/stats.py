@@ -16,6 +16,19 @@ times floors), the floor area ratio (FAR = GFA / site area), the coverage
 A building is counted on the lots it stands on, in proportion to the area
 it covers there: a real building across two lots counts on each with its
 part.
+
+References
+----------
+The reported indicators (GFA, FAR, coverage, residents) follow [1]_ §5.2.4 and the coverage limits of [2]_ §5.2; FAR and coverage as in [3]_.
+
+.. [1] J. Viinikka, "Procedural modelling as an urban-planning tool", Master's
+   thesis, Aalto University, Espoo, 2014 (paper 000).
+.. [2] V. Potočková, "Procedural generation of future urban construction according
+   to rules", Bachelor's thesis, Czech Technical University in Prague, Faculty
+   of Electrical Engineering, 2024 (paper 003).
+.. [3] M. Zhang, J. Wu, Y. Liu, J. Zhang and G. Li, "GIS based procedural modeling
+   in 3D urban design", ISPRS International Journal of Geo-Information 11(10),
+   531, 2022, doi:10.3390/ijgi11100531 (paper 004).
 """
 
 from __future__ import annotations

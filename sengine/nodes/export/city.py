@@ -21,6 +21,12 @@ of the layers' geographic origin (``meta["origin"]``); ``preview.png`` is
 framed on the layers' city extent (``meta["extent"]``, set by synthetic
 cities).  The formats are declared (:func:`sengine.registry.declare_formats`),
 so ``--format`` knows them.  ``stats.json`` is the executor's.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations

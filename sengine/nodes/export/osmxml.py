@@ -9,6 +9,12 @@ negative, as for new data not yet in the OSM database (JOSM, osmium and
 osmnx accept them).  The ``highway`` tag comes from the ``class`` column:
 sengine's synthetic classes map to OSM values (:data:`HIGHWAY`), OSM values
 pass through.  Written with pyosmium's :class:`osmium.SimpleWriter`.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations

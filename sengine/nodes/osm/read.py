@@ -27,8 +27,11 @@ by pyosmium in the same pass.
 
 References
 ----------
-skylineEngine (paper 002), §5.2 "Input Module" and §5.3 "Major & Minor
-Roads Modules".
+§5.2 "Input Module" and §5.3 "Major & Minor Roads Modules" of [1]_.
+
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations

@@ -276,7 +276,7 @@ def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: b
 
 
 def _area_callback(wkb, extras: frozenset[str], polygons: dict):
-    """pyosmium's area callback filling ``polygons`` (see :attr:`OsmExtract.polygons`)."""
+    """Pyosmium's area callback filling ``polygons`` (see :attr:`OsmExtract.polygons`)."""
     import osmium
 
     def area(a):

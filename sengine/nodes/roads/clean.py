@@ -33,6 +33,12 @@ quite one.  This module prepares it, on whole numpy arrays:
 
 Point identity is exact coordinate equality: the importers project every
 shared node once, so shared nodes are bit-identical.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations

@@ -55,8 +55,15 @@ becomes the district-level parks (paper §4: Central Park).
 
 References
 ----------
-.. [1] skylineEngine (paper 002), §4 (parks at district level), §5.2 (image
-   maps), §5.3.1 and Fig. 7 (districts and patterns).
+§4 (parks at district level), §5.2 (image maps), §5.3.1 and Fig. 7 (districts and patterns) of [1]_; the organic pattern's Lloyd relaxation [2]_ with a density function [3]_.
+
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
+.. [2] S. Lloyd, "Least squares quantization in PCM", IEEE Transactions on
+   Information Theory 28(2), 129-137, 1982.
+.. [3] Q. Du, V. Faber and M. Gunzburger, "Centroidal Voronoi tessellations:
+   applications and algorithms", SIAM Review 41(4), 637-676, 1999.
 """
 
 from __future__ import annotations

@@ -15,7 +15,11 @@ every street segment between junctions, major and minor, as one planar graph.
 
 References
 ----------
-.. [1] skylineEngine (paper 002), §5.3.2 Minor roads.
+§5.3.2 (minor roads) of [1]_.
+
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations

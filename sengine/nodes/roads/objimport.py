@@ -14,6 +14,12 @@ search (§5.4).  Two nodes read them with trimesh:
 
 OBJ is usually Y-up: plan coordinates are ``(x, -z)`` (``up="y"``) or
 ``(x, y)`` (``up="z"``), times ``scale`` metres per unit.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations

@@ -17,11 +17,15 @@ of shapely geometries, in metres.
 
 References
 ----------
-.. [1] Cerdá, E. et al. "skylineEngine: a procedural city modelling tool"
-   (paper 002), §5.3.1 Districts, §5.3.2 Minor roads, Fig. 7.
-.. [2] Lloyd, S. "Least squares quantization in PCM", IEEE Trans. Inf. Theory
-   28 (1982); Du, Faber, Gunzburger, "Centroidal Voronoi tessellations", SIAM
-   Review 41 (1999) -- Lloyd's relaxation with a density function.
+§5.3.1 (districts), §5.3.2 (minor roads) and Fig. 7 of [1]_; the organic pattern's Lloyd relaxation [2]_ with a density function [3]_.
+
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
+.. [2] S. Lloyd, "Least squares quantization in PCM", IEEE Transactions on
+   Information Theory 28(2), 129-137, 1982.
+.. [3] Q. Du, V. Faber and M. Gunzburger, "Centroidal Voronoi tessellations:
+   applications and algorithms", SIAM Review 41(4), 637-676, 1999.
 """
 
 from __future__ import annotations

@@ -9,6 +9,12 @@ graph (4-neighbours, and diagonal neighbours only where no 4-path joins
 them, so no pixel triangles), the graph is cut into polylines between
 junction and end pixels, and each polyline is placed on the city extent in
 metres and simplified.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
