@@ -9,14 +9,16 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import signal
 import sys
 import tempfile
+import warnings
 from collections.abc import Sequence
 from functools import partial
 from pathlib import Path
 
 from . import __version__
-from .errors import Problems, SEngineError
+from .errors import LimitError, Problems, SEngineError, SEngineWarning
 from .parallel import available_cores, run_jobs
 from .plan import MapSpec
 
@@ -158,15 +160,25 @@ def _workers(text: str) -> int:
     return n
 
 
+MAX_SEEDS = 10_000  # runs in one batch; more is a typo (1-1000000000) or a job for a cluster
+
+
 def _seeds(text: str) -> list[int]:
-    seeds: list[int] = []
+    """``--seeds``: a list or ranges of whole numbers, at most MAX_SEEDS of them, refused before any run."""
+    spans: list[tuple[int, int]] = []
     for part in text.split(","):
         a, dash, b = part.strip().partition("-")
         try:
-            seeds += list(range(int(a), int(b) + 1)) if dash else [int(a)]
+            lo, hi = (int(a), int(b)) if dash else (int(a), int(a))
         except ValueError:
             raise SEngineError(f"--seeds {text!r} must be numbers or ranges like 1-10") from None
-    return seeds
+        if hi < lo:
+            raise SEngineError(f"--seeds {text!r}: the range {lo}-{hi} is empty")
+        spans.append((lo, hi))
+    total = sum(hi - lo + 1 for lo, hi in spans)
+    if total > MAX_SEEDS:
+        raise LimitError(f"--seeds {text!r} asks for {total:,} runs; the limit is {MAX_SEEDS:,} per batch")
+    return [s for lo, hi in spans for s in range(lo, hi + 1)]
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -345,8 +357,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(
         level=logging.DEBUG if args.debug else logging.WARNING, format="sengine: %(levelname)s: %(message)s"
     )
+    old_term = _on_sigterm()
     try:
-        return COMMANDS[args.command](args)
+        with warnings.catch_warnings():
+            if not args.debug:  # the libraries' warnings (Pillow, numpy, trimesh ...) are not the user's business
+                warnings.simplefilter("ignore")
+                warnings.simplefilter("default", SEngineWarning)
+                warnings.showwarning = _show_warning
+            return COMMANDS[args.command](args)
     except SEngineError as err:
         if args.debug:
             raise
@@ -355,9 +373,35 @@ def main(argv: Sequence[str] | None = None) -> int:
         for line in lines[1:]:
             print(f"  {_one_line(line)}", file=sys.stderr)
         return EXIT_USER_ERROR
+    except Terminated:
+        print("sengine: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print("sengine: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C so that the run cleans up (worker processes, the temporary folder)."""
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated()
+
+
+def _on_sigterm():
+    """Make SIGTERM end the run like Ctrl-C; return the handler it replaced (None off the main thread)."""
+    try:
+        return signal.signal(signal.SIGTERM, _raise_terminated)
+    except ValueError:  # not the main thread (a library caller): leave signals alone
+        return None
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"sengine: warning: {_one_line(str(message))}", file=sys.stderr)
 
 
 def _one_line(text: str) -> str:

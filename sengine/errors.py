@@ -17,6 +17,8 @@ __all__ = [
     "NodeError",
     "LimitError",
     "Problems",
+    "OutputError",
+    "SEngineWarning",
 ]
 
 
@@ -68,6 +70,16 @@ class NodeError(SEngineError, RuntimeError):
     """A node that failed while running: a plugin raising in ``run`` or returning the wrong shape."""
 
     code = "node"
+
+
+class OutputError(SEngineError, OSError):
+    """The output folder cannot be written: it is a file, not writable, or its name is too long."""
+
+    code = "output"
+
+
+class SEngineWarning(UserWarning):
+    """A warning sengine gives on purpose (a broken plugin skipped ...); the CLI prints it as one line."""
 
 
 class LimitError(SEngineError, ValueError):

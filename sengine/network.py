@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import __version__, registry
-from .errors import NetworkError, NodeError, Problems, SEngineError
+from .errors import NetworkError, NodeError, OutputError, Problems, SEngineError
 from .layer import Layer
 from .node import Context, NodeResult, SENode
 from .parallel import run_jobs
@@ -435,10 +435,7 @@ class Network:
         """
         seed = self.seed if seed is None else int(seed)
         out_dir = Path(out) if out is not None else None
-        tmp = None
-        if out_dir is not None:
-            out_dir.parent.mkdir(parents=True, exist_ok=True)
-            tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
+        tmp = _output_folder(out_dir) if out_dir is not None else None
         try:
             result = self._run(seed, tmp, formats, progress, max(1, int(workers)), check_kinds)
             if tmp is not None:
@@ -634,6 +631,26 @@ def _sum_reports(reports: list[dict]) -> dict:
             else:
                 total.setdefault(key, value)
     return total
+
+
+def _output_folder(out_dir: Path) -> Path:
+    """Check that ``out_dir`` can be written and make the temporary folder beside it, before any work.
+
+    Raises OutputError (one line) when the folder is an existing file, lies
+    under a file, cannot be made or written, or has too long a name.
+    """
+    if out_dir.exists() and not out_dir.is_dir():
+        raise OutputError(f"output folder {str(out_dir)!r} is an existing file")
+    try:
+        out_dir.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
+    except OSError as exc:
+        why = exc.strerror or type(exc).__name__
+        raise OutputError(f"cannot write the output folder {str(out_dir)!r}: {why}") from None
+    if out_dir.exists() and not os.access(out_dir, os.W_OK | os.X_OK):
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise OutputError(f"cannot write the output folder {str(out_dir)!r}: Permission denied")
+    return tmp
 
 
 def _write_json(path: Path, data: Any) -> None:

@@ -30,7 +30,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
-from .errors import RegistryError
+from .errors import RegistryError, SEngineWarning
 from .node import Param, SENode
 from .random import stable_hash
 
@@ -175,9 +175,15 @@ def load_entry_points() -> None:
             raise
         except Exception as exc:  # a broken third-party plugin must not break sengine
             _broken[ep.name] = f"{type(exc).__name__}: {exc}"
-            warnings.warn(f"sengine plugin {ep.name!r} ({ep.value}) failed to load: {exc}", stacklevel=2)
+            warnings.warn(
+                f"sengine plugin {ep.name!r} ({ep.value}) failed to load: {exc}", SEngineWarning, stacklevel=2
+            )
     if not any(ep.name == "builtin" for ep in eps):
-        warnings.warn("sengine's built-in nodes are not registered: install the package (pip install .)", stacklevel=2)
+        warnings.warn(
+            "sengine's built-in nodes are not registered: install the package (pip install .)",
+            SEngineWarning,
+            stacklevel=2,
+        )
 
 
 def broken_plugins() -> dict[str, str]:

@@ -77,7 +77,7 @@ import shapely
 from shapely import STRtree
 
 from sengine import CityPlan, Layer, NodeResult, Param, Port, SENode, register
-from sengine.errors import ConfigError
+from sengine.errors import ConfigError, LimitError, Problems
 from sengine.geom.raster import ImageMap, classify, parse_colour, vectorize
 from sengine.registry import declare_rule
 
@@ -178,6 +178,64 @@ class DistrictStyle:
         if self.pattern == "grid":
             return None
         return None
+
+
+MAX_FEATURES = 2_000_000  # areas, blocks or lots of one district; whole Liège has 251,780 lots
+
+
+def _per_cell(area: float, dx: float, dy: float) -> float:
+    """Cells of a ``dx`` x ``dy`` grid over ``area`` (m2); a spacing of 0 draws no line that way."""
+    side = math.sqrt(area)
+    return (area / (dx if dx > 0 else side)) / (dy if dy > 0 else side)
+
+
+def feature_estimates(styles: list[DistrictStyle], areas) -> list[tuple[DistrictStyle, str, float, str]]:
+    """Rough counts of what each district will make: ``(style, what, count, because)``.
+
+    Major cells from the pattern, blocks from ``minor-spacing``, lots from
+    ``lot-area`` when the rule sets it; ``areas`` are the districts' areas (m2).
+    """
+    out = []
+    for style, area in zip(styles, areas):
+        area = float(area)
+        if not area > 0:
+            continue
+        if style.pattern == "grid":
+            major, why = _per_cell(area, *style.spacing), f"spacing {style.spacing[0]:g} x {style.spacing[1]:g} m"
+        elif style.pattern == "radial":
+            major, why = float((style.rings + 1) * max(style.spokes, 1)), f"{style.rings} rings x {style.spokes} spokes"
+        else:
+            major, why = float(style.sites), f"{style.sites} sites"
+        out.append((style, "areas", major, why))
+        mdx, mdy = style.minor_spacing
+        out.append((style, "blocks", _per_cell(area, mdx, mdy), f"minor-spacing {mdx:g} x {mdy:g} m"))
+        lot_area = style.attrs.get("lot-area") if style.attrs else None
+        try:
+            lot_area = float(lot_area) if lot_area is not None else None
+        except ValueError:
+            lot_area = None
+        if lot_area and lot_area > 0:
+            out.append((style, "lots", area / lot_area, f"lot-area {lot_area:g} m2"))
+    return out
+
+
+def check_estimates(styles: list[DistrictStyle], areas, *, limit: int = MAX_FEATURES) -> None:
+    """Refuse, before any work, a district that would make more than ``limit`` areas, blocks or lots.
+
+    Raises LimitError naming the district, the estimate and the rule that
+    makes it (a spacing of 1 cm over a city is 1e11 blocks, not a city).
+    """
+    problems = []
+    for style, what, count, why in feature_estimates(styles, areas):
+        if count > limit:
+            problems.append(
+                LimitError(
+                    f"district {style.name!r}: {why} over its {float(areas[style.index]) / 1e6:.3g} km2 makes about "
+                    f"{count:.2g} {what}; the limit is {limit:,} per district (make the {why.split()[0]} larger)",
+                    where=style.where or None,
+                )
+            )
+    Problems.raise_if(problems)
 
 
 def _numbers(rule, key: str, n: int, default, *, positive: bool = False, integer: bool = False):
@@ -586,7 +644,9 @@ class RoadsDistricts(SENode):
             None if m is None or m["tolerance"][0] < 0 else float(m["tolerance"][0])
             for m in (district_map, landuse_map)
         ]
-        if not vector:  # only the legend checks
+        if not vector:  # only the legend checks and the estimates
+            x0, y0, x1, y1 = meta["extent"]
+            areas = [(x1 - x0) * (y1 - y0)] + [0.0] * (len(styles) - 1)
             for img, colours, names, what, t in (
                 (
                     image_of(district_map),
@@ -603,7 +663,11 @@ class RoadsDistricts(SENode):
                             "<district> needs a color attribute when the plan has a district map",
                             where=next(s.where for s in styles if s.colour is None) or None,
                         )
-                    classify(img, colours, tolerance=t, names=names, what=what)
+                    labels = classify(img, colours, tolerance=t, names=names, what=what)
+                    if what == "district rules":
+                        px = img.pixel_size[0] * img.pixel_size[1]
+                        areas = list(np.bincount(labels.ravel(), minlength=len(styles)) * px)
+            check_estimates(styles, areas)
             return None
         regions = city_regions(
             meta["extent"],
@@ -626,9 +690,19 @@ class RoadsDistricts(SENode):
         district_map: Layer | None = None,
         landuse_map: Layer | None = None,
     ):
+        if district_map is None or not len(district_map):
+            # one district over the whole extent: refuse an absurd spacing before anything is drawn
+            lay = next((x for x in (district_rules, landuse_map) if x is not None and "extent" in x.meta), None)
+            if lay is not None:
+                x0, y0, x1, y1 = lay.meta["extent"]
+                styles = district_styles(district_rules)
+                check_estimates(styles, [(x1 - x0) * (y1 - y0)] + [0.0] * (len(styles) - 1))
         styles, (districts, landuse, buildable), meta = self._regions(
             district_rules, landuse_rules, district_map, landuse_map
         )
+        check_estimates(styles, [float(shapely.area(d)) for d in districts])
+        if buildable.is_empty or buildable.area <= 0:
+            log.warning("%s: the land-use map leaves nothing buildable: the city is empty", self.where)
         net = major_network(
             styles, districts, buildable, lambda i: self.rng(i), merge=self.p.merge, grid_size=self.p.grid
         )
