@@ -639,11 +639,13 @@ def _output_folder(out_dir: Path) -> Path:
     Raises OutputError (one line) when the folder is an existing file, lies
     under a file, cannot be made or written, or has too long a name.
     """
-    if out_dir.exists() and not out_dir.is_dir():
-        raise OutputError(f"output folder {str(out_dir)!r} is an existing file")
     try:
+        if out_dir.exists() and not out_dir.is_dir():
+            raise OutputError(f"output folder {str(out_dir)!r} is an existing file")
         out_dir.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
+    except OutputError:
+        raise
     except OSError as exc:
         why = exc.strerror or type(exc).__name__
         raise OutputError(f"cannot write the output folder {str(out_dir)!r}: {why}") from None

@@ -153,6 +153,7 @@ def check_rule(tag: str, attrs, where: str) -> list[SEngineError]:
     return problems
 
 
+CITY_ATTRIBUTES = ("name", "seed", "size", "origin")
 MAX_CITY_SIZE = 100_000.0  # m; 100 km a side is a metropolis region, beyond it a typo (1e6 m)
 
 
@@ -185,6 +186,8 @@ def _read_plan(
             plan.origin = (lat, lon)
     except ConfigError as err:
         problems.append(err)
+    for key in attrs:
+        problems.append(ConfigError("<city> " + unknown_name("attribute", key, CITY_ATTRIBUTES), where=w))
     plan.attrs = attrs
     for el in city:
         ew = _where(label, el)
@@ -244,6 +247,9 @@ def _apply_network(net: Network, el: etree._Element, label: str) -> None:
 def _base_network(el: etree._Element, label: str, folder: Path, depth: int, **kw: Any) -> Network:
     base, file = el.get("base"), el.get("file")
     w = _where(label, el)
+    for key, value in (("base", base), ("file", file)):
+        if value is not None and not value.strip():
+            raise ConfigError(f"<network> {key}= is empty", where=w)
     if base and file:
         raise ConfigError("<network> takes base= or file=, not both", where=w)
     if depth > _MAX_INCLUDE_DEPTH:

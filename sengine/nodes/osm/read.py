@@ -154,6 +154,8 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
         raise InputDataError("coordinates outside [-180, 180] x [-90, 90]", where=where)
     key = (fixed[:, 0] + 1_800_000_000) * 2_000_000_000 + (fixed[:, 1] + 900_000_000)
     pieces = split_at_junctions(key, line)
+    if not len(pieces):  # every way collapsed to a point (all its nodes in one place)
+        return Layer.empty(**{"class": object, "major": bool, "width": float})
     vnode, ukeys = pieces.node, pieces.node_key
     uidx = np.empty(len(ukeys), np.int64)  # the first entry of each node
     uidx[vnode[::-1]] = np.arange(len(vnode) - 1, -1, -1)

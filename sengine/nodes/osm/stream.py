@@ -21,6 +21,7 @@ same pass as the other classes' ways.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from functools import partial
@@ -49,11 +50,18 @@ PARALLEL_BYTES = 1 << 20
 
 
 def int_tag(value: str | None) -> int:
-    """An integer tag (``"2"``, ``"-1"``, ``"1.5"`` -> 1); 0 when absent or unreadable."""
+    """An integer tag (``"2"``, ``"-1"``, ``"1.5"`` -> 1); 0 when absent or unreadable.
+
+    Clamped to +-1,000,000 (an OSM ``layer`` is a small number; ``99999999999999999999``
+    would not fit an int64).
+    """
     try:
-        return int(float(value)) if value else 0
+        number = float(value) if value else 0.0
     except ValueError:
         return 0
+    if not math.isfinite(number):
+        return 0
+    return int(max(-1e6, min(1e6, number)))
 
 
 def parse_height(value: str | None) -> float:

@@ -116,20 +116,30 @@ declare_rule(
         "color": Param("colour", doc="the district's colour in the district map"),
         "name": Param("str", doc="label of the district (default d<i>)"),
         "pattern": Param("str", "grid", choices=PATTERNS, doc="major-road pattern"),
-        "spacing": Param("float", (400.0, 400.0), min=0.0, unit="m", count=2, doc="grid: 'dx dy' between major roads"),
+        "spacing": Param(
+            "float", (400.0, 400.0), min=0.0, max=100_000.0, unit="m", count=2, doc="grid: 'dx dy' between major roads"
+        ),
         "angle": Param(
             "float", 0.0, min=-360.0, max=360.0, unit="deg", doc="grid / radial: rotation, counter-clockwise"
         ),
-        "offset": Param("float", (0.0, 0.0), unit="m", count=2, doc="grid: 'x y' of one grid crossing"),
-        "center": Param("float", None, unit="m", count=2, doc="radial: 'x y' of the centre (default: centroid)"),
+        "offset": Param(
+            "float", (0.0, 0.0), min=-1e6, max=1e6, unit="m", count=2, doc="grid: 'x y' of one grid crossing"
+        ),
+        "center": Param(
+            "float", None, min=-1e6, max=1e6, unit="m", count=2, doc="radial: 'x y' of the centre (default: centroid)"
+        ),
         "rings": Param("int", 4, min=0, max=1000, doc="radial: number of rings"),
-        "ring-spacing": Param("float", None, min=0.0, unit="m", doc="radial: distance between rings, overrides rings"),
+        "ring-spacing": Param(
+            "float", None, min=0.0, max=100_000.0, unit="m", doc="radial: distance between rings, overrides rings"
+        ),
         "spokes": Param("int", 8, min=0, max=1000, doc="radial: number of spokes"),
         "sites": Param("int", 30, min=1, max=100_000, doc="organic: number of Voronoi sites"),
         "relax": Param("int", 3, min=0, max=100, doc="organic: Lloyd iterations"),
-        "weights": Param("float", 0.0, min=0.0, doc="organic: density variation (0 = uniform)"),
+        "weights": Param("float", 0.0, min=0.0, max=100.0, doc="organic: density variation (0 = uniform)"),
         "major-width": Param("float", 20.0, min=0.0, max=200.0, unit="m", doc="street width of the major roads"),
-        "minor-spacing": Param("float", (100.0, 100.0), min=0.0, unit="m", count=2, doc="'dx dy' of the minor grid"),
+        "minor-spacing": Param(
+            "float", (100.0, 100.0), min=0.0, max=100_000.0, unit="m", count=2, doc="'dx dy' of the minor grid"
+        ),
         "minor-angle": Param("str", "follow", doc="minor grid angle: deg, 'follow' (the major angle) or 'random'"),
         "minor-width": Param("float", 12.0, min=0.0, max=200.0, unit="m", doc="street width of the minor roads"),
     },

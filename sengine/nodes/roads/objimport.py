@@ -25,6 +25,7 @@ References
 from __future__ import annotations
 
 import logging
+import math
 from pathlib import Path
 
 import numpy as np
@@ -72,6 +73,15 @@ def load_obj(path: Path, *, where: str | None = None):
             continue
         if parts[0] == "v":
             nverts += 1
+            try:
+                xyz = [float(p) for p in parts[1:4]]
+            except ValueError:
+                xyz = []
+            if len(xyz) != 3 or not all(math.isfinite(c) for c in xyz):
+                raise InputDataError(
+                    f"OBJ file '{path}', line {lineno}: a vertex needs three finite coordinates, got {raw.strip()!r}",
+                    where=where,
+                )
         elif parts[0] == "l":
             try:
                 idx = np.array([int(p.split("/")[0]) for p in parts[1:]], np.int64)
