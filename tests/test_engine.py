@@ -57,6 +57,7 @@ def _fake_distribution(site: Path) -> None:
     (dist / "RECORD").write_text("")
 
 
+@pytest.mark.slow
 def test_plugin_by_entry_point(tmp_path):
     site = tmp_path / "site"
     site.mkdir()
@@ -84,6 +85,7 @@ def test_plugin_by_xml_path(tmp_path, fixtures):
     assert (tmp_path / "o" / "write.geojson").exists()
 
 
+@pytest.mark.slow
 def test_plugin_by_command_line(tmp_path):
     config = tmp_path / "c.xml"
     config.write_text('<sengine version="1"><network><node id="lines" type="demo.lines"/></network></sengine>')

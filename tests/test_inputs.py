@@ -324,3 +324,24 @@ def test_node_result_reads_as_its_layers():
     lay = Layer.from_geoms([shapely.box(0, 0, 1, 1)])
     res = NodeResult({"a": lay}, {"n": 1})
     assert res["a"] is lay and list(res) == ["a"] and len(res) == 1 and dict(res) == {"a": lay}
+
+
+PARITY = [
+    ('lots="manhattan"/>', 'lots="manhatan"/>'),
+    ('minor-angle="follow"', 'minor-angle="abc"'),
+    ('relax="4"', 'relax="4.5"'),
+    ('class="buildable"/>', 'class="buildable" buildable="maybe"/>'),
+    ('weights="0.8"', 'weights="0.8" center="1 2 3"'),
+    ('angle="-10"', 'angle="-10" ring-spacing="0"'),
+]
+
+
+@pytest.mark.parametrize("old, new", PARITY)
+def test_validate_and_run_agree(old, new, tmp_path, capsys):
+    """What ``run`` refuses, ``validate`` refuses first, with the same first line."""
+    config = _config(tmp_path, MANHATTAN.read_text().replace(old, new, 1))
+    assert main(["validate", str(config)]) == 2
+    first = _err(capsys)[0]
+    out = tmp_path / "OUT"
+    assert main(["run", str(config), "-o", str(out), "-q", "--workers", "1"]) == 2
+    assert _err(capsys)[0] == first and not out.exists()

@@ -323,6 +323,7 @@ def paris_demo():
     return layers["blocks"]["blocks"], layers["lots"]["lots"]
 
 
+@pytest.mark.slow
 def test_paris_courtyards_do_not_reach_the_street(paris_demo):
     """§5.5, Fig. 10: the core is an inner lot; every perimeter lot keeps a street; lots partition blocks.
 

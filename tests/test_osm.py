@@ -319,6 +319,7 @@ def test_helsinki_config_runs_the_loadmap_network(tmp_path):
     assert (tmp_path / "out" / "blocks.geojson").exists()
 
 
+@pytest.mark.slow
 def test_sengine_osm_command(tmp_path, cli):
     done = cli("osm", OAKLAND, "-o", tmp_path / "oak", "--format", "geojson")
     assert done.returncode == 0, done.stderr
