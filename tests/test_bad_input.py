@@ -805,3 +805,32 @@ def test_the_corpus_is_a_few_hundred_inputs():
     )
     assert n >= 300, n
     np.testing.assert_(n < 5000)
+
+
+@pytest.mark.parametrize("special", ["fifo", "/dev/zero", "folder"])
+def test_osm_path_parameter_that_is_special(special, tmp_path, capsys):
+    """A path set on the node itself is checked as the plan's map files are: it never blocks or fills memory."""
+    if special == "fifo":
+        target = _fifo(tmp_path, "streets.osm")
+    elif special == "folder":
+        target = tmp_path / "streets.osm"
+        target.mkdir()
+    else:
+        target = Path(special)
+    out = tmp_path / "OUT"
+    argv = ["run", CONFIGS / "monaco.xml", "-o", out, "-q", "--set", f"majorRoads.path={target}"]
+    assert_refused(argv, capsys, r"OSM file .*(not a regular file|is a folder)", out=out)
+
+
+def test_an_all_water_city_is_legal_and_says_it_is_empty(tmp_path):
+    """Legal but empty input: exit 0 and one line that says so."""
+    cfg = _manhattan(tmp_path)
+    water = tmp_path / "maps" / "water.png"
+    Image.new("RGB", (60, 90), (0x20, 0x60, 0xFF)).save(water)
+    out = tmp_path / "OUT"
+    cmd = [sys.executable, "-m", "sengine", "run", str(cfg), "-o", str(out), "-q", "--workers", "1"]
+    done = subprocess.run([*cmd, "--map", f"landuse={water}"], capture_output=True, text=True, timeout=300)
+    lines = done.stderr.strip().splitlines()
+    assert done.returncode == 0 and len(lines) == 1, done.stderr
+    assert lines[0].startswith("sengine: WARNING: ") and "nothing buildable: the city is empty" in lines[0]
+    assert (out / "stats.json").exists()

@@ -252,7 +252,7 @@ def check_regular_file(path: Path, what: str, where: str | None) -> int:
     try:
         st = path.stat()
     except FileNotFoundError:
-        raise InputDataError(f"{what} {str(path)!r}: file not found", where=where) from None
+        raise InputDataError(f"{what} {str(path)!r} does not exist", where=where) from None
     except OSError as exc:
         raise InputDataError(f"{what} {str(path)!r}: cannot read ({exc.strerror})", where=where) from None
     if stat.S_ISDIR(st.st_mode):

@@ -47,6 +47,7 @@ from sengine.errors import InputDataError
 from sengine.geom.crs import from_lonlat, utm_crs
 from sengine.geom.segments import lines_from_groups
 
+from ..maps import check_regular_file
 from ..roads.junctions import split_at_junctions
 from .stream import TAG_KEYS, OsmExtract, int_tag, read_osm
 
@@ -291,6 +292,7 @@ class OsmRead(SENode):
 
     def run(self, *, osm_map: Layer | None = None):
         path, where = self._path(osm_map)
+        check_regular_file(path, "OSM file", where)  # a FIFO or /dev/zero would block or fill the memory
         major, minor = _classes(self.p.major), _classes(self.p.minor)
         extras = _classes(self.p.extras)
         bad = extras - {"water", "parks", "buildings"}

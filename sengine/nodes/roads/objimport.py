@@ -37,6 +37,8 @@ from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import InputDataError
 from sengine.geom.crs import local_crs
 
+from ..maps import check_regular_file
+
 __all__ = ["load_obj", "obj_lines", "obj_polygons", "ObjRoads", "ObjLots"]
 
 log = logging.getLogger(__name__)
@@ -202,6 +204,7 @@ class ObjRoads(_ObjNode):
 
     def run(self, *, obj_map: Layer | None = None):
         path, where = self._source(obj_map)
+        check_regular_file(path, "OBJ file", where)
         vertices, _, lines = load_obj(path, where=where)
         geoms = obj_lines(vertices, lines, up=self.p.up, scale=self.p.scale)
         if len(geoms):
@@ -248,6 +251,7 @@ class ObjLots(_ObjNode):
 
     def run(self, *, obj_map: Layer | None = None):
         path, where = self._source(obj_map)
+        check_regular_file(path, "OBJ file", where)
         vertices, faces, _ = load_obj(path, where=where)
         polys = obj_polygons(vertices, faces, up=self.p.up, scale=self.p.scale, min_area=self.p.min_area)
         if not len(polys):
