@@ -136,7 +136,13 @@ def planning_columns(site_area: np.ndarray, foot: np.ndarray, gfa: np.ndarray) -
     with np.errstate(divide="ignore", invalid="ignore"):
         far = np.where(site_area > 0, gfa / site_area, 0.0)
         coverage = np.where(site_area > 0, foot / site_area, 0.0)
-    return {"footprint": foot, "floor_area": gfa, "far": far, "coverage": coverage}
+    # float even for no building at all (bincount of nothing is int64): the 'lots' kind says float
+    return {
+        "footprint": np.asarray(foot, np.float64),
+        "floor_area": np.asarray(gfa, np.float64),
+        "far": far,
+        "coverage": coverage,
+    }
 
 
 def _summary(site_area, foot, gfa, m2_per_resident: float) -> dict:
