@@ -18,7 +18,7 @@ from functools import partial
 from pathlib import Path
 
 from . import __version__
-from .errors import LimitError, Problems, SEngineError, SEngineWarning
+from .errors import LimitError, OutputError, Problems, SEngineError, SEngineWarning
 from .parallel import available_cores, run_jobs
 from .plan import MapSpec
 
@@ -332,7 +332,10 @@ def cmd_graph(args: argparse.Namespace) -> int:
     from .xmlconfig import load_config
 
     net = load_config(args.config, plugins=args.plugin)
-    write_graph(net, args.out)
+    try:
+        write_graph(net, args.out)
+    except OSError as exc:
+        raise OutputError(f"cannot write {str(args.out)!r}: {exc.strerror or type(exc).__name__}") from None
     if not args.quiet:
         print(f"wrote {args.out}")
     return 0

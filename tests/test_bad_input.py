@@ -653,6 +653,9 @@ COMMAND_LINES = {
     "osm missing": (["osm", "{tmp}/nope.osm.pbf", "-o", "{out}"], r"file not found"),
     "graph into a folder": (["graph", "{cfg}", "-o", "{tmp}"], r"graph|folder|\.dot, \.svg or \.png"),
     "graph unknown suffix": (["graph", "{cfg}", "-o", "{tmp}/g.jpg"], r"\.dot, \.svg or \.png"),
+    "graph under a file": (["graph", "{cfg}", "-o", "{cfg}/g.svg"], r"cannot write .*g\.svg"),
+    "graph name too long": (["graph", "{cfg}", "-o", "{tmp}/" + "x" * 300 + ".png"], r"cannot write .*too long"),
+    "batch under a file": (["batch", "{cfg}", "-o", "{cfg}/runs", "--seeds", "1-2"], r"cannot write the output folder"),
 }
 
 
