@@ -837,3 +837,19 @@ def test_an_all_water_city_is_legal_and_says_it_is_empty(tmp_path):
     assert done.returncode == 0 and len(lines) == 1, done.stderr
     assert lines[0].startswith("sengine: WARNING: ") and "nothing buildable: the city is empty" in lines[0]
     assert (out / "stats.json").exists()
+
+
+@pytest.mark.parametrize(
+    "config, setting",
+    [
+        ("districts.xml", "minorRoads.grid=1.0"),  # cells snapped to a 1 m grid collapse to lines: no GEOS error
+        ("manhattan.xml", "majorRoads.grid=1.0"),
+        ("manhattan.xml", "blocks.min_area=1e9"),  # no block at all: an empty, legal city
+    ],
+)
+def test_extreme_legal_parameters_run(config, setting, tmp_path, capsys):
+    """The bounds of a parameter are part of its declaration: its extreme values run (found by sweeping them)."""
+    out = tmp_path / "OUT"
+    status, lines = outcome(["run", CONFIGS / config, "-o", out, "-q", "--workers", "1", "--set", setting], capsys)
+    assert status == 0, lines
+    assert (out / "stats.json").exists()

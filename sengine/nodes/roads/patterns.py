@@ -409,7 +409,7 @@ def merge_small_cells(cells, region, min_area, min_width, *, grid_size: float = 
         if shared.max() <= grid_size * 10:
             continue
         j = int(cand[int(np.argmax(shared))])
-        cells[j] = shapely.union(cells[j], cells[i], grid_size=grid_size)
+        cells[j] = _polygonal(shapely.union(cells[j], cells[i], grid_size=grid_size))
         owner[i] = j
         merged += 1
         if small(j):
@@ -419,6 +419,18 @@ def merge_small_cells(cells, region, min_area, min_width, *, grid_size: float = 
     # a union may come back as a MultiPolygon when two parts touch at a point only
     parts, idx = shapely.get_parts(out, return_index=True)
     return parts, region[alive][idx], merged
+
+
+def _polygonal(geom):
+    """The polygonal part of an overlay result.
+
+    Snapped to a coarse grid, a thin piece of a union collapses to a line and
+    the result is a mixed collection, which the next overlay refuses.
+    """
+    if geom.geom_type in ("Polygon", "MultiPolygon"):
+        return geom
+    parts = [p for p in shapely.get_parts(geom) if p.geom_type in ("Polygon", "MultiPolygon")]
+    return shapely.union_all(parts) if parts else shapely.Polygon()
 
 
 def cell_edges(cells, *, grid_size: float = 1e-3, noded=None) -> np.ndarray:
