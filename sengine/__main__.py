@@ -1,3 +1,5 @@
+"""``python -m sengine``: the ``sengine`` command."""
+
 import sys
 
 from .cli import main

@@ -9,14 +9,16 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import signal
 import sys
 import tempfile
+import warnings
 from collections.abc import Sequence
 from functools import partial
 from pathlib import Path
 
 from . import __version__, registry
-from .errors import SEngineError
+from .errors import LimitError, OutputError, Problems, SEngineError, SEngineWarning
 from .parallel import available_cores, run_jobs
 from .plan import MapSpec
 
@@ -87,6 +89,7 @@ def _run_options(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``sengine`` argument parser with its six commands."""
     parser = _Parser(prog="sengine", description="A procedural city engine after skylineEngine.")
     parser.add_argument("--version", action="version", version=f"sengine {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -127,6 +130,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("nodes", help="list every registered node with its ports and parameters")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--check", action="store_true", help="also list plugins that failed to load")
+    p.add_argument(
+        "--all", action="store_true", help="with --json: also the rule attributes, map kinds, layer kinds, formats"
+    )
     _common(p)
 
     p = sub.add_parser("graph", help="draw a config's network (.dot, .svg or .png)")
@@ -145,7 +151,8 @@ def _progress(args: argparse.Namespace):
 
 
 def _formats(text: str) -> frozenset[str]:
-    return frozenset(f.strip().lower() for f in text.split(",") if f.strip())
+    """``--format``: formats some node writes (:func:`sengine.registry.check_formats`), or an error."""
+    return registry.check_formats(text.split(","))
 
 
 def _crs(text: str) -> str:
@@ -174,27 +181,40 @@ def _workers(text: str) -> int:
     return n
 
 
+MAX_SEEDS = 10_000  # runs in one batch; more is a typo (1-1000000000) or a job for a cluster
+
+
 def _seeds(text: str) -> list[int]:
-    seeds: list[int] = []
+    """``--seeds``: a list or ranges of whole numbers, at most MAX_SEEDS of them, refused before any run."""
+    spans: list[tuple[int, int]] = []
     for part in text.split(","):
         a, dash, b = part.strip().partition("-")
         try:
-            seeds += list(range(int(a), int(b) + 1)) if dash else [int(a)]
+            lo, hi = (int(a), int(b)) if dash else (int(a), int(a))
         except ValueError:
             raise SEngineError(f"--seeds {text!r} must be numbers or ranges like 1-10") from None
-    return seeds
+        if hi < lo:
+            raise SEngineError(f"--seeds {text!r}: the range {lo}-{hi} is empty")
+        spans.append((lo, hi))
+    total = sum(hi - lo + 1 for lo, hi in spans)
+    if total > MAX_SEEDS:
+        raise LimitError(f"--seeds {text!r} asks for {total:,} runs; the limit is {MAX_SEEDS:,} per batch")
+    return [s for lo, hi in spans for s in range(lo, hi + 1)]
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    """``sengine run``: read a config, run it into ``--out``."""
     from .xmlconfig import load_config
 
+    formats = _formats(args.formats)
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin, seed=args.seed)
     result = net.run(
         out=args.out,
-        formats=_formats(args.formats),
+        formats=formats,
         progress=_progress(args),
         workers=args.workers,
         options=_options(args),
+        check_kinds=args.debug,
     )
     if not args.quiet:
         counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
@@ -206,10 +226,10 @@ def cmd_batch(args: argparse.Namespace) -> int:
     """One run per seed; with ``--workers N`` the seeds run side by side in N processes."""
     from .xmlconfig import load_config
 
+    formats = _formats(args.formats)
+    seeds = _seeds(args.seeds)
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin)
     net.validate()
-    seeds = _seeds(args.seeds)
-    formats = registry.check_formats(_formats(args.formats))
     options = _options(args)
     if args.workers > 1 and len(seeds) > 1:  # seeds side by side, each run in one process
         jobs = [partial(_batch_run, net, seed, args.out, formats, options=options) for seed in seeds]
@@ -241,6 +261,7 @@ def cmd_osm(args: argparse.Namespace) -> int:
     """Run ``networks/loadmap.xml`` on one OSM file with default parameters."""
     from .xmlconfig import load_config
 
+    formats = _formats(args.formats)
     if not args.file.exists():
         raise SEngineError(f"{args.file}: file not found")
     with tempfile.TemporaryDirectory() as tmp:
@@ -249,16 +270,17 @@ def cmd_osm(args: argparse.Namespace) -> int:
             f'<sengine version="1">\n  <city name="{_xml_attr(args.file.name)}"/>\n'
             '  <network base="loadmap"/>\n</sengine>\n'
         )
-        net = load_config(config, sets=args.sets, plugins=args.plugin, seed=args.seed)
         # errors about the file name the command, not the temporary config
-        net.plan.maps["osm"] = MapSpec("osm", args.file.resolve(), {}, where="sengine osm")
+        osm = MapSpec("osm", args.file.resolve(), {}, where="sengine osm")
+        net = load_config(config, sets=args.sets, maps=[osm], plugins=args.plugin, seed=args.seed)
         net.source = str(args.file)
         result = net.run(
             out=args.out,
-            formats=_formats(args.formats),
+            formats=formats,
             progress=_progress(args),
             workers=args.workers,
             options=_options(args),
+            check_kinds=args.debug,
         )
     if not args.quiet:
         counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
@@ -271,22 +293,46 @@ def _xml_attr(text: str) -> str:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    """``sengine validate``: every check that needs no geometry, every problem at once."""
     from .xmlconfig import load_config
 
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin)
+    net.check()  # the network, then every input the plan names: files, images, colours
     bound = net.validate()
     print(f"{args.config}: valid, {len(bound.nodes)} nodes, {len(bound.edges)} connections")
     return 0
 
 
+def _param_line(name: str, p: dict, unset: str = "required") -> str:
+    bounds = ""
+    if p["min"] is not None or p["max"] is not None:
+        bounds = f" [{'' if p['min'] is None else p['min']}, {'' if p['max'] is None else p['max']}]"
+    if p["choices"]:
+        bounds = f" {{{', '.join(p['choices'])}}}"
+    unit = f" {p['unit']}" if p["unit"] else ""
+    default = unset if p["default"] is None else repr(p["default"])
+    return f"    - {name}: {p['type']} = {default}{unit}{bounds}  {p['doc']}"
+
+
 def cmd_nodes(args: argparse.Namespace) -> int:
+    """List every registered node, then the plan's rule attributes, map kinds, layer kinds and output formats."""
     from . import registry
 
     for spec in args.plugin:
         registry.load_plugin(spec, base_dir=Path.cwd(), where=f"--plugin {spec}")
     described = [registry.get(name).describe() for name in registry.names()]
+    rules = {tag: [p.describe(k) for k, p in decl.items()] for tag, decl in sorted(registry.RULES.items())}
+    kinds = {
+        k: {c: {"dtype": d, "required": r, "doc": doc} for c, (d, r, doc) in cols.items()}
+        for k, cols in sorted(registry.kinds().items())
+    }
+    maps = {k: {"port_kind": pk, "doc": doc} for k, (pk, doc) in sorted(registry.map_kinds().items())}
+    formats = dict(sorted(registry.formats().items()))
     if args.json:
-        print(json.dumps(described, indent=2))
+        if args.all:
+            print(json.dumps({"nodes": described, "rules": rules, "kinds": kinds, "maps": maps, "formats": formats}))
+        else:
+            print(json.dumps(described, indent=2))
     else:
         for d in described:
             ins = ", ".join(f"{p['name']}:{p['kind']}{'' if p['required'] else '?'}" for p in d["inputs"])
@@ -295,13 +341,21 @@ def cmd_nodes(args: argparse.Namespace) -> int:
             if d["doc"]:
                 print(f"    {d['doc']}")
             for p in d["params"]:
-                bounds = ""
-                if p["min"] is not None or p["max"] is not None:
-                    bounds = f" [{'' if p['min'] is None else p['min']}, {'' if p['max'] is None else p['max']}]"
-                if p["choices"]:
-                    bounds = f" {{{', '.join(p['choices'])}}}"
-                unit = f" {p['unit']}" if p["unit"] else ""
-                print(f"    - {p['name']}: {p['type']} = {p['default']!r}{unit}{bounds}  {p['doc']}")
+                print(_param_line(p["name"], p))
+        for tag, params in rules.items():
+            print(f"<{tag}> attributes of the plan")
+            for p in params:
+                print(_param_line(p["name"], p, unset="unset"))
+        print("<map kind=...> of the plan")
+        for k, m in maps.items():
+            print(f"    - {k} (port {k}_map:{m['port_kind']})  {m['doc']}")
+        print("layer kinds (required columns*)")
+        for k, cols in kinds.items():
+            listed = ", ".join(f"{c}{'*' if v['required'] else ''}:{v['dtype']}" for c, v in cols.items())
+            print(f"    - {k}: {listed}")
+        print("--format")
+        for k, doc in formats.items():
+            print(f"    - {k}  {doc}")
     if args.check:
         broken = registry.broken_plugins()
         for name, why in broken.items():
@@ -311,11 +365,15 @@ def cmd_nodes(args: argparse.Namespace) -> int:
 
 
 def cmd_graph(args: argparse.Namespace) -> int:
+    """``sengine graph``: draw a config's network, the plan's inputs included."""
     from .graphview import write_graph
     from .xmlconfig import load_config
 
     net = load_config(args.config, plugins=args.plugin)
-    write_graph(net, args.out)
+    try:
+        write_graph(net, args.out)
+    except OSError as exc:
+        raise OutputError(f"cannot write {str(args.out)!r}: {exc.strerror or type(exc).__name__}") from None
     if not args.quiet:
         print(f"wrote {args.out}")
     return 0
@@ -332,6 +390,7 @@ COMMANDS = {
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run one ``sengine`` command; return the exit status (0, 1 for ``nodes --check``, 2 user error, 130)."""
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as done:  # --help, --version, or a usage error already printed
@@ -339,16 +398,51 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(
         level=logging.DEBUG if args.debug else logging.WARNING, format="sengine: %(levelname)s: %(message)s"
     )
+    old_term = _on_sigterm()
     try:
-        return COMMANDS[args.command](args)
+        with warnings.catch_warnings():
+            if not args.debug:  # the libraries' warnings (Pillow, numpy, trimesh ...) are not the user's business
+                warnings.simplefilter("ignore")
+                warnings.simplefilter("default", SEngineWarning)
+                warnings.showwarning = _show_warning
+            return COMMANDS[args.command](args)
     except SEngineError as err:
         if args.debug:
             raise
-        print(f"sengine: error: {_one_line(str(err))}", file=sys.stderr)
+        lines = err.lines if isinstance(err, Problems) else [str(err)]
+        print(f"sengine: error: {_one_line(lines[0])}", file=sys.stderr)
+        for line in lines[1:]:
+            print(f"  {_one_line(line)}", file=sys.stderr)
         return EXIT_USER_ERROR
+    except Terminated:
+        print("sengine: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print("sengine: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C so that the run cleans up (worker processes, the temporary folder)."""
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated()
+
+
+def _on_sigterm():
+    """Make SIGTERM end the run like Ctrl-C; return the handler it replaced (None off the main thread)."""
+    try:
+        return signal.signal(signal.SIGTERM, _raise_terminated)
+    except ValueError:  # not the main thread (a library caller): leave signals alone
+        return None
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"sengine: warning: {_one_line(str(message))}", file=sys.stderr)
 
 
 def _one_line(text: str) -> str:

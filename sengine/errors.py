@@ -14,6 +14,11 @@ __all__ = [
     "ParameterError",
     "NetworkError",
     "InputDataError",
+    "NodeError",
+    "LimitError",
+    "Problems",
+    "OutputError",
+    "SEngineWarning",
 ]
 
 
@@ -59,3 +64,66 @@ class InputDataError(SEngineError, ValueError):
     """An input file (image, OSM, OBJ) that is missing, unreadable or unusable."""
 
     code = "input"
+
+
+class NodeError(SEngineError, RuntimeError):
+    """A node that failed while running: a plugin raising in ``run`` or returning the wrong shape."""
+
+    code = "node"
+
+
+class OutputError(SEngineError, OSError):
+    """The output folder cannot be written: it is a file, not writable, or its name is too long."""
+
+    code = "output"
+
+
+class SEngineWarning(UserWarning):
+    """A warning sengine gives on purpose (a broken plugin skipped ...); the CLI prints it as one line."""
+
+
+class LimitError(SEngineError, ValueError):
+    """Work refused before it starts because it would exceed a stated bound (features, memory)."""
+
+    code = "limit"
+
+
+class Problems(SEngineError):
+    """Several problems found at once; ``str()`` is a summary line, :attr:`lines` one line per problem.
+
+    Parameters
+    ----------
+    problems : list of SEngineError
+        The problems in the order they were found.
+    where : str, optional
+        The file (or other source) the problems are in, for the summary line.
+    """
+
+    code = "problems"
+    MAX_LINES = 20
+
+    def __init__(self, problems: list[SEngineError], *, where: str | None = None):
+        flat: list[SEngineError] = []
+        for p in problems:
+            flat.extend(p.problems if isinstance(p, Problems) else [p])
+        self.problems = flat
+        n = len(flat)
+        super().__init__(f"{n} problem{'s' if n != 1 else ''}", where=where)
+
+    @property
+    def lines(self) -> list[str]:
+        """The summary, then one line per problem (at most ``MAX_LINES`` in all)."""
+        out = [str(self)]
+        shown = self.problems[: self.MAX_LINES - 1]
+        out += [" ".join(str(p).split()) for p in shown]
+        if len(self.problems) > len(shown):
+            out[-1] = f"... and {len(self.problems) - len(shown) + 1} more"
+        return out
+
+    @staticmethod
+    def raise_if(problems: list[SEngineError], *, where: str | None = None) -> None:
+        """Raise nothing for no problem, the problem itself for one, Problems for several."""
+        if len(problems) == 1 and not isinstance(problems[0], Problems):
+            raise problems[0]
+        if problems:
+            raise Problems(problems, where=where)

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 import shapely
+import shapely.geometry
 
 from .io.geojson import feature_collection_text
 
@@ -133,10 +134,12 @@ class Layer:
         return name in self.attrs or name in ("id", "parent_id")
 
     def get(self, name: str, default: Any = None) -> Any:
+        """The attribute column ``name``, or ``default`` when the layer has none."""
         return self.attrs.get(name, default)
 
     @property
     def columns(self) -> list[str]:
+        """The attribute columns' names, in order."""
         return list(self.attrs)
 
     def rows_of(self, ids) -> np.ndarray:
@@ -173,11 +176,110 @@ class Layer:
         return Layer(g, self.ids, self.parent, dict(self.attrs), dict(self.meta))
 
     def with_meta(self, **meta: Any) -> Layer:
+        """A copy with meta entries added or replaced."""
         return Layer(self.geometry, self.ids, self.parent, dict(self.attrs), {**self.meta, **meta})
 
     def area(self) -> float:
         """Total area of the features (m2)."""
         return float(shapely.area(self.geometry).sum()) if len(self) else 0.0
+
+    # -- geopandas, networkx and the geo interface --------------------------------------------
+    @property
+    def __geo_interface__(self) -> dict:
+        """The layer as a GeoJSON-like FeatureCollection in its planar frame, full precision.
+
+        What ``shapely.geometry.shape``, ``geopandas.GeoDataFrame.from_features``
+        and other readers of the geo interface take: ``properties`` hold
+        ``id``, ``parent_id`` and every attribute as Python values.
+        """
+        names = list(self.attrs)
+        cols = [self.attrs[k].tolist() for k in names]
+        ids, parent = self.ids.tolist(), self.parent.tolist()
+        feats = []
+        for i, g in enumerate(self.geometry):
+            props = {"id": ids[i], "parent_id": parent[i], **{k: c[i] for k, c in zip(names, cols)}}
+            geom = shapely.geometry.mapping(g) if g is not None else None
+            feats.append({"type": "Feature", "id": ids[i], "geometry": geom, "properties": props})
+        return {"type": "FeatureCollection", "features": feats}
+
+    def to_geopandas(self):
+        """A ``geopandas.GeoDataFrame``: columns ``id``, ``parent_id``, every attribute, and ``geometry``.
+
+        The CRS is ``meta["crs"]`` (planar metres) when the layer has one;
+        the rest of the meta that is plain data (numbers, text, tuples) is
+        kept in ``gdf.attrs["sengine_meta"]`` so :meth:`from_geopandas` gives
+        it back.  Needs the optional dependency geopandas
+        (``pip install sengine[geo]``).
+        """
+        gpd = _geopandas()
+        data = {"id": self.ids, "parent_id": self.parent, **dict(self.attrs)}
+        gdf = gpd.GeoDataFrame(data, geometry=gpd.GeoSeries(self.geometry), crs=self.meta.get("crs"))
+        gdf.attrs["sengine_meta"] = {k: v for k, v in self.meta.items() if _plain(v)}
+        return gdf
+
+    @classmethod
+    def from_geopandas(cls, gdf, *, meta: Mapping[str, Any] | None = None) -> Layer:
+        """A layer from a ``geopandas.GeoDataFrame`` (the inverse of :meth:`to_geopandas`).
+
+        ``id`` and ``parent_id`` columns become the feature ids and parents
+        (else ``0..n-1`` and ``-1``); every other column becomes an attribute
+        column (pandas text columns as object arrays); the frame's CRS goes to
+        ``meta["crs"]``.  The geometries must be in metres for the nodes to
+        make sense of them: project first (``gdf.to_crs(...)``) if they are
+        in degrees.
+        """
+        geom_col = gdf.geometry.name
+        cols = {}
+        for name in gdf.columns:
+            if name == geom_col:
+                continue
+            values = gdf[name].to_numpy()
+            if values.dtype == object and len(values) and all(isinstance(v, bool) for v in values):
+                values = values.astype(bool)
+            cols[str(name)] = values
+        ids = cols.pop("id", None)
+        parent = cols.pop("parent_id", None)
+        info = dict(gdf.attrs.get("sengine_meta", {}))
+        if gdf.crs is not None:
+            info["crs"] = gdf.crs.to_string() if info.get("crs") is None else info["crs"]
+        info.update(meta or {})
+        geoms = np.asarray(gdf.geometry.values, dtype=object)
+        return cls.from_geoms(geoms, ids=ids, parent=parent, meta=info, **cols)
+
+    def to_networkx(self):
+        """The street graph of a line layer as a ``networkx.MultiGraph`` (as osmnx draws one).
+
+        Nodes are the lines' end points: the junction indices ``u`` / ``v``
+        with ``meta["nodes"]`` (what ``osm.read`` and ``roads.clean`` give),
+        else the distinct end coordinates; each carries ``x`` and ``y`` (m).
+        One edge per feature, keyed by its id, with every attribute, the
+        ``geometry`` and its ``length`` (m).  The graph's ``crs`` is
+        ``meta["crs"]``.
+        """
+        import networkx as nx
+
+        n = len(self)
+        start = shapely.get_coordinates(shapely.get_point(self.geometry, 0)) if n else np.empty((0, 2))
+        end = shapely.get_coordinates(shapely.get_point(self.geometry, -1)) if n else np.empty((0, 2))
+        if "u" in self.attrs and "v" in self.attrs and "nodes" in self.meta:
+            xy = np.asarray(self.meta["nodes"], np.float64).reshape(-1, 2)
+            u, v = np.asarray(self["u"], np.int64), np.asarray(self["v"], np.int64)
+        else:
+            xy, inv = np.unique(np.vstack([start, end]), axis=0, return_inverse=True)
+            inv = inv.ravel()
+            u, v = inv[:n], inv[n:]
+        g = nx.MultiGraph(crs=self.meta.get("crs"))
+        used = np.unique(np.r_[u, v]) if n else np.empty(0, np.int64)
+        g.add_nodes_from((int(k), {"x": float(xy[k, 0]), "y": float(xy[k, 1])}) for k in used)
+        length = shapely.length(self.geometry) if n else np.zeros(0)
+        names = list(self.attrs)
+        for i in range(n):
+            data = {
+                k: self.attrs[k][i].item() if hasattr(self.attrs[k][i], "item") else self.attrs[k][i] for k in names
+            }
+            data.update(geometry=self.geometry[i], length=float(length[i]))
+            g.add_edge(int(u[i]), int(v[i]), key=int(self.ids[i]), **data)
+        return g
 
     # -- GeoJSON --------------------------------------------------------------
     def to_geojson(self, transform: Callable[[np.ndarray], np.ndarray] | None = None, *, precision: int = 7) -> dict:
@@ -203,6 +305,21 @@ class Layer:
             names += [k for k in p if k not in names]
         cols = {k: np.asarray([p.get(k) for p in props]) for k in names}
         return cls.from_geoms(geoms, ids=ids, parent=parent, **cols)
+
+
+def _geopandas():
+    try:
+        import geopandas
+    except ImportError:  # pragma: no cover - depends on the environment
+        raise ImportError("Layer.to_geopandas needs geopandas: pip install 'sengine[geo]'") from None
+    return geopandas
+
+
+def _plain(value: Any) -> bool:
+    """Whether a meta value is plain data worth carrying through a GeoDataFrame."""
+    if isinstance(value, (str, int, float, bool)) or value is None:
+        return True
+    return isinstance(value, tuple) and all(isinstance(v, (str, int, float, bool)) for v in value)
 
 
 def _default(dtype: np.dtype) -> Any:

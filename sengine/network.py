@@ -9,6 +9,12 @@ keeps per-node counts and seconds.
 The standard networks of the paper (stdNetwork, patternNetwork,
 stdLoadMapNetwork) are city knowledge: they live in the node library
 (:mod:`sengine.nodes.standard`) and are found through the registry.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
@@ -31,9 +37,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import __version__, registry
-from .errors import NetworkError, SEngineError
+from .errors import NetworkError, NodeError, OutputError, Problems, SEngineError
 from .layer import Layer
-from .node import Context, SENode
+from .node import Context, NodeResult, SENode
 from .parallel import run_jobs
 from .plan import CityPlan
 
@@ -56,6 +62,7 @@ class NodeSpec:
     param_where: dict[str, str] = field(default_factory=dict)
 
     def label(self) -> str:
+        """``file:line: node 'id' (type)`` for messages."""
         return f"{self.where}: node '{self.id}' ({self.type})" if self.where else f"node '{self.id}' ({self.type})"
 
 
@@ -71,6 +78,7 @@ class Connection:
 
     @classmethod
     def parse(cls, src: str, dst: str, where: str = "") -> Connection:
+        """A connection from ``"node"`` or ``"node.port"`` to ``"node"`` or ``"node.port"``."""
         s, _, sp = src.partition(".")
         d, _, dp = dst.partition(".")
         return cls(s, sp or None, d, dp or None, where)
@@ -193,7 +201,7 @@ class Network:
 
     # -- validation -------------------------------------------------------------
     def validate(self, context: Context | None = None) -> _Bound:
-        """Check the whole network; raise the first problem, counting the others.
+        """Check the whole network; raise every problem at once (:class:`~sengine.errors.Problems`).
 
         Checks: unknown node type, unknown or missing port, port kind
         mismatch, missing required input, input connected twice, unknown
@@ -212,16 +220,22 @@ class Network:
                 problems.append(type(err)(err.message, where=where or err.where))
         edges: list[tuple[str, str, str, str]] = []
         taken: dict[tuple[str, str], Connection] = {}
+        tainted: set[str] = set()  # nodes with a connection that failed: a missing input would only echo it
         for conn in self.connections:
             try:
                 edge = self._resolve(conn, nodes, taken)
             except SEngineError as err:
                 problems.append(err)
+                tainted.add(conn.dst)
                 continue
             if edge is not None:
                 taken[(edge[2], edge[3])] = conn
                 edges.append(edge)
+            else:
+                tainted.add(conn.dst)
         for node_id, node in nodes.items():
+            if node_id in tainted:
+                continue
             for port_name, port in node.inputs.items():
                 if port.required and (node_id, port_name) not in taken:
                     problems.append(
@@ -237,14 +251,9 @@ class Network:
             problems.append(
                 NetworkError(f"the network has a cycle: {' -> '.join(cycle.args[1])}", where=self.source or None)
             )
-        if problems:
-            first = problems[0]
-            more = (
-                f" (and {len(problems) - 1} more problem{'s' if len(problems) > 2 else ''})"
-                if len(problems) > 1
-                else ""
-            )
-            raise type(first)(first.message + more, where=first.where)
+        Problems.raise_if(problems, where=self.source or None)
+        # the plan's inputs first: a missing or broken map fails before any work is done
+        order = [k for k in order if nodes[k].source_for] + [k for k in order if not nodes[k].source_for]
         return _Bound(nodes, edges, order)
 
     @staticmethod
@@ -302,6 +311,90 @@ class Network:
             f"port kind mismatch: '{conn.src}' gives {out_kinds} but '{conn.dst}' takes {in_kinds}", where=where
         )
 
+    # -- the plan's inputs -------------------------------------------------------
+    def wire_plan(self) -> list[str]:
+        """Give the plan's inputs source nodes on the graph; return the ids of the nodes added.
+
+        One node per map of the plan, ``<kind>Map``, of the type that is the
+        source of the map kind's port kind (:func:`~sengine.registry.declare_map_kind`,
+        :attr:`SENode.source_for`), even when nothing takes it yet (so
+        ``validate`` reads it).  Then every unconnected input port named
+        ``<key>_<suffix>`` whose kind some class is the source of is
+        connected to node ``<key><Suffix>`` (``height_map`` <- ``heightMap``,
+        ``district_rules`` <- ``districtRules``), made by that class's
+        :meth:`~sengine.node.SENode.plan_source` when missing.  Ports the
+        plan has nothing for stay unconnected.  Idempotent; unknown node
+        types are left for :meth:`validate`.
+        """
+        sources = registry.source_classes()
+        added: list[str] = []
+
+        def ensure(node_id: str, cls: type[SENode], key: str) -> bool:
+            if node_id in self.specs:
+                return True
+            made = cls.plan_source(key, self.plan)
+            if made is None:
+                return False
+            params, where = made
+            self.add(node_id, cls.name, params, where=where)
+            added.append(node_id)
+            return True
+
+        for kind in self.plan.maps:
+            port_kind = registry.MAP_KINDS.get(kind, (None, ""))[0]
+            if port_kind in sources:
+                ensure(f"{kind}Map", sources[port_kind], kind)
+        named = {(c.dst, c.dst_port) for c in self.connections if c.dst_port}
+        for spec in list(self.specs.values()):
+            cls = registry.REGISTRY.get(spec.type)
+            if cls is None or cls.source_for:
+                continue
+            for port_name, port in cls.inputs.items():
+                src_cls = sources.get(port.kind)
+                key, _, suffix = port_name.rpartition("_")
+                if src_cls is None or not key or (spec.id, port_name) in named:
+                    continue
+                node_id = f"{key}{suffix.capitalize()}"
+                if ensure(node_id, src_cls, key):
+                    self.connect(f"{node_id}", f"{spec.id}.{port_name}", where=self.specs[node_id].where)
+        return added
+
+    def check(self) -> Result:
+        """Every check that needs no geometry, as ``sengine validate`` runs it.
+
+        Validates the network, runs the plan's source nodes (they read the
+        image maps and rules: missing, unreadable or misshapen files fail
+        here) and then each node's :meth:`~sengine.node.SENode.check` with
+        the source layers it takes (known map colours ...).  Every problem is
+        collected and raised at once.  Returns the source layers.
+        """
+        bound = self.validate()
+        problems: list[SEngineError] = []
+        layers: dict[str, dict[str, Layer]] = {}
+        for node_id in bound.order:
+            node = bound.nodes[node_id]
+            if node.source_for is None or node.inputs:
+                continue
+            try:
+                layers[node_id] = dict(_call_run(node, {}).layers)
+            except SEngineError as err:
+                problems.append(err)
+        feeds: dict[str, dict[str, Layer | None]] = {}
+        for s, sp, d, dp in bound.edges:
+            if s in layers:
+                feeds.setdefault(d, {})[dp] = layers[s][sp]
+        for node_id in bound.order:
+            node = bound.nodes[node_id]
+            if node_id in layers or type(node).check is SENode.check:
+                continue
+            kwargs = {p: feeds.get(node_id, {}).get(p) for p in node.inputs}
+            try:
+                node.check(**kwargs)
+            except SEngineError as err:
+                problems.append(err)
+        Problems.raise_if(problems, where=self.source or None)
+        return Result(layers, {})
+
     # -- running --------------------------------------------------------------
     def _context(
         self,
@@ -330,6 +423,7 @@ class Network:
         progress: ProgressFn | None = None,
         workers: int = 1,
         options: Mapping[str, Any] | None = None,
+        check_kinds: bool = False,
     ) -> Result:
         """Validate, then run every node in topological order.
 
@@ -356,16 +450,16 @@ class Network:
         ------
         ParameterError
             A format no registered node writes (with a suggestion).
+        check_kinds : bool
+            Check every output layer against its port kind's declared
+            columns and dtypes (``--debug``; see :func:`sengine.registry.declare_kind`).
         """
         seed = self.seed if seed is None else int(seed)
         formats = registry.check_formats(formats)
         out_dir = Path(out) if out is not None else None
-        tmp = None
-        if out_dir is not None:
-            out_dir.parent.mkdir(parents=True, exist_ok=True)
-            tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
+        tmp = _output_folder(out_dir) if out_dir is not None else None
         try:
-            result = self._run(seed, tmp, formats, progress, max(1, int(workers)), options)
+            result = self._run(seed, tmp, formats, progress, max(1, int(workers)), options, check_kinds)
             if tmp is not None:
                 _write_json(tmp / "stats.json", result.stats)
                 _move_into(tmp, out_dir)
@@ -382,6 +476,7 @@ class Network:
         progress: ProgressFn | None,
         workers: int,
         options: Mapping[str, Any] | None = None,
+        check_kinds: bool = False,
     ) -> Result:
         t_start = time.perf_counter()
         context = self._context(seed, tmp, formats, workers, options)
@@ -401,26 +496,23 @@ class Network:
             for s, sp, dp in incoming[node_id]:
                 kwargs[dp] = layers[s][sp]
             t0 = time.perf_counter()
-            outputs = _run_node(node, kwargs, workers)
+            result = _run_node(node, kwargs, workers)
             dt = time.perf_counter() - t0
-            missing = [p for p in node.outputs if p not in outputs]
-            extra = [p for p in outputs if p not in node.outputs]
-            if missing or extra or not all(isinstance(v, Layer) for v in outputs.values()):
-                raise TypeError(
-                    f"node '{node_id}' ({node.name}) returned ports {sorted(outputs)}, declared {sorted(node.outputs)}"
-                )
-            layers[node_id] = {p: outputs[p] for p in node.outputs}
+            if check_kinds:
+                for port_name, lay in result.layers.items():
+                    registry.check_kind(lay, node.outputs[port_name].kind, where=f"{node.where} output {port_name!r}")
+            layers[node_id] = dict(result.layers)
             first = next(iter(layers[node_id].values()), None)
             count = len(first) if first is not None else 0
-            if node.outputs:  # sinks (exporters) have nothing to count
+            if node.outputs and not node.source_for:  # sinks (exporters) and the plan's inputs count no features
                 counts[node_id] = count
             seconds[node_id] = round(dt, 4)
             if first is not None and count:
                 area = first.area()
                 if area > 0:
                     areas[node_id] = round(area, 1)
-            if getattr(node, "report", None):
-                report[node_id] = node.report
+            if result.report:
+                report[node_id] = result.report
             log.info("%s (%s): %d features in %.3f s", node_id, node.name, count, dt)
             if progress is not None:
                 progress(i, n, node_id, node.name, count, dt)
@@ -482,7 +574,7 @@ MIN_CHUNK = 256  # features; the executor times a first chunk of this size befor
 FORK_AFTER = 0.25  # s; the rest of a node's work must take about this long for workers to pay off
 
 
-def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> dict[str, Layer]:
+def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> NodeResult:
     """Run one node, in chunks over worker processes when it maps features and that pays off.
 
     The first input is cut into contiguous chunks; other inputs go whole to
@@ -490,14 +582,14 @@ def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> di
     would take more than ``FORK_AFTER`` seconds does it go to the workers
     (starting them and sending the results back costs some 0.1 s).  Outputs
     are concatenated in chunk order (renumbered when the node numbers its
-    features per call), which gives the single-process result because a
-    mapping node draws its random numbers per feature (``self.rng(feature_id)``)
-    and writes no files.
+    features per call), and the chunks' reports summed, which gives the
+    single-process result because a mapping node draws its random numbers
+    per feature (``self.rng(feature_id)``) and writes no files.
     """
     first = next(iter(node.inputs), None)
     layer = kwargs.get(first) if first else None
     if workers <= 1 or not node.maps_features or layer is None or len(layer) < 2 * MIN_CHUNK:
-        return node.run(**kwargs) or {}
+        return _call_run(node, kwargs)
     t = time.perf_counter()
     parts = [_call_run(node, {**kwargs, first: layer.take(np.arange(MIN_CHUNK))})]
     rest = len(layer) - MIN_CHUNK
@@ -511,25 +603,47 @@ def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> di
             for a, b in zip(bounds[:-1], bounds[1:])
         ]
         parts += run_jobs(jobs, workers)  # forked workers inherit the registry and plugins
-    reports = [r for _, r in parts if r]
-    if reports:
-        node.report = _sum_reports(reports)
+    reports = [dict(r.report) for r in parts if r.report]
     merged = {}
     for port in node.outputs:
-        layers = [out[port] for out, _ in parts]
+        layers = [r.layers[port] for r in parts]
         ids = np.concatenate([lay.ids for lay in layers])
         merged[port] = Layer.concat(layers, renumber=len(np.unique(ids)) != len(ids))
-    return merged
+    return NodeResult(merged, _sum_reports(reports) if reports else None)
 
 
-def _call_run(node: SENode, kwargs: dict[str, Layer | None]) -> tuple[dict[str, Layer], dict | None]:
-    outputs = node.run(**kwargs) or {}
-    return outputs, getattr(node, "report", None)
+def _call_run(node: SENode, kwargs: dict[str, Layer | None]) -> NodeResult:
+    """``node.run(**kwargs)`` as a NodeResult.
+
+    A plugin's node (a class from outside the ``sengine`` package) that
+    raises anything but an :class:`~sengine.errors.SEngineError` fails with
+    a one-line :class:`~sengine.errors.NodeError` naming the node; the
+    built-in nodes' exceptions are bugs and keep their traceback.  Running
+    out of memory is one line for every node.
+    """
+    if "report" in vars(node):  # the old form: a report left by a previous call must not leak into this one
+        node.report = None
+    try:
+        value = node.run(**kwargs)
+    except SEngineError:
+        raise
+    except MemoryError:
+        raise NodeError("ran out of memory (try smaller inputs or fewer --workers)", where=node.where) from None
+    except Exception as exc:
+        if type(node).__module__.split(".")[0] == "sengine":
+            raise
+        raise NodeError(
+            f"failed: {type(exc).__name__}: {exc} (a bug in the plugin; --debug shows the traceback)",
+            where=node.where,
+        ) from exc
+    return NodeResult.of(node, value)
 
 
 def _sum_reports(reports: list[dict]) -> dict:
-    """Merge the reports of a node's chunks: numbers add up (``max_*`` ones take the largest), the rest is taken
-    from the first."""
+    """Merge the reports of a node's chunks.
+
+    Numbers add up (``max_*`` ones take the largest); the rest is taken from the first.
+    """
     total: dict = {}
     for rep in reports:
         for key, value in rep.items():
@@ -540,6 +654,28 @@ def _sum_reports(reports: list[dict]) -> dict:
             else:
                 total.setdefault(key, value)
     return total
+
+
+def _output_folder(out_dir: Path) -> Path:
+    """Check that ``out_dir`` can be written and make the temporary folder beside it, before any work.
+
+    Raises OutputError (one line) when the folder is an existing file, lies
+    under a file, cannot be made or written, or has too long a name.
+    """
+    try:
+        if out_dir.exists() and not out_dir.is_dir():
+            raise OutputError(f"output folder {str(out_dir)!r} is an existing file")
+        out_dir.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
+    except OutputError:
+        raise
+    except OSError as exc:
+        why = exc.strerror or type(exc).__name__
+        raise OutputError(f"cannot write the output folder {str(out_dir)!r}: {why}") from None
+    if out_dir.exists() and not os.access(out_dir, os.W_OK | os.X_OK):
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise OutputError(f"cannot write the output folder {str(out_dir)!r}: Permission denied")
+    return tmp
 
 
 def _write_json(path: Path, data: Any) -> None:

@@ -8,6 +8,12 @@ dict of output layers keyed by output port name.
 
 The engine knows nothing about what the kinds mean: ``"roads"`` or
 ``"blocks"`` are just labels that must match between connected ports.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
@@ -23,12 +29,12 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from .errors import ParameterError, SEngineError
+from .errors import NodeError, ParameterError, SEngineError
 from .geom.raster import parse_colour
 from .layer import Layer
 from .random import generator
 
-__all__ = ["Param", "Port", "SENode", "Context"]
+__all__ = ["Param", "Port", "SENode", "Context", "NodeResult"]
 
 ANY = "any"
 _TYPES = {"float": float, "int": int, "str": str, "bool": bool, "path": str, "colour": str}
@@ -54,6 +60,7 @@ class Port:
     required: bool = True
 
     def accepts(self, kind: str) -> bool:
+        """Whether a layer of ``kind`` may flow through this port."""
         return ANY in (self.kind, kind) or self.kind == kind
 
 
@@ -140,6 +147,7 @@ class Param:
         return value
 
     def describe(self, name: str) -> dict:
+        """The declaration as plain data (``sengine nodes --json``)."""
         return {
             "name": name,
             "type": self.type,
@@ -190,6 +198,85 @@ class Params(Mapping[str, Any]):
         return f"Params({dict(self._values)!r})"
 
 
+@dataclass(frozen=True)
+class NodeResult(Mapping):
+    """What :meth:`SENode.run` returns: the output layers by port, and the node's report.
+
+    Reads as the dict of layers it holds (``node.run(...)["lots"]``).  ``run`` may also return ``(layers, report)`` or only the ``layers`` dict;
+    the executor turns every form into a NodeResult (:meth:`of`).  The
+    report is a JSON-able dict of counts that goes into ``stats.json`` under
+    the node's id.
+
+    Parameters
+    ----------
+    layers : dict of str to Layer
+        One layer per declared output port.
+    report : dict, optional
+        Counts and sums of the run (``{"lots": 7471, ...}``).
+    """
+
+    layers: Mapping[str, Layer]
+    report: Mapping[str, Any] | None = None
+
+    def __getitem__(self, port: str) -> Layer:
+        return self.layers[port]
+
+    def __iter__(self):
+        return iter(self.layers)
+
+    def __len__(self) -> int:
+        return len(self.layers)
+
+    @classmethod
+    def of(cls, node: SENode, value: Any) -> NodeResult:
+        """Normalise what ``node.run`` returned; raise NodeError for a wrong shape.
+
+        Accepted: a NodeResult, a dict of layers, a ``(dict, report)`` pair, or
+        ``None`` for a node without outputs.  The old way of handing a report,
+        setting ``self.report`` in ``run``, is still read when the returned
+        value carries none.
+        """
+        report = None
+        if isinstance(value, NodeResult):
+            layers, report = value.layers, value.report
+        elif isinstance(value, tuple) and len(value) == 2 and isinstance(value[0], Mapping | type(None)):
+            layers, report = value
+        elif value is None and not node.outputs:
+            layers = {}
+        else:
+            layers = value
+        if layers is None and not node.outputs:
+            layers = {}
+        if not isinstance(layers, Mapping):
+            raise NodeError(
+                f"run() returned {type(value).__name__}, expected a dict of output layers "
+                f"({', '.join(node.outputs) or 'none'}), a (dict, report) pair or a NodeResult",
+                where=node.where,
+            )
+        if report is None:
+            report = getattr(node, "report", None)
+        if report is not None and not isinstance(report, Mapping):
+            raise NodeError(
+                f"run() returned a report of type {type(report).__name__}, expected a dict", where=node.where
+            )
+        missing = [p for p in node.outputs if p not in layers]
+        extra = [p for p in layers if p not in node.outputs]
+        wrong = [p for p, v in layers.items() if p in node.outputs and not isinstance(v, Layer)]
+        if missing or extra or wrong:
+            why = []
+            if missing:
+                why.append(f"missing {', '.join(map(repr, missing))}")
+            if extra:
+                why.append(f"undeclared {', '.join(map(repr, map(str, extra)))}")
+            if wrong:
+                why.append(", ".join(f"{p!r} is a {type(layers[p]).__name__}, not a Layer" for p in wrong))
+            raise NodeError(
+                f"run() returned ports {sorted(map(str, layers))}, declared {sorted(node.outputs)} ({'; '.join(why)})",
+                where=node.where,
+            )
+        return cls({p: layers[p] for p in node.outputs}, dict(report) if report else None)
+
+
 @dataclass
 class Context:
     """What a network run shares with its nodes.
@@ -199,7 +286,9 @@ class Context:
     seed : int
         The network seed.
     plan : object
-        The city plan from the configuration (opaque to the engine).
+        The city plan from the configuration (opaque to the engine).  Only
+        the plan's source nodes (:attr:`SENode.source_for`) read it; every
+        other node takes the plan's maps and rules on declared input ports.
     base_dir : pathlib.Path or None
         Folder that relative paths in the configuration are relative to.
     out : pathlib.Path or None
@@ -227,6 +316,13 @@ class SENode:
     Subclasses set the class attributes and implement :meth:`run`.
     ``maps_features`` says that the node maps each input feature on its own
     (lots per block, buildings per lot), so the executor may chunk its input.
+
+    ``source_for`` names a layer kind the node is *the source of* for the
+    city plan (``"raster"``: the plan's image maps; ``"rules"``: its
+    ``<district>`` / ``<landuse>`` rules).  When a configuration is loaded,
+    every unconnected input port of that kind is wired to such a node, made
+    by the class's :meth:`plan_source` from the plan, so every input of a
+    city is a node on the graph (``sengine graph`` draws it).
     """
 
     name: ClassVar[str] = ""
@@ -234,6 +330,7 @@ class SENode:
     outputs: ClassVar[Mapping[str, Port]] = {}
     params: ClassVar[Mapping[str, Param]] = {}
     maps_features: ClassVar[bool] = False
+    source_for: ClassVar[str | None] = None
 
     def __init__(
         self,
@@ -288,9 +385,38 @@ class SENode:
         """
         return generator(self.context.seed, self.id, *key)
 
+    # -- plan sources ----------------------------------------------------------
+    @classmethod
+    def plan_source(cls, key: str, plan: Any) -> tuple[dict[str, Any], str] | None:
+        """Parameters and ``where`` of the source node for the plan's item ``key``.
+
+        ``key`` is a map kind (for an input port named ``<key>_map``) or a
+        rule tag (``<key>_rules``).  ``None`` when the plan has nothing for
+        it: the port then stays unconnected.  Only classes that set
+        :attr:`source_for` implement it.
+        """
+        return None
+
     # -- work ----------------------------------------------------------------
-    def run(self, **inputs: Layer) -> dict[str, Layer]:  # pragma: no cover - abstract
+    def run(self, **inputs: Layer) -> dict[str, Layer] | NodeResult | tuple:  # pragma: no cover - abstract
+        """Compute the output layers from the input layers.
+
+        Returns
+        -------
+        NodeResult or dict or tuple
+            ``NodeResult(layers, report)``, ``(layers, report)`` or ``layers``
+            alone: a dict of one Layer per declared output port.
+        """
         raise NotImplementedError
+
+    def check(self, **inputs: Layer | None) -> None:
+        """Checks that need no geometry, run by ``sengine validate`` (optional).
+
+        Called with the layers of the plan's source nodes (image maps,
+        rules) on the ports they feed and ``None`` on every other port.
+        Raise an :class:`~sengine.errors.SEngineError` for a problem (several
+        at once as :class:`~sengine.errors.Problems`).
+        """
 
     @classmethod
     def describe(cls) -> dict:

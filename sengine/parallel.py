@@ -13,8 +13,10 @@ results, and the files the jobs write, are the same.
 
 from __future__ import annotations
 
+import ctypes
 import os
 import pickle
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -81,6 +83,7 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
             break
         if pid == 0:  # a worker: take jobs, send (index, ok, result) back, leave without cleanup handlers
             _in_worker = True
+            _die_with_parent()
             os.close(read)
             status = 1
             try:
@@ -102,9 +105,14 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
         done = _take_jobs(jobs, taken, first=0)
     finally:
         _running = False
-        if done is None:  # interrupted here: the workers stop after their current job
+        if done is None:  # interrupted here (Ctrl-C, SIGTERM) or failed: no worker goes on
             with taken.get_lock():
                 taken.value = len(jobs)
+            for pid, _ in children:
+                try:
+                    os.kill(pid, signal.SIGTERM)
+                except ProcessLookupError:
+                    pass
         for pid, pipe in children:
             data = pipe.read()
             pipe.close()
@@ -120,6 +128,23 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
     if not all(finished):
         raise RuntimeError(f"a worker process died before finishing job {finished.index(False)}")
     return results
+
+
+def _die_with_parent() -> None:
+    """Ask Linux to end this worker when the process that forked it ends (``PR_SET_PDEATHSIG``).
+
+    Ctrl-C reaches every process of the terminal's group, and :func:`run_jobs`
+    ends its workers when it is interrupted; this covers a parent killed
+    outright (``kill -9``), so no worker ever outlives its run.  Elsewhere a no-op.
+    """
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGTERM, 0, 0, 0)  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):  # pragma: no cover - no libc to ask
+        pass
 
 
 def _take_jobs(jobs: Sequence[Callable[[], Any]], taken, first: int | None = None) -> list[tuple[int, bool, Any]]:

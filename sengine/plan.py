@@ -45,6 +45,7 @@ class Rule:
     where: str = ""
 
     def get(self, name: str, default: str | None = None) -> str | None:
+        """The attribute ``name`` as written, or ``default``."""
         return self.attrs.get(name, default)
 
 

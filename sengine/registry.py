@@ -8,6 +8,12 @@ nodes when imported; they arrive four ways, all through :func:`load_plugin`:
 * ``<plugin module="..."/>`` in a configuration file;
 * ``<plugin path="..."/>`` (a ``.py`` file or a package folder);
 * ``--plugin MODULE_OR_PATH`` on the command line.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
@@ -24,7 +30,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
 
-from .errors import RegistryError
+from .errors import RegistryError, SEngineWarning
 from .node import Param, SENode
 from .random import stable_hash
 
@@ -39,6 +45,15 @@ __all__ = [
     "register_network",
     "network_class",
     "network_names",
+    "declare_rule",
+    "rule_params",
+    "declare_kind",
+    "kinds",
+    "check_kind",
+    "source_classes",
+    "declare_map_kind",
+    "map_kinds",
+    "formats",
 ]
 
 log = logging.getLogger(__name__)
@@ -49,6 +64,8 @@ NAME_RE = re.compile(r"^[a-z][a-z0-9_]*(\.[a-z][a-z0-9_]*)*$", re.IGNORECASE)
 REGISTRY: dict[str, type[SENode]] = {}
 NETWORKS: dict[str, type] = {}  # base name -> network class (``<network base="...">``)
 RULES: dict[str, dict[str, Param]] = {}  # plan element tag -> its declared attributes
+KINDS: dict[str, dict[str, tuple[str, bool, str]]] = {}  # layer kind -> column -> (dtype kinds, required, doc)
+MAP_KINDS: dict[str, tuple[str, str]] = {}  # <map kind=...> -> (kind of the port that carries it, doc)
 _loaded: dict[str, str] = {}  # plugin key -> module name
 _broken: dict[str, str] = {}
 _entry_points_loaded = False
@@ -128,7 +145,7 @@ def check_formats(formats) -> frozenset[str]:
     for f in sorted(asked):
         if f not in known:
             near = hints.get(f) or next(iter(difflib.get_close_matches(f, known, n=1, cutoff=0.5)), None)
-            hint = f" (did you mean {near}?)" if near else ""
+            hint = f"; did you mean {near!r}?" if near else ""
             raise ParameterError(f"unknown format {f!r}{hint}; formats: {', '.join(known)}", where="--format")
     return asked
 
@@ -165,6 +182,7 @@ def network_class(name: str, *, where: str | None = None) -> type:
 
 
 def network_names() -> list[str]:
+    """The registered network bases, sorted."""
     load_entry_points()
     return sorted(NETWORKS)
 
@@ -189,12 +207,19 @@ def load_entry_points() -> None:
             raise
         except Exception as exc:  # a broken third-party plugin must not break sengine
             _broken[ep.name] = f"{type(exc).__name__}: {exc}"
-            warnings.warn(f"sengine plugin {ep.name!r} ({ep.value}) failed to load: {exc}", stacklevel=2)
+            warnings.warn(
+                f"sengine plugin {ep.name!r} ({ep.value}) failed to load: {exc}", SEngineWarning, stacklevel=2
+            )
     if not any(ep.name == "builtin" for ep in eps):
-        warnings.warn("sengine's built-in nodes are not registered: install the package (pip install .)", stacklevel=2)
+        warnings.warn(
+            "sengine's built-in nodes are not registered: install the package (pip install .)",
+            SEngineWarning,
+            stacklevel=2,
+        )
 
 
 def broken_plugins() -> dict[str, str]:
+    """Entry-point plugins that failed to load, with why (``sengine nodes --check``)."""
     load_entry_points()
     return dict(_broken)
 
@@ -286,3 +311,94 @@ def rule_params(tag: str) -> dict[str, Param] | None:
     """The declared attributes of ``<tag>``, or None when nothing declares the element."""
     load_entry_points()
     return RULES.get(tag)
+
+
+def declare_kind(kind: str, columns: dict[str, tuple[str, bool, str]], *, doc: str = "") -> None:
+    """Declare the attribute columns of a layer kind.
+
+    Parameters
+    ----------
+    kind : str
+        The port kind (``"lots"``, ``"roads"`` ...).
+    columns : dict of str to (str, bool, str)
+        Column name -> (numpy dtype kinds allowed, as in ``"iu"`` or ``"U"``
+        or ``"O"``; whether every layer of the kind must have it; one-line doc).
+    doc : str
+        What a layer of the kind holds.
+
+    A column declared twice must be declared the same way.
+    """
+    have = KINDS.setdefault(kind, {})
+    for name, decl in columns.items():
+        if name in have and have[name] != decl:
+            raise RegistryError(f"layer kind {kind!r}: column {name!r} is declared twice, differently")
+        have[name] = decl
+    if doc:
+        KIND_DOCS[kind] = doc
+
+
+KIND_DOCS: dict[str, str] = {}
+
+
+def kinds() -> dict[str, dict[str, tuple[str, bool, str]]]:
+    """Every declared layer kind and its columns."""
+    load_entry_points()
+    return {k: dict(v) for k, v in KINDS.items()}
+
+
+def check_kind(layer, kind: str, *, where: str | None = None) -> None:
+    """Raise NetworkError when ``layer`` lacks a required column of ``kind`` or has one of the wrong dtype.
+
+    Undeclared kinds (``any``, a plugin's own) and undeclared columns pass:
+    a kind declares what its consumers may rely on, not all a layer may carry.
+    """
+    from .errors import NetworkError
+
+    decl = KINDS.get(kind)
+    if decl is None:
+        return
+    problems = []
+    for name, (dtypes, required, _) in decl.items():
+        col = layer.attrs.get(name)
+        if col is None:
+            if required and len(layer):
+                problems.append(f"column {name!r} is missing")
+            continue
+        if col.dtype.kind not in dtypes:
+            problems.append(f"column {name!r} has dtype {col.dtype} (kind {col.dtype.kind!r}), declared {dtypes!r}")
+    if problems:
+        raise NetworkError(f"layer of kind {kind!r}: " + "; ".join(problems), where=where)
+
+
+def source_classes() -> dict[str, type[SENode]]:
+    """Layer kind -> the registered node class that is the plan's source of it (:attr:`SENode.source_for`)."""
+    load_entry_points()
+    return {c.source_for: c for c in REGISTRY.values() if c.source_for}
+
+
+def formats() -> dict[str, str]:
+    """Every output format some registered node writes (its class attribute ``formats``) and that node's name."""
+    out: dict[str, str] = {}
+    for name in names():
+        for f in getattr(get(name), "formats", ()) or ():
+            out.setdefault(f, name)
+    return out
+
+
+def declare_map_kind(kind: str, port_kind: str, doc: str = "") -> None:
+    """Declare a ``<map kind=...>`` of the plan and the port kind that carries it (``raster``, ``file``).
+
+    A configuration's map of an undeclared kind is an error with a "did you
+    mean"; the node registered as the source of ``port_kind``
+    (:attr:`SENode.source_for`) turns each such map into a node.
+    """
+    old = MAP_KINDS.get(kind)
+    if old is not None and old[0] != port_kind:
+        raise RegistryError(f"map kind {kind!r} is declared twice, differently")
+    MAP_KINDS[kind] = (port_kind, doc)
+
+
+def map_kinds() -> dict[str, tuple[str, str]]:
+    """Every declared map kind: its port kind and doc."""
+    load_entry_points()
+    return dict(MAP_KINDS)

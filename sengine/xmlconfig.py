@@ -5,10 +5,17 @@ validated against ``sengine/schema/sengine.xsd``.  Configurations are treated
 as untrusted: the parser expands no entities, loads no DTD and touches no
 network, and a file that declares a DOCTYPE is refused outright.  Every error
 names the file and line.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Iterable
 from functools import lru_cache
@@ -17,16 +24,17 @@ from typing import Any
 
 from lxml import etree
 
-from .errors import ConfigError
+from .errors import ConfigError, Problems, SEngineError
 from .network import Network
 from .node import unknown_name
 from .plan import CityPlan, MapSpec, Rule
-from .registry import load_plugin, network_class, rule_params
+from .registry import load_plugin, map_kinds, network_class, rule_params
 
 __all__ = ["load_config", "read_network_file", "SCHEMA_PATH"]
 
 SCHEMA_PATH = Path(__file__).with_name("schema") / "sengine.xsd"
 _MAX_INCLUDE_DEPTH = 8
+MAX_CONFIG_BYTES = 8 * 2**20  # a configuration is a page of XML; a larger file is a mistake (or /dev/zero)
 
 
 def _parser() -> etree.XMLParser:
@@ -48,12 +56,7 @@ def _schema() -> etree.XMLSchema:
 
 def parse(path: Path, label: str) -> etree._Element:
     """Parse and validate one sengine XML file; return its root element."""
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise ConfigError("file not found", where=label) from None
-    except OSError as exc:
-        raise ConfigError(f"cannot read file: {exc.strerror}", where=label) from None
+    data = read_small_file(path, label, MAX_CONFIG_BYTES, ConfigError)
     doctype = data.find(b"<!DOCTYPE")
     if doctype >= 0:  # refuse before parsing: no DTD, no entity, no network
         line = data.count(b"\n", 0, doctype) + 1
@@ -78,13 +81,39 @@ def parse(path: Path, label: str) -> etree._Element:
         )
     schema = _schema()
     if not schema.validate(tree):
-        err = schema.error_log.last_error
-        for e in schema.error_log:  # the first error is the most useful
-            err = e
-            break
-        msg = re.sub(r"^Element '([^']+)'", r"<\1>", err.message)
-        raise ConfigError(f"invalid: {msg}", where=f"{label}:{err.line}")
+        problems: list[SEngineError] = []
+        for err in schema.error_log:
+            msg = re.sub(r"^Element '([^']+)'", r"<\1>", err.message)
+            problems.append(ConfigError(f"invalid: {msg}", where=f"{label}:{err.line}"))
+        Problems.raise_if(problems, where=label)
     return root
+
+
+def read_small_file(path: Path, label: str, limit: int, error: type[SEngineError]) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes, or one-line ``error``.
+
+    A FIFO, a device (``/dev/zero``), a folder or a file over the limit is
+    refused before reading, so a mistake never blocks or fills the memory.
+    """
+    import stat
+
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        raise error("file not found", where=label) from None
+    except OSError as exc:
+        raise error(f"cannot read file: {exc.strerror}", where=label) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise error("is a folder, not a file", where=label)
+    if not stat.S_ISREG(st.st_mode):
+        raise error("is not a regular file (a pipe, socket or device?)", where=label)
+    if st.st_size > limit:
+        raise error(f"is {st.st_size:,} bytes, more than the {limit:,} a configuration may have", where=label)
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(limit + 1)
+    except OSError as exc:
+        raise error(f"cannot read file: {exc.strerror}", where=label) from None
 
 
 def _where(label: str, el: etree._Element) -> str:
@@ -102,18 +131,36 @@ def _floats(text: str, n: int, what: str, where: str) -> tuple[float, ...]:
     return vals
 
 
-def check_rule(tag: str, attrs, where: str) -> None:
-    """Check a rule element's attributes against their declarations (see :func:`~sengine.registry.declare_rule`)."""
+def check_rule(tag: str, attrs, where: str) -> list[SEngineError]:
+    """Check a rule element's attributes against their declarations (see :func:`~sengine.registry.declare_rule`).
+
+    Returns every problem (unknown attribute with a "did you mean", value of
+    the wrong type or out of bounds); an empty list when all is well or
+    nothing declares the element.
+    """
     declared = rule_params(tag)
     if declared is None:
-        return
+        return []
+    problems: list[SEngineError] = []
     for name, value in attrs.items():
         if name not in declared:
-            raise ConfigError(f"<{tag}> " + unknown_name("attribute", name, declared), where=where)
-        declared[name].coerce(value, where, f"<{tag}> {name}")
+            problems.append(ConfigError(f"<{tag}> " + unknown_name("attribute", name, declared), where=where))
+            continue
+        try:
+            declared[name].coerce(value, where, f"<{tag}> {name}")
+        except SEngineError as err:
+            problems.append(err)
+    return problems
 
 
-def _read_plan(city: etree._Element | None, label: str, base_dir: Path) -> tuple[CityPlan, int | None]:
+CITY_ATTRIBUTES = ("name", "seed", "size", "origin")
+MAX_CITY_SIZE = 100_000.0  # m; 100 km a side is a metropolis region, beyond it a typo (1e6 m)
+
+
+def _read_plan(
+    city: etree._Element | None, label: str, base_dir: Path, problems: list[SEngineError]
+) -> tuple[CityPlan, int | None]:
+    """The plan of ``<city>``; problems are appended to ``problems``, not raised."""
     if city is None:
         return CityPlan(), None
     w = _where(label, city)
@@ -121,29 +168,49 @@ def _read_plan(city: etree._Element | None, label: str, base_dir: Path) -> tuple
     plan = CityPlan(where=w)
     plan.name = attrs.pop("name", plan.name)
     seed = int(attrs.pop("seed")) if "seed" in attrs else None
-    if "size" in attrs:
-        size = _floats(attrs.pop("size"), 2, "size", w)
-        if min(size) <= 0:
-            raise ConfigError(f"size={city.get('size')!r} must be positive (m)", where=w)
-        plan.size = size  # type: ignore[assignment]
-    if "origin" in attrs:
-        lat, lon = _floats(attrs.pop("origin"), 2, "origin", w)
-        if not (-90 <= lat <= 90 and -180 <= lon <= 180):
-            raise ConfigError(f"origin={city.get('origin')!r} is not a latitude and longitude in degrees", where=w)
-        plan.origin = (lat, lon)
+    try:
+        if "size" in attrs:
+            text = attrs.pop("size")
+            size = _floats(text, 2, "size", w)
+            if not all(math.isfinite(v) and 0 < v <= MAX_CITY_SIZE for v in size):
+                raise ConfigError(f"size={text!r} must be two positive widths of at most {MAX_CITY_SIZE:g} m", where=w)
+            plan.size = size  # type: ignore[assignment]
+    except ConfigError as err:
+        problems.append(err)
+    try:
+        if "origin" in attrs:
+            text = attrs.pop("origin")
+            lat, lon = _floats(text, 2, "origin", w)
+            if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+                raise ConfigError(f"origin={text!r} is not a latitude and longitude in degrees", where=w)
+            plan.origin = (lat, lon)
+    except ConfigError as err:
+        problems.append(err)
+    for key in attrs:
+        problems.append(ConfigError("<city> " + unknown_name("attribute", key, CITY_ATTRIBUTES), where=w))
     plan.attrs = attrs
     for el in city:
         ew = _where(label, el)
         if el.tag == "map":
             kind = el.get("kind")
             if kind in plan.maps:
-                raise ConfigError(f"a map of kind {kind!r} is given twice (first at {plan.maps[kind].where})", where=ew)
+                problems.append(
+                    ConfigError(f"a map of kind {kind!r} is given twice (first at {plan.maps[kind].where})", where=ew)
+                )
+                continue
             extra = {k: v for k, v in el.attrib.items() if k not in ("kind", "src")}
             plan.maps[kind] = MapSpec(kind, (base_dir / el.get("src")).resolve(), extra, ew)
         else:
-            check_rule(el.tag, el.attrib, ew)
+            problems += check_rule(el.tag, el.attrib, ew)
             plan.rules.append(Rule(el.tag, dict(el.attrib), ew))
     return plan, seed
+
+
+def _check_map_kinds(plan: CityPlan, problems: list[SEngineError]) -> None:
+    known = map_kinds()
+    for kind, spec in plan.maps.items():
+        if kind not in known:
+            problems.append(ConfigError(unknown_name("map kind", kind, sorted(known)), where=spec.where or None))
 
 
 def _apply_network(net: Network, el: etree._Element, label: str) -> None:
@@ -180,6 +247,9 @@ def _apply_network(net: Network, el: etree._Element, label: str) -> None:
 def _base_network(el: etree._Element, label: str, folder: Path, depth: int, **kw: Any) -> Network:
     base, file = el.get("base"), el.get("file")
     w = _where(label, el)
+    for key, value in (("base", base), ("file", file)):
+        if value is not None and not value.strip():
+            raise ConfigError(f"<network> {key}= is empty", where=w)
     if base and file:
         raise ConfigError("<network> takes base= or file=, not both", where=w)
     if depth > _MAX_INCLUDE_DEPTH:
@@ -222,8 +292,8 @@ def load_config(
         The configuration file.
     sets : iterable of str
         ``NODE.PARAM=VALUE`` overrides (``--set``).
-    maps : iterable of str
-        ``KIND=PATH`` replacements for the plan's maps (``--map``).
+    maps : iterable of str or MapSpec
+        ``KIND=PATH`` replacements for the plan's maps (``--map``), or MapSpecs.
     plugins : iterable of str
         Plugin modules or paths to load first (``--plugin``).
     seed : int, optional
@@ -241,25 +311,44 @@ def load_config(
         if bool(module) == bool(ppath):
             raise ConfigError("<plugin> takes exactly one of module= or path=", where=w)
         load_plugin(module or ppath, base_dir=base_dir, where=w)  # type: ignore[arg-type]
-    plan, file_seed = _read_plan(root.find("city"), label, base_dir)
+    problems: list[SEngineError] = []
+    plan, file_seed = _read_plan(root.find("city"), label, base_dir, problems)
     for item in maps:
+        if isinstance(item, MapSpec):  # a map given by a command (sengine osm FILE)
+            plan.maps[item.kind] = item
+            continue
         kind, sep, src = item.partition("=")
         if not sep or not kind or not src:
-            raise ConfigError(f"--map {item!r} must be KIND=PATH")
+            problems.append(ConfigError(f"--map {item!r} must be KIND=PATH"))
+            continue
         old = plan.maps.get(kind)
         attrs = dict(old.attrs) if old else {}
         plan.maps[kind] = MapSpec(kind, Path(src).resolve(), attrs, f"--map {kind}")
+    _check_map_kinds(plan, problems)
     kw = dict(plan=plan, seed=seed if seed is not None else (file_seed or 0), base_dir=base_dir, source=label)
     el = root.find("network")
-    if el is None:
-        net: Network = Network(**kw)
-    else:
-        net = _base_network(el, label, base_dir, 0, **kw)
-        _apply_network(net, el, label)
+    net: Network = Network(**kw)
+    if el is not None:
+        try:
+            net = _base_network(el, label, base_dir, 0, **kw)
+            _apply_network(net, el, label)
+        except SEngineError as err:
+            problems.append(err)
     for item in sets:
         target, sep, value = item.partition("=")
         node_id, dot, name = target.partition(".")
         if not sep or not dot or not node_id or not name:
-            raise ConfigError(f"--set {item!r} must be NODE.PARAM=VALUE")
-        net.set_param(node_id, name, value, where=f"--set {target}")
+            problems.append(ConfigError(f"--set {item!r} must be NODE.PARAM=VALUE"))
+            continue
+        try:
+            net.set_param(node_id, name, value, where=f"--set {target}")
+        except SEngineError as err:
+            problems.append(err)
+    net.wire_plan()
+    if problems:  # report the network's own problems with them, so one run shows every mistake
+        try:
+            net.validate()
+        except SEngineError as err:
+            problems.append(err)
+    Problems.raise_if(problems, where=label)
     return net

@@ -69,7 +69,7 @@ def grid_city(
     width, height = nx * pitch_x + 2 * street, ny * pitch_y + 2 * street
     centre = (width / 2, height / 2)
     crs = local_crs(origin)
-    meta = {"crs": crs}
+    meta = {"crs": crs, "origin": tuple(origin)}  # as a synthetic city's layers carry it (nodes.maps.plan_meta)
 
     def rot(g):
         return shapely.affinity.rotate(g, angle, origin=centre)

@@ -27,7 +27,7 @@ def roads_of(lines, **cols):
 def clean(roads, **params):
     node = get("roads.clean")("clean", {k: str(v) for k, v in params.items()}, Context())
     out = node.run(roads=roads)
-    return out, node.report
+    return out, out.report
 
 
 def faces_of(roads):

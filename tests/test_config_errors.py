@@ -105,7 +105,7 @@ CASES = {
         '<sengine version="1">\n  <network base="nosuch"/>\n</sengine>\n',
         r"t\.xml:2: unknown network base 'nosuch'",
     ),
-    "bad city size": (net(SRC, city='  <city size="-5 10"/>\n'), r"t\.xml:3: size='-5 10' must be positive"),
+    "bad city size": (net(SRC, city='  <city size="-5 10"/>\n'), r"t\.xml:3: size='-5 10' must be two positive widths"),
     "bad origin": (net(SRC, city='  <city origin="95 10"/>\n'), r"t\.xml:3: origin='95 10' is not a latitude"),
     "malformed size": (net(SRC, city='  <city size="ten"/>\n'), r"t\.xml:3: invalid: .*size"),
     "map twice": (
@@ -144,13 +144,16 @@ def test_bad_config_is_one_line_exit_2(case, tmp_path, fixtures, capsys):
     status = main(["run", str(config), "-o", str(out), "--quiet"])
     err = capsys.readouterr().err
     assert status == 2
-    lines = err.strip().splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith("sengine: error: ")
-    assert "Traceback" not in err
     import re
 
-    assert re.search(pattern, lines[0]), lines[0]
+    lines = err.strip().splitlines()
+    assert lines[0].startswith("sengine: error: ")
+    assert "Traceback" not in err
+    if len(lines) > 1:  # several problems: a summary line, then one line each
+        n = re.search(r": (\d+) problems$", lines[0])
+        assert n and len(lines) == int(n.group(1)) + 1, err
+        assert all(line.startswith("  ") for line in lines[1:]), err
+    assert re.search(pattern, err), err
     assert not out.exists() or not any(out.iterdir())
     assert not list(tmp_path.glob(".OUT.*")), "temporary output left behind"
 

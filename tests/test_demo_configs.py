@@ -53,6 +53,7 @@ def _obb_sides(geoms) -> tuple[np.ndarray, np.ndarray]:
     return np.maximum(a, b), np.minimum(a, b)
 
 
+@pytest.mark.slow
 def test_manhattan_with_real_25_by_100_ft_lots():
     """The README's variant ``--set lots.width=7.62``: Manhattan's 25 ft x 100 ft lots, ~60 per grid block.
 
@@ -85,6 +86,7 @@ def test_manhattan_has_its_park_water_and_outputs(manhattan):
     assert heights.min() >= 12 * 0.7 and heights.max() <= 240 * 1.3 and np.ptp(heights) > 100
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "name,districts,lots", [("paris.xml", 3, {"paris"}), ("districts.xml", 3, {"manhattan", "paris", "recursive"})]
 )
@@ -112,6 +114,7 @@ def test_same_seed_same_city(manhattan):
         assert list(shapely.to_wkb(ga)) == list(shapely.to_wkb(gb))
 
 
+@pytest.mark.slow
 def test_same_seed_same_bytes_across_processes_and_workers(manhattan, tmp_path):
     """Another process, another hash seed, two workers: every file is byte-identical."""
     import json

@@ -15,7 +15,7 @@ from conftest import ROOT, run_cli
 
 import sengine
 from sengine import Layer, Param, Port, SENode, register
-from sengine.errors import NetworkError, ParameterError, RegistryError
+from sengine.errors import NetworkError, ParameterError, Problems, RegistryError
 from sengine.network import Network
 from sengine.nodes.standard import LoadMapNetwork, StdNetwork
 from sengine.registry import get, load_plugin
@@ -57,6 +57,7 @@ def _fake_distribution(site: Path) -> None:
     (dist / "RECORD").write_text("")
 
 
+@pytest.mark.slow
 def test_plugin_by_entry_point(tmp_path):
     site = tmp_path / "site"
     site.mkdir()
@@ -84,6 +85,7 @@ def test_plugin_by_xml_path(tmp_path, fixtures):
     assert (tmp_path / "o" / "write.geojson").exists()
 
 
+@pytest.mark.slow
 def test_plugin_by_command_line(tmp_path):
     config = tmp_path / "c.xml"
     config.write_text('<sengine version="1"><network><node id="lines" type="demo.lines"/></network></sengine>')
@@ -210,8 +212,11 @@ def test_validation_collects_every_problem():
     net = Network()
     net.add("a", "demo.nope")
     net.add("b", "demo.squares", {"count": -1})
-    with pytest.raises(RegistryError, match=r"unknown node type 'demo.nope'.*\(and 1 more problem\)"):
+    with pytest.raises(Problems, match=r"2 problems") as exc:
         net.validate()
+    lines = exc.value.lines
+    assert len(lines) == 3 and "unknown node type 'demo.nope'" in lines[1] and "count=-1" in lines[2]
+    assert isinstance(exc.value.problems[0], RegistryError) and isinstance(exc.value.problems[1], ParameterError)
 
 
 # -- the standard networks -----------------------------------------------------------

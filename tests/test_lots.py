@@ -194,9 +194,10 @@ def test_empty_and_degenerate_blocks_do_not_raise():
 def test_filter_and_stats():
     lay = Layer.from_geoms([shapely.box(0, 0, 10, 10), shapely.box(0, 0, 100, 2), shapely.box(0, 0, 1, 1)])
     node = get("filter.area")("f", {"min_area": 5, "min_width": 3})
-    out = node.run(input=lay)["output"]
+    res = node.run(input=lay)
+    out = res["output"]
     assert out.ids.tolist() == [0]
-    assert node.report["below_min_area"] == 1 and node.report["below_min_width"] == 2
+    assert res.report["below_min_area"] == 1 and res.report["below_min_width"] == 2
     st_ = get("stats.shape")("s", {}).run(input=lay)["output"]
     assert np.allclose(st_["area"], [100, 200, 1]) and np.allclose(st_["perimeter"], [40, 204, 4])
     assert np.allclose(st_["depth"], [10, 2, 1])
@@ -322,6 +323,7 @@ def paris_demo():
     return layers["blocks"]["blocks"], layers["lots"]["lots"]
 
 
+@pytest.mark.slow
 def test_paris_courtyards_do_not_reach_the_street(paris_demo):
     """§5.5, Fig. 10: the core is an inner lot; every perimeter lot keeps a street; lots partition blocks.
 

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from sengine import CityPlan, Context, MapSpec
 from sengine.errors import InputDataError
+from sengine.nodes.maps import plan_inputs
 from sengine.registry import get
 
 
@@ -103,9 +104,11 @@ def test_plan_map_and_errors(tmp_path):
     path = tmp_path / "grid.obj"
     write_grid_lines(path, 3, 3, 50.0)
     plan = CityPlan(maps={"obj": MapSpec("obj", path, {}, "city.xml:5")})
-    assert len(get("obj.roads")("n", {}, Context(plan=plan)).run()["roads"]) == 6
+    roads = get("obj.roads")("n", {}, Context(plan=plan))
+    assert len(roads.run(**plan_inputs(plan, roads))["roads"]) == 6
+    lots_node = get("obj.lots")("n", {}, Context(plan=plan))
     with pytest.raises(InputDataError, match="no faces") as exc:
-        get("obj.lots")("n", {}, Context(plan=plan)).run()
+        lots_node.run(**plan_inputs(plan, lots_node))
     assert "city.xml:5" in str(exc.value) and "grid.obj" in str(exc.value)
     lots = tmp_path / "lots.obj"
     write_lots(lots)

@@ -13,6 +13,7 @@ import shapely
 from sengine import CityPlan, Context, MapSpec
 from sengine.errors import InputDataError, ParameterError
 from sengine.geom.crs import to_lonlat
+from sengine.nodes.maps import plan_inputs
 from sengine.registry import get
 
 DATA = Path(__file__).resolve().parent.parent / "configs" / "data"
@@ -59,7 +60,7 @@ def test_every_format_reads_into_utm(path, crs, lat, lon):
     assert np.abs(ll[:, 0] - lon).max() < 0.1 and np.abs(ll[:, 1] - lat).max() < 0.1
     assert shapely.is_valid(roads.geometry).all()
     assert set(np.unique(roads["class"])) <= set(node.p.major.split(",")) | set(node.p.minor.split(","))
-    assert node.report["segments"] == len(roads)
+    assert out.report["segments"] == len(roads)
 
 
 def test_topology_is_kept(helsinki):
@@ -117,7 +118,8 @@ def test_extra_layers(helsinki, monaco):
 
 def test_path_from_the_plan():
     plan = CityPlan(maps={"osm": MapSpec("osm", OAKLAND, {}, "city.xml:3")})
-    out = get("osm.read")("majorRoads", {}, Context(plan=plan)).run()
+    node = get("osm.read")("majorRoads", {}, Context(plan=plan))
+    out = node.run(**plan_inputs(plan, node))
     assert len(out["roads"]) > 0
     with pytest.raises(InputDataError, match="no OSM file"):
         get("osm.read")("majorRoads", {}, Context(plan=CityPlan())).run()
@@ -317,6 +319,7 @@ def test_helsinki_config_runs_the_loadmap_network(tmp_path):
     assert (tmp_path / "out" / "blocks.geojson").exists()
 
 
+@pytest.mark.slow
 def test_sengine_osm_command(tmp_path, cli):
     done = cli("osm", OAKLAND, "-o", tmp_path / "oak", "--format", "geojson")
     assert done.returncode == 0, done.stderr

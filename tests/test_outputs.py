@@ -198,7 +198,7 @@ def test_obj_one_object_per_layer_at_the_origin(manhattan):
 # -- --format, --crs, --origin on the command line ---------------------------------------------
 @pytest.mark.parametrize(
     "formats, hint",
-    [("fbx", "did you mean glb?"), ("glb,shp", "did you mean gpkg?"), ("geojsn", "did you mean geojson?")],
+    [("fbx", "did you mean 'glb'?"), ("glb,shp", "did you mean 'gpkg'?"), ("geojsn", "did you mean 'geojson'?")],
 )
 def test_unknown_format_is_one_line_with_a_suggestion(tmp_path, capsys, formats, hint):
     code = main(["run", str(CONFIGS / "manhattan.xml"), "-o", str(tmp_path / "out"), "--format", formats])
@@ -411,7 +411,9 @@ def test_clean_geometries_valid_nonempty_one_type_on_the_grid(geoms):
     valid = np.array([g is not None and g.is_valid and g.area > 1.0 for g in geoms], bool)
     if valid.any():
         assert keep[valid].all()
-        np.testing.assert_allclose(shapely.area(out[valid[keep]]), shapely.area(geoms[valid]), rtol=1e-3)
+        # snapping to the mm grid moves each vertex at most 0.5 mm: the area by at most perimeter x 1 mm
+        slack = shapely.length(geoms[valid]) * 1e-3
+        assert (np.abs(shapely.area(out[valid[keep]]) - shapely.area(geoms[valid])) <= slack + 1e-9).all()
 
 
 @given(st.floats(1e-6, 5e-3), st.floats(0.0, 1.0))

@@ -21,7 +21,7 @@ Planning = get("stats.planning")
 def run(lots, buildings, blocks=None, **params):
     node = Planning("planning", params, Context(seed=1))
     out = node.run(lots=lots, buildings=buildings, blocks=blocks)
-    return out["lots"], out["blocks"], node.report
+    return out["lots"], out["blocks"], out.report
 
 
 def test_buildings_count_on_the_lots_they_stand_on():

@@ -30,7 +30,11 @@ def test_quick_start_has_exactly_two_commands():
     assert len(commands) == 2
     assert "sengine run configs/manhattan.xml" in commands[0]
     assert commands[1].strip().endswith("pytest")
-    assert (ROOT / ".ci" / "run").read_text().rstrip().endswith(commands[1].strip())
+    # .ci/run installs the same way, lints, and runs every test, the slow ones too
+    ci = (ROOT / ".ci" / "run").read_text()
+    install = commands[1].strip().rpartition(" && ")[0]
+    assert install in ci and ".venv/bin/ruff check ." in ci and ".venv/bin/ruff format --check ." in ci
+    assert ci.rstrip().endswith('.venv/bin/pytest -m "slow or not slow"')
 
 
 def test_readme_config_is_valid(tmp_path):

@@ -13,6 +13,7 @@ from PIL import Image, ImageDraw
 
 from sengine import CityPlan, Context, MapSpec
 from sengine.errors import InputDataError
+from sengine.nodes.maps import plan_inputs
 from sengine.registry import get
 
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
@@ -35,7 +36,7 @@ def grid_image(path, nx_, ny_, *, size=(400, 300), colour=(255, 255, 255), bg=(0
 def run_image(path, size=(2000.0, 1500.0), attrs=None, **params):
     plan = CityPlan(size=size, maps={"roads": MapSpec("roads", Path(path), attrs or {}, "city.xml:4")})
     node = get("roads.image")("majorRoads", {k: str(v) for k, v in params.items()}, Context(plan=plan))
-    return node.run()["roads"], node
+    return node.run(**plan_inputs(plan, node))["roads"], node
 
 
 def blocks_of(roads):

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 import sengine.nodes.roads.minor as MINOR
 import sengine.nodes.roads.patterns as PATTERNS
 from sengine import CityPlan, Context, Layer, Rule
+from sengine.nodes.maps import plan_inputs
 from sengine.registry import get
 
 SETTINGS = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -20,9 +21,10 @@ SIZE = (2400.0, 1600.0)
 def city(rules, seed=4, size=SIZE):
     plan = CityPlan(size=size, rules=[Rule("district", r, f"t.xml:{3 + i}") for i, r in enumerate(rules)])
     ctx = Context(seed=seed, plan=plan)
-    major = get("roads.districts")("majorRoads", {}, ctx).run()
+    districts = get("roads.districts")("majorRoads", {}, ctx)
+    major = districts.run(**plan_inputs(plan, districts))
     node = get("roads.minor")("minorRoads", {}, ctx)
-    out = node.run(areas=major["areas"], roads=major["roads"])
+    out = node.run(areas=major["areas"], roads=major["roads"], **plan_inputs(plan, node))
     return major, out, node
 
 
@@ -82,7 +84,7 @@ def test_minor_roads_partition_every_area(rule):
     host = shapely.STRtree(major["areas"].geometry).query(shapely.point_on_surface(f), predicate="within")
     assert len(np.unique(host[0])) == len(f)
     assert len(f) > 2 * len(major["areas"])
-    assert node.report["blocks_estimate"] == len(f)
+    assert out.report["blocks_estimate"] == len(f)
     # major roads are all still there, split at the new junctions only
     maj = roads.geometry[roads["major"]]
     assert shapely.length(maj).sum() == pytest.approx(shapely.length(major["roads"].geometry).sum(), rel=1e-6)

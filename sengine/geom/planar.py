@@ -17,6 +17,12 @@ Half-edge convention: input edge ``e`` (from ``u[e]`` to ``v[e]``) gives
 half-edges ``2 e`` (u -> v) and ``2 e + 1`` (v -> u); each half-edge bounds
 the face on its left, so bounded faces are counter-clockwise (positive
 signed area) and the outer face of each connected component is clockwise.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations

@@ -124,8 +124,11 @@ PARALLEL_MIN = 1000
 
 
 def _cpus() -> int:
-    """CPUs for GEOS threads: those this process may use; one inside a worker process (the
-    executor already spreads work over processes there, threads would oversubscribe)."""
+    """CPUs for GEOS threads: those this process may use.
+
+    One inside a worker process: the executor already spreads work over
+    processes there, threads would oversubscribe.
+    """
     import multiprocessing
 
     if multiprocessing.parent_process() is not None:

@@ -22,12 +22,19 @@ Every problem a user can cause (missing or unreadable file, an aspect ratio
 that disagrees with the city, a colour not in the legend) is a one-line
 :class:`~sengine.errors.InputDataError` naming the file, and the configuration
 line when the caller passes it as ``where``.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
 
 import logging
 import re
+import stat
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,6 +51,7 @@ log = logging.getLogger(__name__)
 
 #: Pillow format names whose pixels are only approximately the drawn colour.
 LOSSY_FORMATS = frozenset({"JPEG", "MPO", "WEBP", "JPEG2000"})
+MAX_PIXELS = 64_000_000  # an 8000 x 8000 map; a larger one is refused before it is decoded
 
 _HEX_RE = re.compile(r"^#?([0-9a-fA-F]{6}|[0-9a-fA-F]{3})$")
 
@@ -95,10 +103,11 @@ class ImageMap:
 
     @property
     def lossy(self) -> bool:
+        """Whether the file format is lossy (JPEG ...): colours near borders are blended."""
         return self.format in LOSSY_FORMATS
 
     def edges(self) -> tuple[np.ndarray, np.ndarray]:
-        """x of the ``cols + 1`` column edges and y of the ``rows + 1`` row edges (m).
+        """X of the ``cols + 1`` column edges and y of the ``rows + 1`` row edges (m).
 
         Row edge 0 is the north edge ``ymax``; the arrays are the only source
         of pixel-corner coordinates, so equal corners are equal floats.
@@ -231,15 +240,37 @@ def read_map(
         src = src.src
     path = Path(src)
     name = f"map '{path}'"
-    if not path.is_file():
-        raise InputDataError(f"{name}: file not found", where=where or None)
     try:
-        with Image.open(path) as im:
+        st = path.stat()
+    except FileNotFoundError:
+        raise InputDataError(f"{name}: file not found", where=where or None) from None
+    except OSError as exc:
+        raise InputDataError(f"{name}: cannot read the file ({exc.strerror})", where=where or None) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise InputDataError(f"{name} is a folder, not an image file", where=where or None)
+    if not stat.S_ISREG(st.st_mode):
+        raise InputDataError(f"{name} is not a regular file (a pipe or device?)", where=where or None)
+    try:
+        bomb, Image.MAX_IMAGE_PIXELS = Image.MAX_IMAGE_PIXELS, None  # sengine checks the size itself, below
+        try:
+            im = Image.open(path)
+        finally:
+            Image.MAX_IMAGE_PIXELS = bomb
+        with im:
+            cols, rows = im.size
+            if cols * rows > MAX_PIXELS:
+                raise InputDataError(
+                    f"{name}: the image is {cols}x{rows} px ({cols * rows / 1e6:.0f} Mpx, about "
+                    f"{cols * rows * 3 / 1e9:.1f} GB decoded); the limit is {MAX_PIXELS / 1e6:.0f} Mpx",
+                    where=where or None,
+                )
             im.load()
             fmt = im.format or ""
             mode = im.mode
             data, full = _pixels(im, colour)
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
+    except InputDataError:
+        raise
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError, MemoryError, EOFError) as exc:
         raise InputDataError(f"{name}: cannot read the image ({exc})", where=where or None) from None
     rows, cols = data.shape[:2]
     if rows == 0 or cols == 0:

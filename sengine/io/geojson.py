@@ -18,6 +18,11 @@ notice when there is one.
 Geometries are serialised by GEOS in one vectorized call and attribute values
 column by column, so a layer of thousands of features takes milliseconds; a
 whole city's layer is written in chunks of :data:`CHUNK` features.
+
+References
+----------
+.. [1] H. Butler, M. Daly, A. Doyle, S. Gillies, S. Hagen and T. Schaub, "The
+   GeoJSON Format", RFC 7946, Internet Engineering Task Force, 2016.
 """
 
 from __future__ import annotations

@@ -3,6 +3,12 @@
 ``null`` is the pass-through node of skylineEngine §5.1: in a load-map
 network the map already holds the street division, so ``minorRoads`` only
 passes the roads on.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ import logging
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.geom.polygons import obb_frame
 
 __all__ = ["size_mask", "FilterArea"]
@@ -70,7 +70,7 @@ class FilterArea(SENode):
     }
     maps_features = True
 
-    def run(self, *, input: Layer) -> dict[str, Layer]:
+    def run(self, *, input: Layer) -> tuple[dict[str, Layer], dict]:
         keep, why = size_mask(
             input.geometry,
             min_area=self.p.min_area,
@@ -78,6 +78,6 @@ class FilterArea(SENode):
             min_width=self.p.min_width,
             max_width=self.p.max_width,
         )
-        self.report = {"kept": int(keep.sum()), "dropped": int((~keep).sum()), **why}
+        report = {"kept": int(keep.sum()), "dropped": int((~keep).sum()), **why}
         log.info("%s: kept %d of %d features", self.where, int(keep.sum()), len(keep))
-        return {"output": input.take(keep)}
+        return NodeResult({"output": input.take(keep)}, report)

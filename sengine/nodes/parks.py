@@ -10,8 +10,11 @@ one ``parks`` stream reaches the exporter.
 
 References
 ----------
-.. [1] skylineEngine (paper 002), §4 (Parks module at district, block and lot
-   level) and Fig. 3.
+§4 (one Parks module at district, block and lot level) and Fig. 3 of [1]_.
+
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ import logging
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 
 __all__ = ["choose_park_blocks", "ParksBlock"]
 
@@ -98,7 +101,11 @@ class ParksBlock(SENode):
     maps_features = False
     inputs = {
         "blocks": Port("blocks", "blocks to choose from"),
-        "parks": Port("parks", "parks made upstream (district level), passed through", required=False),
+        "parks": Port(
+            "parks",
+            "parks made upstream (district level), passed through; mode 'inside' takes their outline as zones",
+            required=False,
+        ),
     }
     outputs = {
         "parks": Port("parks", "upstream parks plus the new block-level parks (column level)"),
@@ -116,10 +123,10 @@ class ParksBlock(SENode):
         "min_area": Param("float", 0.0, min=0.0, unit="m2", doc="smaller blocks never become parks"),
     }
 
-    def run(self, *, blocks: Layer, parks: Layer | None = None) -> dict[str, Layer]:
+    def run(self, *, blocks: Layer, parks: Layer | None = None):
         zones = None
         if self.p.mode == "inside":
-            zones = _park_zones(self.context.plan)
+            zones = park_zones(parks)
         pick = choose_park_blocks(
             blocks.geometry,
             blocks.ids,
@@ -141,17 +148,20 @@ class ParksBlock(SENode):
             area=shapely.area(chosen.geometry) if len(chosen) else np.zeros(0),
         )
         out = Layer.concat([parks, new]) if parks is not None and len(parks) else new
-        self.report = {"block_parks": int(pick.sum()), "park_area_m2": round(float(new.area()), 1)}
+        report = {"block_parks": int(pick.sum()), "park_area_m2": round(float(new.area()), 1)}
         log.info("parks.block: %d of %d blocks become parks", int(pick.sum()), len(blocks))
-        return {"parks": out, "blocks": blocks.take(~pick)}
+        return NodeResult({"parks": out, "blocks": blocks.take(~pick)}, report)
 
 
-def _park_zones(plan):
-    """The land-use map's park class as one geometry (empty without a map)."""
-    if plan is None or "landuse" not in getattr(plan, "maps", {}):
+def park_zones(parks: Layer | None):
+    """The district-level parks (the land-use map's park class, from ``roads.districts``) as one geometry.
+
+    Empty without parks.  These are the zones of mode ``inside``: they come
+    on the ``parks`` port, so the land-use map is vectorized once, upstream.
+    """
+    if parks is None or not len(parks):
         return shapely.Polygon()
-    from .roads.districts import city_regions, district_styles
-
-    _, landuse, _ = city_regions(plan, district_styles(plan))
-    parks = [g for cls, _, g in landuse if cls == "park"]
-    return shapely.union_all(parks) if parks else shapely.Polygon()
+    geoms = parks.geometry
+    if "level" in parks:
+        geoms = geoms[np.asarray(parks["level"]).astype(str) == "district"]
+    return shapely.union_all(geoms) if len(geoms) else shapely.Polygon()

@@ -6,6 +6,12 @@ the standard names ``majorRoads``, ``minorRoads``, ``blocks``, ``lots`` and
 name.  :class:`PatternNetwork` and :class:`LoadMapNetwork` derive from it and
 read their wiring from ``networks/`` beside this module.  They are registered
 under the names a configuration's ``<network base="...">`` uses.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
@@ -76,8 +82,11 @@ class StdNetwork(Network):
 
     @classmethod
     def from_config(cls, pairs: Iterable[tuple[str, str]], *, where: str = "", **kwargs: Any) -> StdNetwork:
-        """The network a ``<network base=...>`` names; the plain stdNetwork takes its
-        associations from the ``<node id type>`` elements with standard names."""
+        """The network a ``<network base=...>`` names.
+
+        The plain stdNetwork takes its associations from the ``<node id type>``
+        elements with standard names.
+        """
         if cls.template is None:
             return cls([(i, t) for i, t in pairs if i in cls.STANDARD], where=where, **kwargs)
         return cls(where=where, **kwargs)

@@ -16,6 +16,19 @@ times floors), the floor area ratio (FAR = GFA / site area), the coverage
 A building is counted on the lots it stands on, in proportion to the area
 it covers there: a real building across two lots counts on each with its
 part.
+
+References
+----------
+The reported indicators (GFA, FAR, coverage, residents) follow [1]_ §5.2.4 and the coverage limits of [2]_ §5.2; FAR and coverage as in [3]_.
+
+.. [1] J. Viinikka, "Procedural modelling as an urban-planning tool", Master's
+   thesis, Aalto University, Espoo, 2014 (paper 000).
+.. [2] V. Potočková, "Procedural generation of future urban construction according
+   to rules", Bachelor's thesis, Czech Technical University in Prague, Faculty
+   of Electrical Engineering, 2024 (paper 003).
+.. [3] M. Zhang, J. Wu, Y. Liu, J. Zhang and G. Li, "GIS based procedural modeling
+   in 3D urban design", ISPRS International Journal of Geo-Information 11(10),
+   531, 2022, doi:10.3390/ijgi11100531 (paper 004).
 """
 
 from __future__ import annotations
@@ -25,7 +38,7 @@ import logging
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.geom.polygons import obb_frame, shared_areas, threaded
 
 __all__ = ["shape_stats", "building_shares", "built_on_sites", "planning_columns", "StatsShape", "StatsPlanning"]
@@ -78,10 +91,10 @@ class StatsShape(SENode):
     params = {}
     maps_features = True
 
-    def run(self, *, input: Layer) -> dict[str, Layer]:
+    def run(self, *, input: Layer) -> tuple[dict[str, Layer], dict]:
         st = shape_stats(input.geometry, frontage=input.get("frontage"), front_angle=input.get("front_angle"))
-        self.report = {"features": len(input), "area": float(st["area"].sum()), "frontage": float(st["frontage"].sum())}
-        return {"output": input.with_columns(**st)}
+        report = {"features": len(input), "area": float(st["area"].sum()), "frontage": float(st["frontage"].sum())}
+        return NodeResult({"output": input.with_columns(**st)}, report)
 
 
 def building_shares(sites: Layer, buildings: Layer) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -123,7 +136,13 @@ def planning_columns(site_area: np.ndarray, foot: np.ndarray, gfa: np.ndarray) -
     with np.errstate(divide="ignore", invalid="ignore"):
         far = np.where(site_area > 0, gfa / site_area, 0.0)
         coverage = np.where(site_area > 0, foot / site_area, 0.0)
-    return {"footprint": foot, "floor_area": gfa, "far": far, "coverage": coverage}
+    # float even for no building at all (bincount of nothing is int64): the 'lots' kind says float
+    return {
+        "footprint": np.asarray(foot, np.float64),
+        "floor_area": np.asarray(gfa, np.float64),
+        "far": far,
+        "coverage": coverage,
+    }
 
 
 def _summary(site_area, foot, gfa, m2_per_resident: float) -> dict:
@@ -167,7 +186,7 @@ class StatsPlanning(SENode):
         ),
     }
 
-    def run(self, *, lots: Layer, buildings: Layer, blocks: Layer | None = None) -> dict[str, Layer]:
+    def run(self, *, lots: Layer, buildings: Layer, blocks: Layer | None = None) -> tuple[dict[str, Layer], dict]:
         per_resident = self.p.m2_per_resident
         lot_area = shapely.area(lots.geometry) if len(lots) else np.zeros(0)
         shares = building_shares(lots, buildings)
@@ -205,7 +224,6 @@ class StatsPlanning(SENode):
             else:
                 bf, bg = built_on_sites(blocks, buildings)
             out_blocks = blocks.with_columns(**planning_columns(shapely.area(blocks.geometry), bf, bg))
-        self.report = report
         c = report["city"]
         log.info(
             "%s: FAR %.2f, coverage %.0f %%, %.0f m2 of floor area on %.0f m2 of lots",
@@ -215,4 +233,4 @@ class StatsPlanning(SENode):
             c["floor_area_m2"],
             c["site_area_m2"],
         )
-        return {"lots": out_lots, "blocks": out_blocks}
+        return NodeResult({"lots": out_lots, "blocks": out_blocks}, report)

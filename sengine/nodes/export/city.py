@@ -38,12 +38,23 @@ The run's export options (``context.options``, from the command line):
 
 Outputs made from OpenStreetMap carry "© OpenStreetMap contributors, ODbL"
 (:data:`sengine.nodes.export.table.OSM_ATTRIBUTION`), as its licence asks.
-``stats.json`` is the executor's.
+
+Planar coordinates are read in each layer's ``meta["crs"]``, or the local
+frame of the layers' geographic origin (``meta["origin"]``); ``preview.png``
+is framed on the layers' city extent (``meta["extent"]``, set by synthetic
+cities).  District names and the land-use class come from the
+``district_rules`` and ``landuse_rules`` ports.  ``stats.json`` is the
+executor's.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
 
-import difflib
 import logging
 import time
 from collections.abc import Callable
@@ -53,7 +64,7 @@ from typing import Any
 
 import numpy as np
 
-from sengine import CityPlan, Layer, Param, Port, SENode, register
+from sengine import CityPlan, Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import ParameterError
 from sengine.geom.crs import from_lonlat, is_geographic, layer_crs, output_crs, reproject, to_lonlat
 from sengine.parallel import run_jobs
@@ -66,7 +77,6 @@ __all__ = [
     "DEFAULT_FORMATS",
     "FORMAT_HINTS",
     "ORIGINS",
-    "check_formats",
     "city_origin",
     "export_layers",
     "ExportCity",
@@ -98,40 +108,23 @@ FORMAT_HINTS = {
 ORIGINS = ("local", "geo")
 
 
-def check_formats(formats) -> frozenset[str]:
-    """The asked-for formats, lower case; an unknown one is a one-line error with a suggestion.
-
-    Raises
-    ------
-    ParameterError
-        ``--format: unknown format 'fbx' (did you mean glb?); formats: ...``
-    """
-    asked = frozenset(str(f).strip().lower() for f in formats or () if str(f).strip())
-    for f in sorted(asked):
-        if f not in FORMATS:
-            near = FORMAT_HINTS.get(f) or next(iter(difflib.get_close_matches(f, FORMATS, n=1, cutoff=0.5)), None)
-            hint = f" (did you mean {near}?)" if near else ""
-            raise ParameterError(f"unknown format {f!r}{hint}; formats: {', '.join(FORMATS)}", where="--format")
-    return asked
-
-
-def city_origin(layers: dict[str, Layer], plan, crs: str) -> tuple[np.ndarray, tuple[float, float]]:
+def city_origin(layers: dict[str, Layer], lat_lon, crs: str) -> tuple[np.ndarray, tuple[float, float]]:
     """The city's origin: planar ``(x, y)`` in ``crs`` rounded to the metre, and its ``(lat, lon)``.
 
-    A layer's ``meta["origin"]`` (an OSM city's centre) wins over the plan's
-    origin (a synthetic city's planar ``(0, 0)``); with neither, the centre
-    of the layers' bounds.
+    A layer's ``meta["origin"]`` (an OSM city's centre, a synthetic city's
+    planar ``(0, 0)``) wins over ``lat_lon``; with neither, the centre of
+    the layers' bounds.
     """
     import shapely
 
     origin = next((lay.meta["origin"] for lay in layers.values() if lay.meta.get("origin") is not None), None)
-    if origin is None and plan is None:
+    if origin is None and lat_lon is None:
         b = [shapely.total_bounds(lay.geometry) for lay in layers.values() if len(lay)]
         b = np.array([v for v in b if np.isfinite(v).all()] or [[0.0, 0.0, 0.0, 0.0]])
         xy = np.round([(b[:, 0].min() + b[:, 2].max()) / 2, (b[:, 1].min() + b[:, 3].max()) / 2])
         lon, lat = to_lonlat(crs)(xy[None])[0]
         return xy, (float(lat), float(lon))
-    lat, lon = (float(v) for v in (origin if origin is not None else plan.origin))
+    lat, lon = (float(v) for v in (origin if origin is not None else lat_lon))
     xy = from_lonlat(crs)(np.array([[lon, lat]]))[0]
     return np.round(xy), (lat, lon)
 
@@ -141,7 +134,9 @@ def export_layers(
     layers: dict[str, Layer | None],
     formats,
     *,
-    plan=None,
+    rules=None,
+    extent=None,
+    lat_lon=None,
     line_width: float = 1.0,
     preview_size: int = 1600,
     workers: int = 1,
@@ -161,9 +156,14 @@ def export_layers(
     formats : iterable of str
         Names among :data:`FORMATS` (another is a :class:`ParameterError`),
         empty means :data:`DEFAULT_FORMATS`.
-    plan : CityPlan, optional
-        Its ``origin`` places layers that carry no ``meta["crs"]``; its
-        district and land-use rules name the features'.
+    rules : dict, optional
+        ``{"district": ..., "landuse": ...}`` rules layers (or lists of rules)
+        naming the features' district and land-use class.
+    extent : tuple of float, optional
+        The city extent (m) that frames ``preview.png`` (none: the layers' bounds).
+    lat_lon : tuple of float, optional
+        Latitude and longitude placing layers that carry no ``meta["crs"]``
+        (default: the default plan's origin).
     workers : int
         Processes writing files side by side (:func:`sengine.parallel.run_jobs`);
         the files are the same for any number.
@@ -186,24 +186,24 @@ def export_layers(
     from . import cityjson, gltf, gpkg, obj, osmxml, parquet, preview
 
     out = Path(out)
-    formats = set(check_formats(formats)) or set(DEFAULT_FORMATS)
+    asked = {str(f).strip().lower() for f in formats or ()} - {""}
+    formats = (asked & set(FORMATS)) if asked else set(DEFAULT_FORMATS)  # others are other exporters'
     if origin not in ORIGINS:
         raise ParameterError(f"origin {origin!r} is not one of {', '.join(ORIGINS)}", where="--origin")
     layers = {k: v for k, v in layers.items() if v is not None}
     t = time.perf_counter()
-    layers, cleaned = prepare_layers(layers, plan)
+    origin_ll = tuple(lat_lon) if lat_lon is not None else CityPlan().origin
+    layers, cleaned = prepare_layers(layers, rules, origin=origin_ll)
     t_clean = time.perf_counter() - t
-    origin_ll = (plan or CityPlan()).origin
     crs_of = {k: layer_crs(v.meta, origin_ll) for k, v in layers.items()}
     any_crs = next(iter(crs_of.values()), layer_crs({}, origin_ll))
-    if attribution is None and _from_osm(layers, plan):
+    if attribution is None and _from_osm(layers):
         attribution = OSM_ATTRIBUTION
-    centre, centre_ll = city_origin(layers, plan, any_crs)
+    centre, centre_ll = city_origin(layers, origin_ll, any_crs)
     offset = centre if origin == "local" else None
     jobs: list[tuple[str, str | None, Callable[[], Any]]] = []  # (format, layer, write)
     if "png" in formats:
         # the plan's extent frames a synthetic city; data in another frame (OSM in UTM) frames itself
-        extent = plan.extent if plan is not None else None
         extent = extent if extent is not None and not _outside(layers, extent) else None
         jobs.append(
             (
@@ -361,11 +361,9 @@ def export_layers(
     return report
 
 
-def _from_osm(layers: dict[str, Layer], plan) -> bool:
-    """Whether the city is made from OpenStreetMap data (a layer read from it, or an OSM map in the plan)."""
-    if any(lay.meta.get("source") == "osm" for lay in layers.values()):
-        return True
-    return "osm" in getattr(plan, "maps", {})
+def _from_osm(layers: dict[str, Layer]) -> bool:
+    """Whether the city is made from OpenStreetMap data (a layer read from it)."""
+    return any(lay.meta.get("source") == "osm" for lay in layers.values())
 
 
 def _timed(write: Callable[[], Any]) -> tuple[Any, float]:
@@ -406,6 +404,8 @@ class ExportCity(SENode):
         "buildings": Port("buildings", "building footprints with height", required=False),
         "parks": Port("parks", "parks", required=False),
         "water": Port("polygons", "water areas (rivers, lakes, harbours)", required=False),
+        "district_rules": Port("rules", "the <district> rules: district names", required=False),
+        "landuse_rules": Port("rules", "the <landuse> rules: the land-use class", required=False),
     }
     outputs = {}
     formats = FORMATS
@@ -428,12 +428,13 @@ class ExportCity(SENode):
         buildings: Layer | None = None,
         parks: Layer | None = None,
         water: Layer | None = None,
-    ) -> dict[str, Layer]:
+        district_rules: Layer | None = None,
+        landuse_rules: Layer | None = None,
+    ) -> NodeResult:
         out = self.context.out
         if out is None:  # an in-memory run (tests, notebooks): nothing to write
             log.info("%s: no output folder, nothing written", self.where)
-            self.report = {}
-            return {}
+            return NodeResult({}, {})
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
         options = dict(getattr(self.context, "options", None) or {})
@@ -447,11 +448,16 @@ class ExportCity(SENode):
             "parks": parks,
             "water": water,
         }
+        metas = [lay.meta for lay in layers.values() if lay is not None]
+        extent = next((m["extent"] for m in metas if "extent" in m), None)
+        lat_lon = next((tuple(m["origin"]) for m in metas if "origin" in m), CityPlan().origin)
         report = export_layers(
             out,
             layers,
             self.context.formats,
-            plan=self.context.plan,
+            rules={"district": district_rules, "landuse": landuse_rules},
+            extent=extent,
+            lat_lon=lat_lon,
             line_width=self.p.line_width,
             preview_size=self.p.preview_size,
             workers=self.context.workers,
@@ -459,8 +465,7 @@ class ExportCity(SENode):
             origin=options.get("origin") or "local",
         )
         report.pop("seconds", None)  # timings would make stats.json differ between runs
-        self.report = _flat_counts(report)
-        return {}
+        return NodeResult({}, _flat_counts(report))
 
 
 def _flat_counts(report: dict) -> dict:

@@ -21,6 +21,12 @@ city's).  A street network made from OpenStreetMap says so in the
 attributes the OSM API itself writes (``copyright``, ``attribution``,
 ``license``).  The XML is written by numpy string formatting, a few lines
 per way; the same layer gives the same bytes.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations

@@ -32,6 +32,8 @@ from sengine.geom.cleanup import GRID, clean_geometries, snap_to_type
 from sengine.geom.crs import layer_crs, to_lonlat
 from sengine.layer import Layer
 
+from ..roads.districts import _rules, landuse_classes
+
 __all__ = ["DECIMALS", "REFERENCE_COLUMNS", "prepare_layer", "prepare_layers", "district_names", "built_landuse"]
 
 log = logging.getLogger(__name__)
@@ -46,21 +48,20 @@ BUILT_LAYERS = frozenset({"blocks", "lots", "buildings"})
 LAYER_LANDUSE = {"parks": "park", "water": "water"}
 
 
-def district_names(plan) -> list[str] | None:
-    """Name of each ``<district>`` rule of the plan, by index (``d<i>`` when unnamed); None without rules."""
-    rules = plan.rules_of("district") if plan is not None and hasattr(plan, "rules_of") else []
+def district_names(rules) -> list[str] | None:
+    """Name of each ``<district>`` rule, by index (``d<i>`` when unnamed); None without rules.
+
+    ``rules``: a ``district_rules`` layer, a list of rules or None.
+    """
+    rules = _rules(rules, "district")
     if not rules:
         return None
     return [str(r.get("name") or f"d{i}") for i, r in enumerate(rules)]
 
 
-def built_landuse(plan) -> str | None:
-    """The plan's one buildable ``<landuse>`` class, or None (none, or several: not known per feature)."""
-    if plan is None or not hasattr(plan, "rules_of"):
-        return None
-    from ..roads.districts import landuse_classes
-
-    buildable = sorted({cls for _, cls, ok, _ in landuse_classes(plan) if ok})
+def built_landuse(rules) -> str | None:
+    """The one buildable ``<landuse>`` class, or None (none, or several: not known per feature)."""
+    buildable = sorted({cls for _, cls, ok, _ in landuse_classes(rules) if ok})
     return buildable[0] if len(buildable) == 1 else None
 
 
@@ -164,11 +165,17 @@ def prepare_layer(
     return out, counts
 
 
-def prepare_layers(layers: Mapping[str, Layer], plan=None, *, grid: float = GRID) -> tuple[dict[str, Layer], dict]:
-    """Every layer through :func:`prepare_layer`; returns the layers and ``{layer: counts}`` of the non-zero counts."""
-    districts = district_names(plan)
-    landuse = built_landuse(plan)
-    origin = getattr(plan, "origin", None) or (41.9794, 2.8214)
+def prepare_layers(
+    layers: Mapping[str, Layer], rules: Mapping | None = None, *, origin=(41.9794, 2.8214), grid: float = GRID
+) -> tuple[dict[str, Layer], dict]:
+    """Every layer through :func:`prepare_layer`; returns the layers and ``{layer: counts}`` of the non-zero counts.
+
+    ``rules`` maps ``district`` and ``landuse`` to their rules (layers or
+    lists); ``origin`` (lat, lon) places layers without ``meta["crs"]``.
+    """
+    rules = rules or {}
+    districts = district_names(rules.get("district"))
+    landuse = built_landuse(rules.get("landuse"))
     out: dict[str, Layer] = {}
     report: dict[str, dict] = {}
     for name, lay in layers.items():

@@ -27,8 +27,11 @@ by pyosmium in the same pass.
 
 References
 ----------
-skylineEngine (paper 002), §5.2 "Input Module" and §5.3 "Major & Minor
-Roads Modules".
+§5.2 "Input Module" and §5.3 "Major & Minor Roads Modules" of [1]_.
+
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
@@ -39,11 +42,12 @@ from pathlib import Path
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import InputDataError
 from sengine.geom.crs import from_lonlat, utm_crs
 from sengine.geom.segments import lines_from_groups
 
+from ..maps import check_regular_file
 from ..roads.junctions import split_at_junctions
 from .stream import TAG_KEYS, OsmExtract, int_tag, read_osm
 
@@ -151,6 +155,8 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
         raise InputDataError("coordinates outside [-180, 180] x [-90, 90]", where=where)
     key = (fixed[:, 0] + 1_800_000_000) * 2_000_000_000 + (fixed[:, 1] + 900_000_000)
     pieces = split_at_junctions(key, line)
+    if not len(pieces):  # every way collapsed to a point (all its nodes in one place)
+        return Layer.empty(**{"class": object, "major": bool, "width": float})
     vnode, ukeys = pieces.node, pieces.node_key
     uidx = np.empty(len(ukeys), np.int64)  # the first entry of each node
     uidx[vnode[::-1]] = np.arange(len(vnode) - 1, -1, -1)
@@ -247,7 +253,7 @@ class OsmRead(SENode):
     """
 
     name = "osm.read"
-    inputs = {}
+    inputs = {"osm_map": Port("file", "the OSM file of the plan (<map kind='osm'>)", required=False)}
     outputs = {
         "roads": Port("roads", "street segments between junctions, with their OSM class"),
         "water": Port("polygons", "water areas (natural=water, waterway=riverbank)"),
@@ -272,24 +278,21 @@ class OsmRead(SENode):
         ),
     }
 
-    def _path(self) -> Path:
+    def _path(self, osm_map: Layer | None) -> tuple[Path, str]:
         if self.p.path:
             path = Path(self.p.path)
             if not path.is_absolute() and self.context.base_dir is not None:
                 path = Path(self.context.base_dir) / path
-            return path
-        plan = self.context.plan
-        spec = getattr(plan, "maps", {}).get("osm") if plan is not None else None
-        if spec is None:
+            return path, self.where
+        if osm_map is None or not len(osm_map):
             raise InputDataError(
                 'no OSM file: set the \'path\' parameter or add <map kind="osm" src="..."/>', where=self.where
             )
-        return Path(spec.src)
+        return Path(str(osm_map["src"][0])), osm_map.meta.get("where") or self.where
 
-    def run(self) -> dict[str, Layer]:
-        path = self._path()
-        where = getattr(getattr(self.context.plan, "maps", {}).get("osm"), "where", None) if not self.p.path else None
-        where = where or self.where
+    def run(self, *, osm_map: Layer | None = None):
+        path, where = self._path(osm_map)
+        check_regular_file(path, "OSM file", where)  # a FIFO or /dev/zero would block or fill the memory
         major, minor = _classes(self.p.major), _classes(self.p.minor)
         extras = _classes(self.p.extras)
         bad = extras - {"water", "parks", "buildings"}
@@ -334,10 +337,10 @@ class OsmRead(SENode):
             out[kind] = polygons_layer(
                 ext, kind, small, floor_height=self.p.floor_height, default_height=self.p.default_height
             )
-        self.report = {
+        report = {
             "ways": len(ext.code),
             "segments": len(roads),
             "clipped_ways": ext.clipped,
             **{kind: len(out[kind]) for kind in ("water", "parks", "buildings")},
         }
-        return out
+        return NodeResult(out, report)

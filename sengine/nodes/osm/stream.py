@@ -28,6 +28,7 @@ nothing more.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 from functools import partial
@@ -56,11 +57,18 @@ PARALLEL_BYTES = 1 << 20
 
 
 def int_tag(value: str | None) -> int:
-    """An integer tag (``"2"``, ``"-1"``, ``"1.5"`` -> 1); 0 when absent or unreadable."""
+    """An integer tag (``"2"``, ``"-1"``, ``"1.5"`` -> 1); 0 when absent or unreadable.
+
+    Clamped to +-1,000,000 (an OSM ``layer`` is a small number; ``99999999999999999999``
+    would not fit an int64).
+    """
     try:
-        return int(float(value)) if value else 0
+        number = float(value) if value else 0.0
     except ValueError:
         return 0
+    if not math.isfinite(number):
+        return 0
+    return int(max(-1e6, min(1e6, number)))
 
 
 def parse_height(value: str | None) -> float:
@@ -301,7 +309,7 @@ def _read_pass(
 
 
 def _area_callback(wkb, extras: frozenset[str], polygons: dict):
-    """pyosmium's area callback filling ``polygons`` (see :attr:`OsmExtract.polygons`)."""
+    """Pyosmium's area callback filling ``polygons`` (see :attr:`OsmExtract.polygons`)."""
     import osmium
 
     def area(a):

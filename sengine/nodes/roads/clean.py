@@ -24,13 +24,21 @@ quite one.  This module prepares it, on whole numpy arrays:
    with the face tracer the blocks use (:mod:`.slivers`), counted (``slivers_merged``) and
    handed on as ``slivers`` (polygons of kind ``median`` / ``island``) to
    be drawn as street surface.  The faces are traced once: the plane
-   segment graph and its faces go on in ``meta["graph"]``, numbered as
-   ``blocks.circuits`` would number them, which takes them over.  The graph keeps their edges, so the block
+   segment graph and its faces go out on the ``graph`` port (kind
+   ``graph``; during the transition also in the roads' ``meta["graph"]``),
+   numbered as ``blocks.circuits`` would number them with ``decimals``,
+   which takes them over.  The graph keeps their edges, so the block
    faces still partition the city; the blocks node's street and sidewalk
    inset leaves nothing of them (``vanished_by_inset``).
 
 Point identity is exact coordinate equality: the importers project every
 shared node once, so shared nodes are bit-identical.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
@@ -41,11 +49,11 @@ import numpy as np
 import shapely
 from scipy.sparse import csr_matrix
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.geom.polygons import strtree_query
 from sengine.geom.segments import argsort_int, lines_from_groups, merge_points
 
-from ..blocks.circuits import BlocksCircuits, find_blocks
+from ..blocks.circuits import find_blocks
 from .junctions import Pieces, point_keys, split_at_junctions, take_pieces
 from .slivers import find_slivers, segment_graph
 
@@ -350,6 +358,7 @@ class RoadsClean(SENode):
     outputs = {
         "roads": Port("roads", "plane street segments between junctions"),
         "slivers": Port("polygons", "medians and traffic islands: street surface, not blocks"),
+        "graph": Port("graph", "the plane segment graph (columns u, v, row) and its traced faces (meta 'faces')"),
     }
     params = {
         "tunnels": Param(
@@ -372,9 +381,17 @@ class RoadsClean(SENode):
         ),
         "island_area": Param("float", 150.0, min=0.0, unit="m2", doc="faces smaller than this are traffic islands"),
         "find_slivers": Param("bool", True, doc="trace faces to find medians and islands"),
+        "decimals": Param(
+            "int",
+            6,
+            min=0,
+            max=12,
+            unit="1",
+            doc="number the face graph's nodes merged to this many decimals (m), as blocks.circuits 'decimals' does",
+        ),
     }
 
-    def run(self, *, roads: Layer) -> dict[str, Layer]:
+    def run(self, *, roads: Layer) -> tuple[dict[str, Layer], dict]:
         n0 = len(roads)
         meta = {k: v for k, v in roads.meta.items() if k not in ("nodes", "node_keys")}
         keep = np.ones(n0, bool)
@@ -417,7 +434,7 @@ class RoadsClean(SENode):
         if self.p.find_slivers and len(pieces):
             # the faces are traced once, here, and blocks.circuits takes them over: numbered as its
             # lines entry numbers nodes (merged to its default decimals), they come out in the same order
-            decimals = BlocksCircuits.params["decimals"].default
+            decimals = self.p.decimals
             mxy, inv = merge_points(nodes, decimals)
             if len(mxy) == len(nodes):  # no two nodes merge: only the numbering changes
                 graph.update(xy=mxy, u=inv[su], v=inv[sv], decimals=decimals)
@@ -456,7 +473,6 @@ class RoadsClean(SENode):
             counts["islands"] = int((kind == "island").sum())
             counts["medians"] = int((kind == "median").sum())
             counts["slivers_merged"] = len(polys)
-        self.report = counts
         log.info(
             "%s: %d roads -> %d street segments; %s",
             self.where,
@@ -464,4 +480,20 @@ class RoadsClean(SENode):
             len(out),
             ", ".join(f"{k} {v}" for k, v in counts.items()),
         )
-        return {"roads": out, "slivers": slivers}
+        return NodeResult({"roads": out, "slivers": slivers, "graph": graph_layer(graph, meta)}, counts)
+
+
+def graph_layer(graph: dict, meta: dict) -> Layer:
+    """The ``graph`` layer of a plane segment graph: one straight segment per feature.
+
+    Columns ``u``, ``v`` (node indices into ``meta["xy"]``) and ``row`` (the
+    street segment of the roads layer the segment lies on); meta ``xy``,
+    ``rows`` (the roads layer's length), ``decimals`` (how the nodes were
+    numbered, ``None`` for as they are) and ``faces`` (the traced
+    :class:`~sengine.nodes.blocks.circuits.BlockFaces`, or ``None``).
+    """
+    xy = np.asarray(graph["xy"], np.float64).reshape(-1, 2)
+    u, v = np.asarray(graph["u"], np.int64), np.asarray(graph["v"], np.int64)
+    geoms = shapely.linestrings(np.stack([xy[u], xy[v]], axis=1)) if len(u) else np.empty(0, object)
+    gmeta = {**meta, "xy": xy, "rows": graph["rows"], "decimals": graph["decimals"], "faces": graph.get("blocks")}
+    return Layer.from_geoms(geoms, meta=gmeta, u=u, v=v, row=np.asarray(graph["row"], np.int64))

@@ -55,8 +55,15 @@ becomes the district-level parks (paper §4: Central Park).
 
 References
 ----------
-.. [1] skylineEngine (paper 002), §4 (parks at district level), §5.2 (image
-   maps), §5.3.1 and Fig. 7 (districts and patterns).
+§4 (parks at district level), §5.2 (image maps), §5.3.1 and Fig. 7 (districts and patterns) of [1]_; the organic pattern's Lloyd relaxation [2]_ with a density function [3]_.
+
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
+.. [2] S. Lloyd, "Least squares quantization in PCM", IEEE Transactions on
+   Information Theory 28(2), 129-137, 1982.
+.. [3] Q. Du, V. Faber and M. Gunzburger, "Centroidal Voronoi tessellations:
+   applications and algorithms", SIAM Review 41(4), 637-676, 1999.
 """
 
 from __future__ import annotations
@@ -69,11 +76,12 @@ import numpy as np
 import shapely
 from shapely import STRtree
 
-from sengine import Layer, Param, Port, SENode, register
-from sengine.errors import ConfigError, InputDataError
-from sengine.geom.raster import classify, parse_colour, read_map, vectorize
+from sengine import CityPlan, Layer, NodeResult, Param, Port, SENode, register
+from sengine.errors import ConfigError, LimitError, Problems
+from sengine.geom.raster import ImageMap, classify, parse_colour, vectorize
 from sengine.registry import declare_rule
 
+from ..maps import image_of, plan_meta, rules_of
 from .patterns import (
     cell_edges,
     clip_lines,
@@ -108,20 +116,30 @@ declare_rule(
         "color": Param("colour", doc="the district's colour in the district map"),
         "name": Param("str", doc="label of the district (default d<i>)"),
         "pattern": Param("str", "grid", choices=PATTERNS, doc="major-road pattern"),
-        "spacing": Param("float", (400.0, 400.0), min=0.0, unit="m", count=2, doc="grid: 'dx dy' between major roads"),
+        "spacing": Param(
+            "float", (400.0, 400.0), min=0.0, max=100_000.0, unit="m", count=2, doc="grid: 'dx dy' between major roads"
+        ),
         "angle": Param(
             "float", 0.0, min=-360.0, max=360.0, unit="deg", doc="grid / radial: rotation, counter-clockwise"
         ),
-        "offset": Param("float", (0.0, 0.0), unit="m", count=2, doc="grid: 'x y' of one grid crossing"),
-        "center": Param("float", None, unit="m", count=2, doc="radial: 'x y' of the centre (default: centroid)"),
+        "offset": Param(
+            "float", (0.0, 0.0), min=-1e6, max=1e6, unit="m", count=2, doc="grid: 'x y' of one grid crossing"
+        ),
+        "center": Param(
+            "float", None, min=-1e6, max=1e6, unit="m", count=2, doc="radial: 'x y' of the centre (default: centroid)"
+        ),
         "rings": Param("int", 4, min=0, max=1000, doc="radial: number of rings"),
-        "ring-spacing": Param("float", None, min=0.0, unit="m", doc="radial: distance between rings, overrides rings"),
+        "ring-spacing": Param(
+            "float", None, min=0.0, max=100_000.0, unit="m", doc="radial: distance between rings, overrides rings"
+        ),
         "spokes": Param("int", 8, min=0, max=1000, doc="radial: number of spokes"),
         "sites": Param("int", 30, min=1, max=100_000, doc="organic: number of Voronoi sites"),
         "relax": Param("int", 3, min=0, max=100, doc="organic: Lloyd iterations"),
-        "weights": Param("float", 0.0, min=0.0, doc="organic: density variation (0 = uniform)"),
+        "weights": Param("float", 0.0, min=0.0, max=100.0, doc="organic: density variation (0 = uniform)"),
         "major-width": Param("float", 20.0, min=0.0, max=200.0, unit="m", doc="street width of the major roads"),
-        "minor-spacing": Param("float", (100.0, 100.0), min=0.0, unit="m", count=2, doc="'dx dy' of the minor grid"),
+        "minor-spacing": Param(
+            "float", (100.0, 100.0), min=0.0, max=100_000.0, unit="m", count=2, doc="'dx dy' of the minor grid"
+        ),
         "minor-angle": Param("str", "follow", doc="minor grid angle: deg, 'follow' (the major angle) or 'random'"),
         "minor-width": Param("float", 12.0, min=0.0, max=200.0, unit="m", doc="street width of the minor roads"),
     },
@@ -170,6 +188,64 @@ class DistrictStyle:
         if self.pattern == "grid":
             return None
         return None
+
+
+MAX_FEATURES = 2_000_000  # areas, blocks or lots of one district; whole Liège has 251,780 lots
+
+
+def _per_cell(area: float, dx: float, dy: float) -> float:
+    """Cells of a ``dx`` x ``dy`` grid over ``area`` (m2); a spacing of 0 draws no line that way."""
+    side = math.sqrt(area)
+    return (area / (dx if dx > 0 else side)) / (dy if dy > 0 else side)
+
+
+def feature_estimates(styles: list[DistrictStyle], areas) -> list[tuple[DistrictStyle, str, float, str]]:
+    """Rough counts of what each district will make: ``(style, what, count, because)``.
+
+    Major cells from the pattern, blocks from ``minor-spacing``, lots from
+    ``lot-area`` when the rule sets it; ``areas`` are the districts' areas (m2).
+    """
+    out = []
+    for style, area in zip(styles, areas):
+        area = float(area)
+        if not area > 0:
+            continue
+        if style.pattern == "grid":
+            major, why = _per_cell(area, *style.spacing), f"spacing {style.spacing[0]:g} x {style.spacing[1]:g} m"
+        elif style.pattern == "radial":
+            major, why = float((style.rings + 1) * max(style.spokes, 1)), f"{style.rings} rings x {style.spokes} spokes"
+        else:
+            major, why = float(style.sites), f"{style.sites} sites"
+        out.append((style, "areas", major, why))
+        mdx, mdy = style.minor_spacing
+        out.append((style, "blocks", _per_cell(area, mdx, mdy), f"minor-spacing {mdx:g} x {mdy:g} m"))
+        lot_area = style.attrs.get("lot-area") if style.attrs else None
+        try:
+            lot_area = float(lot_area) if lot_area is not None else None
+        except ValueError:
+            lot_area = None
+        if lot_area and lot_area > 0:
+            out.append((style, "lots", area / lot_area, f"lot-area {lot_area:g} m2"))
+    return out
+
+
+def check_estimates(styles: list[DistrictStyle], areas, *, limit: int = MAX_FEATURES) -> None:
+    """Refuse, before any work, a district that would make more than ``limit`` areas, blocks or lots.
+
+    Raises LimitError naming the district, the estimate and the rule that
+    makes it (a spacing of 1 cm over a city is 1e11 blocks, not a city).
+    """
+    problems = []
+    for style, what, count, why in feature_estimates(styles, areas):
+        if count > limit:
+            problems.append(
+                LimitError(
+                    f"district {style.name!r}: {why} over its {float(areas[style.index]) / 1e6:.3g} km2 makes about "
+                    f"{count:.2g} {what}; the limit is {limit:,} per district (make the {why.split()[0]} larger)",
+                    where=style.where or None,
+                )
+            )
+    Problems.raise_if(problems)
 
 
 def _numbers(rule, key: str, n: int, default, *, positive: bool = False, integer: bool = False):
@@ -241,18 +317,35 @@ def parse_district(rule, index: int) -> DistrictStyle:
     return style
 
 
-def district_styles(plan) -> list[DistrictStyle]:
-    """The plan's district rules as styles; one default style when there are none."""
-    rules = plan.rules_of("district") if plan is not None else []
+def _rules(rules, tag: str) -> list:
+    """A list of Rule from a ``rules`` layer, a plan, a list of rules or None."""
+    if rules is None:
+        return []
+    if isinstance(rules, Layer):
+        return rules_of(rules, tag)
+    if hasattr(rules, "rules_of"):
+        return rules.rules_of(tag)
+    return list(rules)
+
+
+def district_styles(rules) -> list[DistrictStyle]:
+    """The district rules as styles; one default style when there are none.
+
+    Parameters
+    ----------
+    rules : Layer or list of Rule or CityPlan or None
+        The ``district_rules`` layer (:mod:`sengine.nodes.maps`), or the rules themselves.
+    """
+    rules = _rules(rules, "district")
     if not rules:
         return [DistrictStyle(index=0, name="city", colour=None)]
     return [parse_district(r, i) for i, r in enumerate(rules)]
 
 
-def landuse_classes(plan) -> list[tuple[tuple[int, int, int], str, bool, str]]:
-    """``(colour, class, buildable, where)`` for each ``<landuse>`` rule."""
+def landuse_classes(rules) -> list[tuple[tuple[int, int, int], str, bool, str]]:
+    """``(colour, class, buildable, where)`` for each ``<landuse>`` rule (a layer, list or plan as for :func:`district_styles`)."""
     out = []
-    for rule in plan.rules_of("landuse"):
+    for rule in _rules(rules, "landuse"):
         if not rule.get("color"):
             raise ConfigError("<landuse> needs a color attribute", where=rule.where or None)
         cls = (rule.get("class") or "buildable").strip().lower()
@@ -267,25 +360,31 @@ def landuse_classes(plan) -> list[tuple[tuple[int, int, int], str, bool, str]]:
     return out
 
 
-def plan_meta(plan) -> dict:
-    """Layer meta of a synthetic city: its planar CRS, origin and extent."""
-    try:
-        from sengine.geom.crs import local_crs
-
-        crs = local_crs(plan.origin)
-    except Exception:  # pragma: no cover - geo helper missing
-        lat, lon = plan.origin
-        crs = f"+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m +no_defs"
-    return {"crs": crs, "origin": tuple(plan.origin), "extent": tuple(plan.extent)}
-
-
-def city_regions(plan, styles: list[DistrictStyle], *, simplify: float = 1.0, grid_size: float = 1e-3):
-    """Vectorize the plan's maps into district regions and land-use regions.
+def city_regions(
+    extent,
+    styles: list[DistrictStyle],
+    *,
+    district_map: ImageMap | None = None,
+    landuse_map: ImageMap | None = None,
+    legend: list | None = None,
+    district_tolerance: float | None = None,
+    landuse_tolerance: float | None = None,
+    simplify: float = 1.0,
+    grid_size: float = 1e-3,
+):
+    """Vectorize the district and land-use maps into district regions and land-use regions.
 
     Parameters
     ----------
-    plan : CityPlan
+    extent : tuple of float
+        ``(xmin, ymin, xmax, ymax)`` of the city (m).
     styles : list of DistrictStyle
+    district_map, landuse_map : ImageMap, optional
+        The decoded maps (:class:`sengine.nodes.maps.MapsImage`).
+    legend : list, optional
+        :func:`landuse_classes` of the ``<landuse>`` rules (needed with a land-use map).
+    district_tolerance, landuse_tolerance : float, optional
+        Largest RGB distance to a legend colour (``None``: by file type).
     simplify : float
         Coverage simplification tolerance (pixels).
     grid_size : float
@@ -300,13 +399,11 @@ def city_regions(plan, styles: list[DistrictStyle], *, simplify: float = 1.0, gr
     buildable : shapely.Geometry
         The extent minus every non-buildable land-use region.
     """
-    extent = plan.extent
     frame = shapely.box(*extent)
-    spec = plan.maps.get("district")
-    if spec is None:
+    if district_map is None:
         districts = [frame] + [shapely.Polygon()] * (len(styles) - 1)
     else:
-        img = read_map(spec, extent, colour=True)
+        img = district_map
         missing = [s for s in styles if s.colour is None]
         if missing:
             raise ConfigError(
@@ -315,7 +412,7 @@ def city_regions(plan, styles: list[DistrictStyle], *, simplify: float = 1.0, gr
         labels = classify(
             img,
             [s.colour for s in styles],
-            tolerance=_tolerance(spec),
+            tolerance=district_tolerance,
             names=[s.name for s in styles],
             what="district rules",
         )
@@ -323,18 +420,17 @@ def city_regions(plan, styles: list[DistrictStyle], *, simplify: float = 1.0, gr
         districts = [regions.get(s.index, shapely.Polygon()) for s in styles]
     landuse: list[tuple[str, bool, shapely.Geometry]] = []
     buildable = frame
-    spec = plan.maps.get("landuse")
-    if spec is not None:
-        legend = landuse_classes(plan)
+    if landuse_map is not None:
         if not legend:
             raise ConfigError(
-                "the plan has a land-use map but no <landuse color=... class=...> rules", where=spec.where or None
+                "the plan has a land-use map but no <landuse color=... class=...> rules",
+                where=landuse_map.where or None,
             )
-        img = read_map(spec, extent, colour=True)
+        img = landuse_map
         labels = classify(
             img,
             [c for c, *_ in legend],
-            tolerance=_tolerance(spec),
+            tolerance=landuse_tolerance,
             names=[c for _, c, *_ in legend],
             what="land-use rules",
         )
@@ -350,18 +446,6 @@ def city_regions(plan, styles: list[DistrictStyle], *, simplify: float = 1.0, gr
         if cut:
             buildable = shapely.difference(frame, shapely.union_all(cut, grid_size=grid_size), grid_size=grid_size)
     return districts, landuse, buildable
-
-
-def _tolerance(spec) -> float | None:
-    t = spec.attrs.get("tolerance") if spec.attrs else None
-    if t is None:
-        return None
-    try:
-        return float(t)
-    except ValueError:
-        raise InputDataError(
-            f"map '{spec.src.name}': tolerance={t!r} is not a number", where=spec.where or None
-        ) from None
 
 
 def pattern_lines(style: DistrictStyle, district, region, rng: np.random.Generator) -> np.ndarray:
@@ -517,7 +601,12 @@ class RoadsDistricts(SENode):
     """
 
     name = "roads.districts"
-    inputs = {}
+    inputs = {
+        "district_rules": Port("rules", "the <district> rules (one default district when none)", required=False),
+        "landuse_rules": Port("rules", "the <landuse> rules: the land-use map's legend", required=False),
+        "district_map": Port("raster", "the district map (none: the whole city is one district)", required=False),
+        "landuse_map": Port("raster", "the land-use map (none: everything is buildable)", required=False),
+    }
     outputs = {
         "areas": Port("areas", "polygons enclosed by major roads, with their district"),
         "roads": Port("roads", "major road segments between junctions (class major / boundary)"),
@@ -540,18 +629,93 @@ class RoadsDistricts(SENode):
         "grid": Param("float", 0.001, min=1e-6, max=1.0, unit="m", doc="snap-rounding grid of the noding"),
     }
 
-    def run(self) -> dict[str, Layer]:
-        plan = self.context.plan
-        if plan is None:
-            from sengine.plan import CityPlan
+    def check(
+        self,
+        *,
+        district_rules: Layer | None = None,
+        landuse_rules: Layer | None = None,
+        district_map: Layer | None = None,
+        landuse_map: Layer | None = None,
+    ) -> None:
+        """Every colour of the maps is in the rules (what ``sengine validate`` checks)."""
+        self._regions(district_rules, landuse_rules, district_map, landuse_map, vector=False)
 
-            plan = CityPlan()
-        styles = district_styles(plan)
-        districts, landuse, buildable = city_regions(plan, styles, simplify=self.p.simplify, grid_size=self.p.grid)
+    def _regions(self, district_rules, landuse_rules, district_map, landuse_map, *, vector: bool = True):
+        styles = district_styles(district_rules)
+        if district_map is not None and not len(district_map):
+            district_map = None
+        if landuse_map is not None and not len(landuse_map):
+            landuse_map = None
+        given = (district_rules, district_map, landuse_map, landuse_rules)
+        meta = next((lay.meta for lay in given if lay is not None and "extent" in lay.meta), None)
+        meta = {k: v for k, v in (meta or plan_meta(CityPlan())).items() if k in ("crs", "origin", "extent")}
+        legend = landuse_classes(landuse_rules) if landuse_map is not None else []
+        tol = [
+            None if m is None or m["tolerance"][0] < 0 else float(m["tolerance"][0])
+            for m in (district_map, landuse_map)
+        ]
+        if not vector:  # only the legend checks and the estimates
+            x0, y0, x1, y1 = meta["extent"]
+            areas = [(x1 - x0) * (y1 - y0)] + [0.0] * (len(styles) - 1)
+            for img, colours, names, what, t in (
+                (
+                    image_of(district_map),
+                    [s.colour for s in styles],
+                    [s.name for s in styles],
+                    "district rules",
+                    tol[0],
+                ),
+                (image_of(landuse_map), [c for c, *_ in legend], [c for _, c, *_ in legend], "land-use rules", tol[1]),
+            ):
+                if img is not None:
+                    if what == "district rules" and any(c is None for c in colours):
+                        raise ConfigError(
+                            "<district> needs a color attribute when the plan has a district map",
+                            where=next(s.where for s in styles if s.colour is None) or None,
+                        )
+                    labels = classify(img, colours, tolerance=t, names=names, what=what)
+                    if what == "district rules":
+                        px = img.pixel_size[0] * img.pixel_size[1]
+                        areas = list(np.bincount(labels.ravel(), minlength=len(styles)) * px)
+            check_estimates(styles, areas)
+            return None
+        regions = city_regions(
+            meta["extent"],
+            styles,
+            district_map=image_of(district_map),
+            landuse_map=image_of(landuse_map),
+            legend=legend if landuse_map is not None else None,
+            district_tolerance=tol[0],
+            landuse_tolerance=tol[1],
+            simplify=self.p.simplify,
+            grid_size=self.p.grid,
+        )
+        return styles, regions, meta
+
+    def run(
+        self,
+        *,
+        district_rules: Layer | None = None,
+        landuse_rules: Layer | None = None,
+        district_map: Layer | None = None,
+        landuse_map: Layer | None = None,
+    ):
+        if district_map is None or not len(district_map):
+            # one district over the whole extent: refuse an absurd spacing before anything is drawn
+            lay = next((x for x in (district_rules, landuse_map) if x is not None and "extent" in x.meta), None)
+            if lay is not None:
+                x0, y0, x1, y1 = lay.meta["extent"]
+                styles = district_styles(district_rules)
+                check_estimates(styles, [(x1 - x0) * (y1 - y0)] + [0.0] * (len(styles) - 1))
+        styles, (districts, landuse, buildable), meta = self._regions(
+            district_rules, landuse_rules, district_map, landuse_map
+        )
+        check_estimates(styles, [float(shapely.area(d)) for d in districts])
+        if buildable.is_empty or buildable.area <= 0:
+            log.warning("%s: the land-use map leaves nothing buildable: the city is empty", self.where)
         net = major_network(
             styles, districts, buildable, lambda i: self.rng(i), merge=self.p.merge, grid_size=self.p.grid
         )
-        meta = plan_meta(plan)
         names = np.array([s.name for s in styles])
         pats = np.array([s.pattern for s in styles])
         cd = net["cell_district"]
@@ -590,7 +754,7 @@ class RoadsDistricts(SENode):
         lu = Layer.from_geoms(
             lu_geoms, meta=meta, kind=np.array(lu_kind, dtype=object).astype(str) if lu_kind else np.empty(0, "<U1")
         )
-        self.report = {
+        report = {
             "districts": int(sum(not g.is_empty for g in districts)),
             "areas": len(areas),
             "merged_slivers": int(net["merged"]),
@@ -598,7 +762,7 @@ class RoadsDistricts(SENode):
             "buildable_km2": round(float(net["outline"].area) / 1e6, 4),
             "parks": len(parks),
         }
-        return {"areas": areas, "roads": roads, "outline": outline, "parks": parks, "landuse": lu}
+        return NodeResult({"areas": areas, "roads": roads, "outline": outline, "parks": parks, "landuse": lu}, report)
 
 
 def _district_at(geoms, districts) -> np.ndarray:

@@ -76,7 +76,7 @@ def split_at_junctions(key: np.ndarray, line: np.ndarray, *, ends_only: bool = F
     n = len(key)
     if n == 0:
         z = np.empty(0, np.int64)
-        return Pieces(z, z, z, z, z)
+        return Pieces(z, z, z, z, z, node=z, node_key=z)
     keep = np.ones(n, bool)
     keep[1:] = ~((key[1:] == key[:-1]) & (line[1:] == line[:-1]))
     idx = np.flatnonzero(keep)
@@ -84,9 +84,9 @@ def split_at_junctions(key: np.ndarray, line: np.ndarray, *, ends_only: bool = F
     idx = idx[np.bincount(ln)[ln] >= 2]
     k, ln = key[idx], line[idx]
     m = len(idx)
-    if m == 0:
+    if m == 0:  # every line collapsed to one point
         z = np.empty(0, np.int64)
-        return Pieces(z, z, z, z, z)
+        return Pieces(z, z, z, z, z, node=z, node_key=z)
     first = np.r_[True, ln[1:] != ln[:-1]]
     last = np.r_[ln[1:] != ln[:-1], True]
     if ends_only:

@@ -15,7 +15,11 @@ every street segment between junctions, major and minor, as one planar graph.
 
 References
 ----------
-.. [1] skylineEngine (paper 002), §5.3.2 Minor roads.
+§5.3.2 (minor roads) of [1]_.
+
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ import numpy as np
 import shapely
 from shapely import STRtree
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 
 from .districts import DistrictStyle, district_styles
 from .patterns import cell_edges, clip_lines, grid_lines, merge_small_cells, side_points, split_cells
@@ -207,6 +211,9 @@ class RoadsMinor(SENode):
     inputs = {
         "areas": Port("areas", "areas enclosed by major roads, with their district"),
         "roads": Port("roads", "the major roads"),
+        "district_rules": Port(
+            "rules", "the <district> rules: minor-spacing, minor-angle, minor-width", required=False
+        ),
     }
     outputs = {
         "roads": Port("roads", "all street segments between junctions (major and minor)"),
@@ -224,9 +231,8 @@ class RoadsMinor(SENode):
         "grid": Param("float", 0.001, min=1e-6, max=1.0, unit="m", doc="snap-rounding grid of the noding"),
     }
 
-    def run(self, *, areas: Layer, roads: Layer) -> dict[str, Layer]:
-        plan = self.context.plan
-        styles = district_styles(plan)
+    def run(self, *, areas: Layer, roads: Layer, district_rules: Layer | None = None):
+        styles = district_styles(district_rules)
         district = np.asarray(areas["district"], np.int64) if "district" in areas else np.zeros(len(areas), np.int64)
         ids = areas.ids
         net = minor_network(
@@ -261,11 +267,11 @@ class RoadsMinor(SENode):
             width=width,
             district=net["district"],
         )
-        self.report = {
+        report = {
             "minor_segments": int((~is_major).sum()),
             "major_segments": int(is_major.sum()),
             "blocks_estimate": len(net["cells"]),
             "merged_slivers": int(net["merged"]),
             "minor_roads_km": round(float(shapely.length(net["edges"][~is_major]).sum()) / 1000.0, 3) if n else 0.0,
         }
-        return {"roads": out, "areas": areas}
+        return NodeResult({"roads": out, "areas": areas}, report)

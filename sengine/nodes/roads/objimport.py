@@ -14,11 +14,18 @@ search (§5.4).  Two nodes read them with trimesh:
 
 OBJ is usually Y-up: plan coordinates are ``(x, -z)`` (``up="y"``) or
 ``(x, y)`` (``up="z"``), times ``scale`` metres per unit.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from pathlib import Path
 
 import numpy as np
@@ -26,9 +33,11 @@ import shapely
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import InputDataError
 from sengine.geom.crs import local_crs
+
+from ..maps import check_regular_file
 
 __all__ = ["load_obj", "obj_lines", "obj_polygons", "ObjRoads", "ObjLots"]
 
@@ -66,6 +75,15 @@ def load_obj(path: Path, *, where: str | None = None):
             continue
         if parts[0] == "v":
             nverts += 1
+            try:
+                xyz = [float(p) for p in parts[1:4]]
+            except ValueError:
+                xyz = []
+            if len(xyz) != 3 or not all(math.isfinite(c) for c in xyz):
+                raise InputDataError(
+                    f"OBJ file '{path}', line {lineno}: a vertex needs three finite coordinates, got {raw.strip()!r}",
+                    where=where,
+                )
         elif parts[0] == "l":
             try:
                 idx = np.array([int(p.split("/")[0]) for p in parts[1:]], np.int64)
@@ -143,21 +161,21 @@ def obj_polygons(
 
 
 class _ObjNode(SENode):
-    def _source(self) -> tuple[Path, str]:
+    inputs = {"obj_map": Port("file", "the OBJ file of the plan (<map kind='obj'>)", required=False)}
+
+    def _source(self, obj_map: Layer | None) -> tuple[Path, str]:
         if self.p.path:
             p = Path(self.p.path)
             if not p.is_absolute() and self.context.base_dir is not None:
                 p = Path(self.context.base_dir) / p
             return p, self.where
-        plan = self.context.plan
-        spec = getattr(plan, "maps", {}).get("obj") if plan is not None else None
-        if spec is None:
+        if obj_map is None or not len(obj_map):
             raise InputDataError('no OBJ file: set \'path\' or add <map kind="obj" src="..."/>', where=self.where)
-        return Path(spec.src), spec.where or self.where
+        return Path(str(obj_map["src"][0])), obj_map.meta.get("where") or self.where
 
-    def _meta(self) -> dict:
-        plan = self.context.plan
-        origin = tuple(plan.origin) if plan is not None else (0.0, 0.0)
+    @staticmethod
+    def _meta(obj_map: Layer | None) -> dict:
+        origin = tuple(obj_map.meta["origin"]) if obj_map is not None and "origin" in obj_map.meta else (0.0, 0.0)
         return {"crs": local_crs(origin), "origin": origin, "source": "obj"}
 
 
@@ -177,7 +195,6 @@ class ObjRoads(_ObjNode):
     """
 
     name = "obj.roads"
-    inputs = {}
     outputs = {"roads": Port("roads", "street centre lines (the file's l elements)")}
     params = {
         **_COMMON,
@@ -185,8 +202,9 @@ class ObjRoads(_ObjNode):
         "road_class": Param("str", "minor", choices=("major", "minor"), doc="class given to every street"),
     }
 
-    def run(self) -> dict[str, Layer]:
-        path, where = self._source()
+    def run(self, *, obj_map: Layer | None = None):
+        path, where = self._source(obj_map)
+        check_regular_file(path, "OBJ file", where)
         vertices, _, lines = load_obj(path, where=where)
         geoms = obj_lines(vertices, lines, up=self.p.up, scale=self.p.scale)
         if len(geoms):
@@ -196,19 +214,21 @@ class ObjRoads(_ObjNode):
                 f"OBJ file '{path}' has no line elements (l): obj.roads reads street centre lines", where=where
             )
         n = len(geoms)
-        self.report = {"lines": n}
         log.info("%s: %s: %d street lines", self.where, path.name, n)
-        return {
-            "roads": Layer.from_geoms(
-                geoms,
-                meta=self._meta(),
-                **{
-                    "class": np.full(n, self.p.road_class, dtype=object),
-                    "major": self.p.road_class == "major",
-                    "width": np.full(n, self.p.width),
-                },
-            )
-        }
+        return NodeResult(
+            {
+                "roads": Layer.from_geoms(
+                    geoms,
+                    meta=self._meta(obj_map),
+                    **{
+                        "class": np.full(n, self.p.road_class, dtype=object),
+                        "major": self.p.road_class == "major",
+                        "width": np.full(n, self.p.width),
+                    },
+                )
+            },
+            {"lines": n},
+        )
 
 
 @register
@@ -220,7 +240,6 @@ class ObjLots(_ObjNode):
     """
 
     name = "obj.lots"
-    inputs = {}
     outputs = {
         "lots": Port("lots", "one lot per connected piece of the mesh"),
         "blocks": Port("blocks", "the same polygons as blocks"),
@@ -230,8 +249,9 @@ class ObjLots(_ObjNode):
         "min_area": Param("float", 1.0, min=0.0, unit="m2", doc="pieces smaller than this are dropped"),
     }
 
-    def run(self) -> dict[str, Layer]:
-        path, where = self._source()
+    def run(self, *, obj_map: Layer | None = None):
+        path, where = self._source(obj_map)
+        check_regular_file(path, "OBJ file", where)
         vertices, faces, _ = load_obj(path, where=where)
         polys = obj_polygons(vertices, faces, up=self.p.up, scale=self.p.scale, min_area=self.p.min_area)
         if not len(polys):
@@ -239,7 +259,7 @@ class ObjLots(_ObjNode):
                 f"OBJ file '{path}' has no faces (f) of at least {self.p.min_area:g} m2 on the plan", where=where
             )
         n = len(polys)
-        meta = self._meta()
+        meta = self._meta(obj_map)
         # the file says nothing about streets: frontage unknown (NaN)
         lots = Layer.from_geoms(
             polys,
@@ -252,6 +272,5 @@ class ObjLots(_ObjNode):
             method="obj",
         )
         blocks = Layer.from_geoms(polys, meta=meta, district=-1)
-        self.report = {"polygons": n}
         log.info("%s: %s: %d polygons", self.where, path.name, n)
-        return {"lots": lots, "blocks": blocks}
+        return NodeResult({"lots": lots, "blocks": blocks}, {"polygons": n})

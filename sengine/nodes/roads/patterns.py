@@ -17,11 +17,15 @@ of shapely geometries, in metres.
 
 References
 ----------
-.. [1] Cerdá, E. et al. "skylineEngine: a procedural city modelling tool"
-   (paper 002), §5.3.1 Districts, §5.3.2 Minor roads, Fig. 7.
-.. [2] Lloyd, S. "Least squares quantization in PCM", IEEE Trans. Inf. Theory
-   28 (1982); Du, Faber, Gunzburger, "Centroidal Voronoi tessellations", SIAM
-   Review 41 (1999) -- Lloyd's relaxation with a density function.
+§5.3.1 (districts), §5.3.2 (minor roads) and Fig. 7 of [1]_; the organic pattern's Lloyd relaxation [2]_ with a density function [3]_.
+
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
+.. [2] S. Lloyd, "Least squares quantization in PCM", IEEE Transactions on
+   Information Theory 28(2), 129-137, 1982.
+.. [3] Q. Du, V. Faber and M. Gunzburger, "Centroidal Voronoi tessellations:
+   applications and algorithms", SIAM Review 41(4), 637-676, 1999.
 """
 
 from __future__ import annotations
@@ -405,7 +409,7 @@ def merge_small_cells(cells, region, min_area, min_width, *, grid_size: float = 
         if shared.max() <= grid_size * 10:
             continue
         j = int(cand[int(np.argmax(shared))])
-        cells[j] = shapely.union(cells[j], cells[i], grid_size=grid_size)
+        cells[j] = _polygonal(shapely.union(cells[j], cells[i], grid_size=grid_size))
         owner[i] = j
         merged += 1
         if small(j):
@@ -415,6 +419,18 @@ def merge_small_cells(cells, region, min_area, min_width, *, grid_size: float = 
     # a union may come back as a MultiPolygon when two parts touch at a point only
     parts, idx = shapely.get_parts(out, return_index=True)
     return parts, region[alive][idx], merged
+
+
+def _polygonal(geom):
+    """The polygonal part of an overlay result.
+
+    Snapped to a coarse grid, a thin piece of a union collapses to a line and
+    the result is a mixed collection, which the next overlay refuses.
+    """
+    if geom.geom_type in ("Polygon", "MultiPolygon"):
+        return geom
+    parts = [p for p in shapely.get_parts(geom) if p.geom_type in ("Polygon", "MultiPolygon")]
+    return shapely.union_all(parts) if parts else shapely.Polygon()
 
 
 def cell_edges(cells, *, grid_size: float = 1e-3, noded=None) -> np.ndarray:

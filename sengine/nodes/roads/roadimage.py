@@ -9,6 +9,12 @@ graph (4-neighbours, and diagonal neighbours only where no 4-path joins
 them, so no pixel triangles), the graph is cut into polylines between
 junction and end pixels, and each polyline is placed on the city extent in
 metres and simplified.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
@@ -19,10 +25,12 @@ from pathlib import Path
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import InputDataError
 from sengine.geom.crs import local_crs
 from sengine.geom.raster import parse_colour, read_map
+
+from ..maps import image_of
 
 __all__ = ["road_mask", "skeleton_graph", "trace_polylines", "image_roads", "RoadsImage"]
 
@@ -182,10 +190,17 @@ class RoadsImage(SENode):
     """
 
     name = "roads.image"
-    inputs = {}
+    inputs = {
+        "roads_map": Port("raster", "the road-map image (<map kind='roads'>), on the city extent", required=False)
+    }
     outputs = {"roads": Port("roads", "street centre lines traced from the image")}
     params = {
-        "path": Param("path", "", doc="road-map image; empty: the plan's <map kind='roads'> src"),
+        "path": Param(
+            "path", "", doc="road-map image read directly, on an extent of 'size'; empty: the roads_map port"
+        ),
+        "size": Param(
+            "float", (2000.0, 2000.0), min=1.0, max=100_000.0, unit="m", count=2, doc="extent of an image given by path"
+        ),
         "color": Param("str", "#ffffff", doc="colour of the roads in the image"),
         "tolerance": Param(
             "float", 96.0, min=0.0, max=442.0, unit="1", doc="largest RGB distance from 'color' still counted as road"
@@ -198,28 +213,30 @@ class RoadsImage(SENode):
         "road_class": Param("str", "minor", choices=("major", "minor"), doc="class given to every street"),
     }
 
-    def run(self) -> dict[str, Layer]:
-        plan = self.context.plan
-        spec = getattr(plan, "maps", {}).get("roads") if plan is not None else None
+    def run(self, *, roads_map: Layer | None = None):
         where = self.where
+        colour_text, tolerance = self.p.color, self.p.tolerance
         if self.p.path:
             src = Path(self.p.path)
             if not src.is_absolute() and self.context.base_dir is not None:
                 src = Path(self.context.base_dir) / src
-        elif spec is not None:
-            src, where = Path(spec.src), spec.where or self.where
+            extent = (0.0, 0.0, *self.p.size)
+            image = read_map(src, extent, where=where, colour=True)
+            origin = (0.0, 0.0)
+        elif roads_map is not None and len(roads_map):
+            image = image_of(roads_map)
+            src, where = Path(str(roads_map["src"][0])), image.where or self.where
+            # the <map> element's color / tolerance override the parameters
+            if str(roads_map["color"][0]):
+                colour_text = str(roads_map["color"][0])
+            if roads_map["tolerance"][0] >= 0:
+                tolerance = float(roads_map["tolerance"][0])
+            extent, origin = tuple(roads_map.meta["extent"]), tuple(roads_map.meta["origin"])
         else:
             raise InputDataError(
                 'no road-map image: set \'path\' or add <map kind="roads" src="..."/>', where=self.where
             )
-        attrs = dict(getattr(spec, "attrs", {}) or {}) if spec is not None and not self.p.path else {}
-        colour = parse_colour(attrs.get("color", self.p.color), where=where)
-        try:
-            tolerance = float(attrs.get("tolerance", self.p.tolerance))
-        except ValueError:
-            raise InputDataError(f"tolerance={attrs['tolerance']!r} is not a number", where=where) from None
-        extent = plan.extent if plan is not None else (0.0, 0.0, 2000.0, 2000.0)
-        image = read_map(src, extent, where=where, colour=True)
+        colour = parse_colour(colour_text, where=where)
         mask = road_mask(image.data, colour, tolerance)
         px = max(image.pixel_size)
         simplify = px if self.p.simplify < 0 else self.p.simplify
@@ -227,17 +244,15 @@ class RoadsImage(SENode):
         lines = image_roads(mask, image.extent, simplify=simplify, min_length=min_length)
         if len(lines) == 0:
             raise InputDataError(
-                f"road map '{src}' has no road pixels of colour {attrs.get('color', self.p.color)} "
-                f"(tolerance {tolerance:g})",
+                f"road map '{src}' has no road pixels of colour {colour_text} (tolerance {tolerance:g})",
                 where=where,
             )
-        origin = tuple(plan.origin) if plan is not None else (0.0, 0.0)
         n = len(lines)
-        self.report = {"road_pixels": int(mask.sum()), "segments": n}
+        report = {"road_pixels": int(mask.sum()), "segments": n}
         log.info("%s: %s: %d road pixels -> %d street lines", self.where, src.name, int(mask.sum()), n)
         roads = Layer.from_geoms(
             lines,
-            meta={"crs": local_crs(origin), "origin": origin, "source": "image"},
+            meta={"crs": local_crs(origin), "origin": origin, "source": "image", "extent": tuple(extent)},
             **{
                 "class": np.full(n, self.p.road_class, dtype=object),
                 "major": self.p.road_class == "major",
@@ -247,4 +262,4 @@ class RoadsImage(SENode):
                 "tunnel": np.zeros(n, bool),
             },
         )
-        return {"roads": roads}
+        return NodeResult({"roads": roads}, report)

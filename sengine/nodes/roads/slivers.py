@@ -7,6 +7,12 @@ these extra circuits).  They are found on the faces the blocks are traced
 with: mean width ``2 area / perimeter`` below ``sliver_width`` makes a
 median, an area below ``island_area`` an island.  ``roads.clean`` hands
 them on as polygons to be drawn as street surface.
+
+References
+----------
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
 """
 
 from __future__ import annotations
