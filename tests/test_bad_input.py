@@ -352,6 +352,12 @@ ABSURD = {
     "1e5 rings": ({}, ('pattern="grid"', 'pattern="radial" rings="100000"'), r"rings=100000 is above the maximum"),
     "lot area of 1 m2": ({}, ('minor-spacing="100 60"', 'minor-spacing="100 60" lot-area="0.1"'), r"lot-area"),
     "spacing of 0": ({}, ('spacing="300 300"', 'spacing="0 0"'), r"spacing='0 0' is not 2 numbers"),
+    "1e5 sites": ({}, ('pattern="grid"', 'pattern="organic" sites="100000"'), r"1e\+05 areas.*use fewer sites"),
+    "rings 10 cm apart": (
+        {},
+        ('pattern="grid"', 'pattern="radial" ring-spacing="0.1"'),
+        r"ring-spacing 0.1 m x 8 spokes .* makes about 6e\+04 areas.*make the ring-spacing larger",
+    ),
 }
 
 

@@ -190,7 +190,8 @@ class DistrictStyle:
         return None
 
 
-MAX_FEATURES = 2_000_000  # areas, blocks or lots of one district; whole Liège has 251,780 lots
+MAX_FEATURES = 2_000_000  # blocks or lots of one district; whole Liège has 251,780 lots
+MAX_AREAS = 20_000  # areas enclosed by major roads in one district (the paper's Manhattan has 86)
 
 
 def _per_cell(area: float, dx: float, dy: float) -> float:
@@ -199,11 +200,14 @@ def _per_cell(area: float, dx: float, dy: float) -> float:
     return (area / (dx if dx > 0 else side)) / (dy if dy > 0 else side)
 
 
-def feature_estimates(styles: list[DistrictStyle], areas) -> list[tuple[DistrictStyle, str, float, str]]:
-    """Rough counts of what each district will make: ``(style, what, count, because)``.
+def feature_estimates(
+    styles: list[DistrictStyle], areas, extent=None
+) -> list[tuple[DistrictStyle, str, float, str, int, str]]:
+    """Rough counts of what each district will make: ``(style, what, count, because, limit, advice)``.
 
     Major cells from the pattern, blocks from ``minor-spacing``, lots from
-    ``lot-area`` when the rule sets it; ``areas`` are the districts' areas (m2).
+    ``lot-area`` when the rule sets it; ``areas`` are the districts' areas
+    (m2); ``extent`` (the city's, m) bounds a radial pattern's reach.
     """
     out = []
     for style, area in zip(styles, areas):
@@ -212,36 +216,50 @@ def feature_estimates(styles: list[DistrictStyle], areas) -> list[tuple[District
             continue
         if style.pattern == "grid":
             major, why = _per_cell(area, *style.spacing), f"spacing {style.spacing[0]:g} x {style.spacing[1]:g} m"
+            advice = "make the spacing larger"
         elif style.pattern == "radial":
-            major, why = float((style.rings + 1) * max(style.spokes, 1)), f"{style.rings} rings x {style.spokes} spokes"
+            rings, why = float(style.rings), f"{style.rings} rings x {style.spokes} spokes"
+            advice = "use fewer rings or spokes"
+            if style.ring_spacing:
+                if extent is not None:
+                    x0, y0, x1, y1 = extent
+                    cx, cy = style.center or ((x0 + x1) / 2, (y0 + y1) / 2)
+                    reach = max(math.hypot(x - cx, y - cy) for x in (x0, x1) for y in (y0, y1))
+                else:
+                    reach = 2 * math.sqrt(area)
+                rings = reach / style.ring_spacing
+                why = f"ring-spacing {style.ring_spacing:g} m x {style.spokes} spokes"
+                advice = "make the ring-spacing larger"
+            major = (rings + 1) * max(style.spokes, 1)
         else:
-            major, why = float(style.sites), f"{style.sites} sites"
-        out.append((style, "areas", major, why))
+            major, why, advice = float(style.sites), f"{style.sites} sites", "use fewer sites"
+        out.append((style, "areas", major, why, MAX_AREAS, advice))
         mdx, mdy = style.minor_spacing
-        out.append((style, "blocks", _per_cell(area, mdx, mdy), f"minor-spacing {mdx:g} x {mdy:g} m"))
+        blocks = _per_cell(area, mdx, mdy)
+        out.append((style, "blocks", blocks, f"minor-spacing {mdx:g} x {mdy:g} m", MAX_FEATURES, "make it larger"))
         lot_area = style.attrs.get("lot-area") if style.attrs else None
         try:
             lot_area = float(lot_area) if lot_area is not None else None
         except ValueError:
             lot_area = None
         if lot_area and lot_area > 0:
-            out.append((style, "lots", area / lot_area, f"lot-area {lot_area:g} m2"))
+            out.append((style, "lots", area / lot_area, f"lot-area {lot_area:g} m2", MAX_FEATURES, "make it larger"))
     return out
 
 
-def check_estimates(styles: list[DistrictStyle], areas, *, limit: int = MAX_FEATURES) -> None:
-    """Refuse, before any work, a district that would make more than ``limit`` areas, blocks or lots.
+def check_estimates(styles: list[DistrictStyle], areas, extent=None) -> None:
+    """Refuse, before any work, a district that would make more than MAX_AREAS areas or MAX_FEATURES blocks or lots.
 
     Raises LimitError naming the district, the estimate and the rule that
     makes it (a spacing of 1 cm over a city is 1e11 blocks, not a city).
     """
     problems = []
-    for style, what, count, why in feature_estimates(styles, areas):
+    for style, what, count, why, limit, advice in feature_estimates(styles, areas, extent):
         if count > limit:
             problems.append(
                 LimitError(
                     f"district {style.name!r}: {why} over its {float(areas[style.index]) / 1e6:.3g} km2 makes about "
-                    f"{count:.2g} {what}; the limit is {limit:,} per district (make the {why.split()[0]} larger)",
+                    f"{count:.2g} {what}; the limit is {limit:,} per district ({advice})",
                     where=style.where or None,
                 )
             )
@@ -677,7 +695,7 @@ class RoadsDistricts(SENode):
                     if what == "district rules":
                         px = img.pixel_size[0] * img.pixel_size[1]
                         areas = list(np.bincount(labels.ravel(), minlength=len(styles)) * px)
-            check_estimates(styles, areas)
+            check_estimates(styles, areas, meta["extent"])
             return None
         regions = city_regions(
             meta["extent"],
@@ -706,11 +724,11 @@ class RoadsDistricts(SENode):
             if lay is not None:
                 x0, y0, x1, y1 = lay.meta["extent"]
                 styles = district_styles(district_rules)
-                check_estimates(styles, [(x1 - x0) * (y1 - y0)] + [0.0] * (len(styles) - 1))
+                check_estimates(styles, [(x1 - x0) * (y1 - y0)] + [0.0] * (len(styles) - 1), lay.meta["extent"])
         styles, (districts, landuse, buildable), meta = self._regions(
             district_rules, landuse_rules, district_map, landuse_map
         )
-        check_estimates(styles, [float(shapely.area(d)) for d in districts])
+        check_estimates(styles, [float(shapely.area(d)) for d in districts], meta["extent"])
         if buildable.is_empty or buildable.area <= 0:
             log.warning("%s: the land-use map leaves nothing buildable: the city is empty", self.where)
         net = major_network(
