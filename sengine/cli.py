@@ -271,17 +271,16 @@ def cmd_batch(args: argparse.Namespace) -> int:
         print(f"sengine: {stop}", file=sys.stderr)
         return 128 + int(stop.signum)
     if not args.quiet:
+        made = len(report.made)
         already = f", {len(report.skipped)} already made" if report.skipped else ""
         print(
-            f"{args.out}: {len(report.made)} variants made{already} in {report.seconds:.1f} s "
+            f"{args.out}: {made} variant{'' if made == 1 else 's'} made{already} in {report.seconds:.1f} s "
             f"({report.scheduler}); batch.csv, contact.png"
         )
     if report.failed:
-        first = next(iter(report.failed.items()))
-        raise SEngineError(
-            f"{len(report.failed)} of {len(variants)} variants failed (first: {first[0]}: {first[1]}); "
-            "a rerun retries them"
-        )
+        ids = list(report.failed)
+        named = ", ".join(ids[:5]) + (f" and {len(ids) - 5} more" if len(ids) > 5 else "")
+        raise SEngineError(f"{len(ids)} of {len(variants)} variants failed ({named}); a rerun retries them")
     return 0
 
 

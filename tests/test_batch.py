@@ -104,6 +104,21 @@ def test_bad_input_is_one_line_and_writes_nothing(case, maps, tmp_path):
     assert not out.exists()
 
 
+def test_a_variant_that_fails_is_named_and_the_others_are_made(maps, tmp_path):
+    (maps / "broken.png").write_bytes(b"not a picture")
+    (maps / "with_broken.csv").write_text("id,landuse\ngood,lu/flipx.png\nbroken,broken.png\n")
+    out = tmp_path / "b"
+    res = batch(out, "--manifest", "with_broken.csv", "--workers", "2", cwd=maps)
+    assert res.returncode == 2
+    lines = res.stderr.splitlines()
+    assert len(lines) == 2, res.stderr
+    assert lines[0].startswith(f"sengine: error: variant broken: with_broken.csv:3: column landuse: map '{maps}")
+    assert "cannot read the image" in lines[0]
+    assert lines[1] == "sengine: error: 1 of 2 variants failed (broken); a rerun retries them"
+    assert finished(out) == ["good"] and [r["id"] for r in read_rows(out)] == ["good"]
+    assert not [p for p in out.iterdir() if p.name.endswith(".tmp")]
+
+
 # -- a batch, its table, and its reruns ----------------------------------------------------------------------------
 @pytest.mark.slow
 def test_manifest_times_seeds_then_rerun_skips_redoes_and_forces(maps, tmp_path):
