@@ -458,6 +458,7 @@ def run_batch(
                                 if on_done is not None:
                                     on_done(len(report.made), len(todo), row)
                             else:
+                                log.debug("variant %s failed", v.id, exc_info=value)
                                 report.failed[v.id] = _one_line(value)
                                 if on_failed is not None:
                                     on_failed(v, value)

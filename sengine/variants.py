@@ -37,6 +37,7 @@ __all__ = ["Variant", "MAX_VARIANTS", "parse_seeds", "pair_maps", "parse_sweeps"
 
 MAX_VARIANTS = 100_000  # a batch of more cities is surely a typo (--seeds 1-1000000000)
 MAX_SEED = 2**63 - 1
+RESERVED = frozenset({"batch.csv", "batch.parquet", "contact.png"})  # the batch's own files beside the variants
 _ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._=+-]*$")
 _TARGET = re.compile(r"^[^.\s]+\.[^.\s=]+$")
 
@@ -404,6 +405,8 @@ def plan_variants(
             if w
         )
         key = vid.lower()
+        if key in RESERVED:
+            raise ConfigError(f"the variant id {vid!r} is the name of a file the batch writes", where=where or None)
         if key in ids:
             raise ConfigError(f"two variants have the id {vid!r} (also {ids[key]}): give the manifest an id column")
         ids[key] = where or "the configuration"

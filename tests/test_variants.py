@@ -206,6 +206,13 @@ def test_one_thing_varied_twice_is_an_error(tmp_path):
         )
 
 
+def test_an_id_may_not_be_a_file_of_the_batch(tmp_path):
+    m = tmp_path / "v.csv"
+    m.write_text("id,seed\nbatch.csv,1\n")
+    with pytest.raises(ConfigError, match="v.csv:2: the variant id 'batch.csv' is the name of a file the batch"):
+        plan_variants(config_seed=0, manifest=read_manifest(m))
+
+
 def test_too_many_variants_is_an_error_before_any_is_made():
     with pytest.raises(ConfigError, match=f"at most {MAX_VARIANTS:,}"):
         plan_variants(config_seed=0, seeds=list(range(1000)), sweeps=[("a.b", [str(i) for i in range(101)])])
