@@ -328,3 +328,28 @@ def test_inside_a_dask_task_sengine_never_forks():
         [(_, ok, (inside, pid, pids))] = list(sched.run(_inside_dask, [None]))
     assert ok and inside and pid != os.getpid()
     assert pids == [pid] * 3  # run_jobs ran its jobs in the task's own process
+
+
+def test_contact_sheet_grid_captions_and_same_bytes(tmp_path):
+    from sengine.contact import contact_sheet
+
+    tiles = []
+    for i in range(5):
+        png = tmp_path / f"p{i}.png"
+        if i != 2:  # variant 2 has no preview
+            Image.new("RGB", (800, 400), (40 * i, 200 - 30 * i, 90)).save(png)
+        tiles.append((png, f"v{i}", f"{1000 + i:,} lots, FAR 1.{i}"))
+    a = contact_sheet(tiles, tmp_path / "a.png", tile_width=200)
+    b = contact_sheet(tiles, tmp_path / "b.png", tile_width=200)
+    assert a.read_bytes() == b.read_bytes()
+    with Image.open(a) as sheet:
+        rgb = sheet.convert("RGB")
+    # 3 columns x 2 rows of 200 px tiles, 8 px apart; pictures 100 px high under which two caption lines sit
+    assert rgb.size[0] == 8 + 3 * 208 and rgb.size[1] > 2 * (8 + 100)
+    cell_h = (rgb.size[1] - 8) // 2
+    assert rgb.getpixel((8 + 100, 8 + 50)) == (0, 200, 90)  # tile 0's picture
+    assert rgb.getpixel((8 + 208 + 100, 8 + 50)) == (40, 170, 90)  # tile 1's, to its right
+    assert rgb.getpixel((8 + 416 + 150, 8 + 80)) == (225, 225, 222)  # tile 2: no preview, a grey box
+    assert rgb.getpixel((8 + 100, 8 + cell_h + 50)) == (120, 110, 90)  # tile 3 starts the second row
+    caption = rgb.crop((8, 8 + 100, 8 + 200, 8 + cell_h - 8)).convert("L")
+    assert caption.getextrema()[0] < 100  # dark text under the picture
