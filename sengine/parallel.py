@@ -33,7 +33,16 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
-__all__ = ["available_cores", "can_fork", "in_worker", "in_dask_task", "run_jobs", "worker_setup", "kill_workers"]
+__all__ = [
+    "available_cores",
+    "can_fork",
+    "in_worker",
+    "in_dask_task",
+    "run_jobs",
+    "worker_setup",
+    "worker_signals",
+    "kill_workers",
+]
 
 _in_worker = False  # set in the processes run_jobs (or a batch's local scheduler) starts
 _running = False  # set while this process runs jobs of a run_jobs call: jobs within jobs run in turn
@@ -84,8 +93,7 @@ def worker_setup(parent: int) -> None:
     """
     global _in_worker
     _in_worker = True
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops the pool on Ctrl-C
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a forked worker inherits the parent's Python handler
+    worker_signals()
     if sys.platform.startswith("linux"):
         try:
             import ctypes
@@ -95,6 +103,22 @@ def worker_setup(parent: int) -> None:
             pass
     if os.getppid() != parent:  # the parent died before the line above
         os._exit(1)
+
+
+def worker_signals() -> bool:
+    """In a worker process: ignore SIGINT (its parent stops it) and die by SIGTERM; True when set.
+
+    A forked worker inherits its parent's Python signal handlers (a batch's
+    handler raises an exception on SIGTERM), which must not run in it.
+    Only the main thread can set handlers: elsewhere nothing is done.
+    """
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return False
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    return True
 
 
 def kill_workers(pool) -> None:

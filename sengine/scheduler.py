@@ -173,6 +173,10 @@ class DaskScheduler(Scheduler):
                     silence_logs=logging.DEBUG if log.isEnabledFor(logging.DEBUG) else logging.CRITICAL,
                 )
             self._client = Client(self._cluster)
+            # forked workers inherit this process's signal handlers: give them a worker's own
+            from .parallel import worker_signals
+
+            self._client.run(worker_signals)
         else:
             try:
                 self._client = Client(address, timeout=10)

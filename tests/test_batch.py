@@ -318,16 +318,20 @@ def test_local_scheduler_forks_only_for_more_than_one_task():
 
 
 def _inside_dask(_):
-    return in_worker(), os.getpid(), run_jobs([os.getpid] * 3, 2)
+    handlers = (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM))
+    return in_worker(), os.getpid(), run_jobs([os.getpid] * 3, 2), handlers
 
 
 @pytest.mark.slow
 def test_inside_a_dask_task_sengine_never_forks():
     pytest.importorskip("distributed")
-    with make_scheduler("dask", 1, 1) as sched:
-        [(_, ok, (inside, pid, pids))] = list(sched.run(_inside_dask, [None]))
+    from sengine.batch import _signals_interrupt
+
+    with _signals_interrupt(), make_scheduler("dask", 1, 1) as sched:  # as a batch makes it
+        [(_, ok, (inside, pid, pids, handlers))] = list(sched.run(_inside_dask, [None]))
     assert ok and inside and pid != os.getpid()
     assert pids == [pid] * 3  # run_jobs ran its jobs in the task's own process
+    assert handlers == (signal.SIG_IGN, signal.SIG_DFL)  # not the batch's handlers, inherited by the fork
 
 
 def test_contact_sheet_grid_captions_and_same_bytes(tmp_path):
