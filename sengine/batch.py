@@ -17,7 +17,9 @@ and renamed to ``OUT/<id>`` when complete, with ``variant.json`` holding the
 hash of its inputs (the effective network, the map files' contents, the seed,
 the formats and sengine's version).  A rerun skips a variant whose folder
 holds the same hash, redoes missing or changed ones, and first removes the
-temporary folders a killed run left (``force=True`` redoes all).  SIGINT and
+temporary folders a killed run left (``force=True`` redoes all).  The code
+of the nodes is not hashed, nor files named by node parameters (only the
+plan's maps are read): after changing a plugin, use ``force``.  SIGINT and
 SIGTERM kill every worker, remove the partial variants, keep the finished
 ones and the table, and raise :class:`BatchInterrupted` saying how many
 finished.  Two batches cannot write into one folder at once (a lock file).

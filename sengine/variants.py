@@ -379,8 +379,9 @@ def plan_variants(
         for target, _, where in row.params:
             if target in sweep_targets or target in fixed_targets:
                 raise ConfigError(f"{target} is given by the manifest and by --set", where=where)
-    for kind in map_kinds & set(fixed_kinds):
-        raise ConfigError(f"the {kind} map is given by --maps and by --map", where="--maps")
+    both = sorted(map_kinds & set(fixed_kinds))
+    if both:
+        raise ConfigError(f"the {both[0]} map is given by --maps and by --map", where="--maps")
     variants: list[Variant] = []
     ids: dict[str, str] = {}
     for row, (stem, maps), seed, combo in itertools.product(
