@@ -14,12 +14,11 @@ import sys
 import tempfile
 import warnings
 from collections.abc import Sequence
-from functools import partial
 from pathlib import Path
 
 from . import __version__, registry
 from .errors import LimitError, OutputError, Problems, SEngineError, SEngineWarning
-from .parallel import available_cores, run_jobs
+from .parallel import available_cores
 from .plan import MapSpec
 
 log = logging.getLogger("sengine")
@@ -107,14 +106,54 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _common(p)
 
-    p = sub.add_parser("batch", help="run a config once per seed into OUT/seed-N")
+    p = sub.add_parser(
+        "batch",
+        help="one city per variant (seeds, map sets, parameter sweeps, a manifest) into OUT/<id>, resumable",
+        description="Variants multiply: --seeds x --maps stems x --set sweeps x --manifest rows. Each goes to "
+        "OUT/<variant id>/; OUT/batch.csv (and batch.parquet with pyarrow) has one row per variant and "
+        "OUT/contact.png their previews side by side. A rerun skips the variants already made with the same "
+        "inputs (--force redoes them).",
+    )
     p.add_argument("config", type=Path)
     _run_options(p)
     p.add_argument(
-        "--seeds", default="1-4", help="seeds as a list or range, e.g. 1,2,5 or 1-10 (--workers N runs N seeds at once)"
+        "--seeds", help="seeds as a list or ranges, e.g. 1,2,5 or 1-10 (default: the config's seed, or --seed)"
     )
-    p.add_argument("--map", dest="maps", action="append", default=[], metavar="KIND=PATH")
+    p.add_argument(
+        "--maps",
+        nargs="+",
+        default=[],
+        metavar="KIND=PATTERN",
+        help="image-map sets, e.g. landuse='maps/lu/*.png' height='maps/h/*.png': one variant per file stem, "
+        "the kinds' files paired by stem",
+    )
+    p.add_argument(
+        "--manifest",
+        type=Path,
+        help="CSV with one variant per row: columns id, seed, NODE.PARAM (a value) and map kinds "
+        "(a path relative to the CSV); an empty cell keeps the config's",
+    )
+    p.add_argument(
+        "--map",
+        dest="fixed_maps",
+        action="append",
+        default=[],
+        metavar="KIND=PATH",
+        help="replace the config's map of a kind in every variant",
+    )
+    p.add_argument(
+        "--scheduler",
+        default="local",
+        metavar="local|dask|tcp://HOST:PORT",
+        help="where variants run: local processes (default), a Dask LocalCluster of --workers processes, or an "
+        "existing Dask cluster (needs pip install 'sengine[dask]'; its workers must see the same paths)",
+    )
+    p.add_argument("--force", action="store_true", help="make every variant again, even those already made")
     _common(p)
+    p.epilog = (
+        "--set NODE.PARAM=v1,v2,v3 sweeps the values (one variant each); write a value holding commas with "
+        "spaces instead, or put it in a manifest."
+    )
 
     p = sub.add_parser("osm", help="one command from an OpenStreetMap file to a city")
     p.add_argument("file", type=Path, help=".osm, .osm.bz2 or .osm.pbf")
@@ -223,38 +262,90 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_batch(args: argparse.Namespace) -> int:
-    """One run per seed; with ``--workers N`` the seeds run side by side in N processes."""
+    """One city per variant, on the chosen scheduler; see :mod:`sengine.batch`."""
+    from .batch import BatchInterrupted, BatchSpec, run_batch
+    from .network import check_output_folder
+    from .variants import pair_maps, parse_seeds, parse_sweeps, plan_variants, read_manifest
+
+    if args.seeds is not None and args.seed is not None:
+        raise SEngineError("give --seeds or --seed, not both")
+    seeds_text = args.seeds if args.seeds is not None else (str(args.seed) if args.seed is not None else None)
+    seeds = parse_seeds(seeds_text) if seeds_text is not None else None
+    map_sets = pair_maps(args.maps)
+    fixed_sets, sweeps = parse_sweeps(args.sets)
+    manifest = read_manifest(args.manifest) if args.manifest is not None else None
+    plugins = tuple(str(Path(p).resolve()) if p.endswith(".py") or "/" in p else p for p in args.plugin)
+    fixed_maps = []
+    for item in args.fixed_maps:
+        kind, sep, src = item.partition("=")
+        if not sep or not kind or not src:
+            raise SEngineError(f"--map {item!r} must be KIND=PATH")
+        fixed_maps.append(f"{kind}={Path(src).resolve()}")
+    check_output_folder(args.out)  # before any work: a file, under a file, unwritable
+    spec = BatchSpec(
+        config=str(args.config.resolve()),
+        out=str(args.out.resolve()),
+        plugins=plugins,
+        fixed_maps=tuple(fixed_maps),
+        fixed_sets=tuple(fixed_sets),
+        formats=tuple(sorted(_formats(args.formats))),
+        options=tuple(sorted((k, str(v)) for k, v in _options(args).items() if v is not None)),
+    )
     from .xmlconfig import load_config
 
-    formats = _formats(args.formats)
-    seeds = _seeds(args.seeds)
-    net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin)
-    net.validate()
-    options = _options(args)
-    if args.workers > 1 and len(seeds) > 1:  # seeds side by side, each run in one process
-        jobs = [partial(_batch_run, net, seed, args.out, formats, options=options) for seed in seeds]
-        stats = run_jobs(jobs, args.workers)
-    else:
-        stats = [
-            _batch_run(net, seed, args.out, formats, _progress(args), args.workers, options=options) for seed in seeds
-        ]
-    rows = [
-        {"seed": seed, "counts": st["counts"], "areas": st["areas"], "report": st["report"]}
-        for seed, st in zip(seeds, stats)
-    ]
+    config_seed = load_config(args.config, plugins=plugins).seed
+    variants = plan_variants(
+        config_seed=config_seed,
+        seeds=seeds,
+        map_sets=map_sets,
+        sweeps=sweeps,
+        manifest=manifest,
+        fixed_maps=spec.fixed_maps,
+        fixed_sets=spec.fixed_sets,
+    )
+
+    def done(k: int, n: int, row: dict) -> None:
+        if not args.quiet:
+            counts = ", ".join(f"{c[2:]} {row[c]:,}" for c in row if c.startswith("n_") and row[c] is not None)
+            far = f", FAR {row['far']:.2f}" if row.get("far") is not None else ""
+            print(f"[{k}/{n}] {row['id']}: {counts}{far} in {row['seconds']:.1f} s", flush=True)
+
+    def failed(variant, exc: BaseException) -> None:
+        print(f"sengine: error: variant {variant.id}: {_one_line(str(exc))}", file=sys.stderr, flush=True)
+
+    if not args.debug:  # Dask's logs (its loggers set their own levels, in every worker) only with --debug
+        for handler in logging.getLogger().handlers:
+            handler.addFilter(_no_dask_info)
+    try:
+        report = run_batch(
+            spec,
+            variants,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            force=args.force,
+            on_done=done,
+            on_failed=failed,
+        )
+    except BatchInterrupted as stop:
+        print(f"sengine: {stop}", file=sys.stderr)
+        return 128 + int(stop.signum)
     if not args.quiet:
-        for row in rows:
-            print(f"seed {row['seed']}: " + ", ".join(f"{k} {v:,}" for k, v in row["counts"].items()))
-    (args.out / "batch.json").write_text(json.dumps({"config": str(args.config), "runs": rows}, indent=2) + "\n")
+        made = len(report.made)
+        already = f", {len(report.skipped)} already made" if report.skipped else ""
+        print(
+            f"{args.out}: {made} variant{'' if made == 1 else 's'} made{already} in {report.seconds:.1f} s "
+            f"({report.scheduler}); batch.csv, contact.png"
+        )
+    if report.failed:
+        ids = list(report.failed)
+        named = ", ".join(ids[:5]) + (f" and {len(ids) - 5} more" if len(ids) > 5 else "")
+        raise SEngineError(f"{len(ids)} of {len(variants)} variants failed ({named}); a rerun retries them")
     return 0
 
 
-def _batch_run(
-    net, seed: int, out: Path, formats: frozenset[str], progress=None, workers: int = 1, options=None
-) -> dict:
-    return net.run(
-        seed=seed, out=out / f"seed-{seed}", formats=formats, progress=progress, workers=workers, options=options
-    ).stats
+def _no_dask_info(record: logging.LogRecord) -> bool:
+    """Dask's records below CRITICAL: a failed variant is reported in one line, the rest is noise here."""
+    return record.levelno >= logging.CRITICAL or not record.name.startswith(("distributed", "dask"))
 
 
 def cmd_osm(args: argparse.Namespace) -> int:

@@ -656,6 +656,11 @@ def _sum_reports(reports: list[dict]) -> dict:
     return total
 
 
+def check_output_folder(out_dir: Path) -> None:
+    """Raise OutputError (one line) unless ``out_dir`` can be made and written (see :func:`_output_folder`)."""
+    shutil.rmtree(_output_folder(Path(out_dir)), ignore_errors=True)
+
+
 def _output_folder(out_dir: Path) -> Path:
     """Check that ``out_dir`` can be written and make the temporary folder beside it, before any work.
 

@@ -314,8 +314,10 @@ def load_config(
     problems: list[SEngineError] = []
     plan, file_seed = _read_plan(root.find("city"), label, base_dir, problems)
     for item in maps:
-        if isinstance(item, MapSpec):  # a map given by a command (sengine osm FILE)
-            plan.maps[item.kind] = item
+        if isinstance(item, MapSpec):  # a map given by a command (sengine osm FILE, a batch variant)
+            old = plan.maps.get(item.kind)
+            keep = not item.attrs and old is not None  # a new file for the config's map keeps its min, max ...
+            plan.maps[item.kind] = MapSpec(item.kind, item.src, dict(old.attrs), item.where) if keep else item
             continue
         kind, sep, src = item.partition("=")
         if not sep or not kind or not src:

@@ -646,9 +646,9 @@ def test_output_folder_not_writable(tmp_path, capsys):
 
 
 COMMAND_LINES = {
-    "--seeds 1-1000000000": (["batch", "{cfg}", "-o", "{out}", "--seeds", "1-1000000000"], r"1,000,000,000 runs"),
-    "--seeds 5-1": (["batch", "{cfg}", "-o", "{out}", "--seeds", "5-1"], r"is empty"),
-    "--seeds x": (["batch", "{cfg}", "-o", "{out}", "--seeds", "x"], r"must be numbers"),
+    "--seeds 1-1000000000": (["batch", "{cfg}", "-o", "{out}", "--seeds", "1-1000000000"], r"1,000,000,000 seeds"),
+    "--seeds 5-1": (["batch", "{cfg}", "-o", "{out}", "--seeds", "5-1"], r"runs backwards"),
+    "--seeds x": (["batch", "{cfg}", "-o", "{out}", "--seeds", "x"], r"is not a seed"),
     "--format fbx": (["run", "{cfg}", "-o", "{out}", "--format", "fbx"], r"unknown format 'fbx'"),
     "--format glb,shp": (["run", "{cfg}", "-o", "{out}", "--format", "glb,shp"], r"unknown format 'shp'"),
     "--map heigth": (["run", "{cfg}", "-o", "{out}", "--map", "heigth=x.png"], r"did you mean 'height'"),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 import os
 import sys
@@ -315,18 +316,17 @@ def test_graph_command(suffix, fixtures, tmp_path, cli):
 def test_batch_runs_each_seed(fixtures, tmp_path, cli):
     res = cli("batch", fixtures / "squares.xml", "-o", tmp_path / "b", "--seeds", "1-3", "--workers", "1")
     assert res.returncode == 0, res.stderr
-    batch = json.loads((tmp_path / "b" / "batch.json").read_text())
-    assert [r["seed"] for r in batch["runs"]] == [1, 2, 3]
-    assert all((tmp_path / "b" / f"seed-{s}" / "stats.json").exists() for s in (1, 2, 3))
-    for r in batch["runs"]:  # each run's node reports, side by side
-        own = json.loads((tmp_path / "b" / f"seed-{r['seed']}" / "stats.json").read_text())
-        assert r["report"] == own["report"] and r["counts"] == own["counts"]
+    with open(tmp_path / "b" / "batch.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["id"] for r in rows] == ["s1", "s2", "s3"] and [r["seed"] for r in rows] == ["1", "2", "3"]
+    for r in rows:  # each row holds its run's counts
+        own = json.loads((tmp_path / "b" / r["id"] / "stats.json").read_text())
+        assert {k: int(r[f"n_{k}"]) for k in own["counts"]} == own["counts"]
     # the same seeds two at a time in two processes: the same files
     res = cli("batch", fixtures / "squares.xml", "-o", tmp_path / "p", "--seeds", "1-3", "--workers", "2")
     assert res.returncode == 0, res.stderr
-    assert json.loads((tmp_path / "p" / "batch.json").read_text())["runs"] == batch["runs"]
     for s in (1, 2, 3):
-        a, b = (tmp_path / d / f"seed-{s}" / "write.geojson" for d in ("b", "p"))
+        a, b = (tmp_path / d / f"s{s}" / "write.geojson" for d in ("b", "p"))
         assert a.read_bytes() == b.read_bytes()
 
 

@@ -81,3 +81,23 @@ def test_without_a_process_to_spare_the_jobs_run_here(monkeypatch):
 
     monkeypatch.setattr(os, "fork", no_fork)
     assert [r for r, pid in run_jobs([_square(i) for i in range(5)], 2)] == [0, 1, 4, 9, 16]
+
+
+def test_an_interrupt_here_kills_the_workers_at_once():
+    psutil = pytest.importorskip("psutil")
+
+    def job(i):
+        def run():
+            time.sleep(0.5 if i == 0 else 60)
+            if i == 0:
+                raise KeyboardInterrupt  # Ctrl-C while this process runs its job
+            return i
+
+        return run
+
+    t = time.monotonic()
+    with pytest.raises(KeyboardInterrupt):
+        run_jobs([job(i) for i in range(4)], 3)
+    assert time.monotonic() - t < 10  # not the 60 s the workers' jobs would take
+    alive = [p for p in psutil.Process().children() if p.status() != psutil.STATUS_ZOMBIE]
+    assert alive == []
