@@ -42,6 +42,7 @@ import shapely
 from sengine import Layer, Param, Port, SENode, register
 from sengine.errors import InputDataError
 from sengine.geom.crs import from_lonlat, utm_crs
+from sengine.geom.polygons import right_of_lines
 from sengine.geom.segments import lines_from_groups
 
 from ..roads.junctions import split_at_junctions
@@ -236,6 +237,24 @@ def polygons_layer(ext: OsmExtract, kind: str, meta: dict, *, floor_height: floa
     )
 
 
+def sea_layer(ext: OsmExtract, meta: dict) -> Layer:
+    """The sea of an extract: the parts of its box on the right of the coastline ways, kind ``sea``.
+
+    The box is that of the streets and the coastline together.  A
+    coastline that is cut short inside the box closes no sea there.
+    """
+    if not ext.coastline or "crs" not in meta:
+        return Layer.empty(meta=meta, kind=object)
+    coast = shapely.transform(shapely.from_wkb(ext.coastline), from_lonlat(meta["crs"]))
+    pts = [shapely.get_coordinates(coast)]
+    if "nodes" in meta and len(meta["nodes"]):
+        pts.append(meta["nodes"])
+    xy = np.concatenate(pts)
+    sea = right_of_lines(coast, (*xy.min(axis=0), *xy.max(axis=0)))
+    small = {k: v for k, v in meta.items() if k not in ("nodes", "node_keys", "node_ids")}
+    return Layer.from_geoms(sea, meta=small, kind="sea", osm_id=-1, name="")
+
+
 @register
 class OsmRead(SENode):
     """Read the street network (and optionally water, parks, buildings) of an OpenStreetMap file.
@@ -334,10 +353,14 @@ class OsmRead(SENode):
             out[kind] = polygons_layer(
                 ext, kind, small, floor_height=self.p.floor_height, default_height=self.p.default_height
             )
+        sea = sea_layer(ext, meta)
+        if len(sea):
+            out["water"] = Layer.concat([out["water"], sea]) if len(out["water"]) else sea
         self.report = {
             "ways": len(ext.code),
             "segments": len(roads),
             "clipped_ways": ext.clipped,
+            "sea": len(sea),
             **{kind: len(out[kind]) for kind in ("water", "parks", "buildings")},
         }
         return out
