@@ -260,7 +260,7 @@ def lines_from_groups(xy: np.ndarray, group: np.ndarray) -> np.ndarray:
     return shapely.linestrings(xy, indices=group)
 
 
-def box_closure(xy, u=None, v=None, *, margin: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def box_closure(xy, u=None, v=None, *, margin: float = 0.0, box=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Edges that close a segment graph along the bounding box of its nodes.
 
     The box's four sides are cut at every node lying exactly on them (the
@@ -281,6 +281,8 @@ def box_closure(xy, u=None, v=None, *, margin: float = 0.0) -> tuple[np.ndarray,
         Grow the box by this much on every side (m): no node lies on it
         then, and the graph floats inside one face, the land round it
         (which a caller clips back to the bounding box).
+    box : (xmin, ymin, xmax, ymax), optional
+        A box to close along instead, grown to hold every node.
 
     Returns
     -------
@@ -296,6 +298,8 @@ def box_closure(xy, u=None, v=None, *, margin: float = 0.0) -> tuple[np.ndarray,
         return xy, none, none
     x0, y0 = xy.min(axis=0)
     x1, y1 = xy.max(axis=0)
+    if box is not None:
+        x0, y0, x1, y1 = min(x0, box[0]), min(y0, box[1]), max(x1, box[2]), max(y1, box[3])
     if not (x1 > x0 and y1 > y0):
         return xy, none, none
     x0, y0, x1, y1 = x0 - margin, y0 - margin, x1 + margin, y1 + margin

@@ -353,6 +353,11 @@ class OsmRead(SENode):
             out[kind] = polygons_layer(
                 ext, kind, small, floor_height=self.p.floor_height, default_height=self.p.default_height
             )
+        if len(out["buildings"]) and "nodes" in meta and len(meta["nodes"]):
+            # the data's extent: the streets and the map's buildings (a village's houses past its last street)
+            bb = shapely.total_bounds(out["buildings"].geometry)
+            lo, hi = np.minimum(meta["nodes"].min(axis=0), bb[:2]), np.maximum(meta["nodes"].max(axis=0), bb[2:])
+            out["roads"] = roads.with_meta(extent=tuple(float(c) for c in np.r_[lo, hi]))
         sea = sea_layer(ext, meta)
         if len(sea):
             out["water"] = Layer.concat([out["water"], sea]) if len(out["water"]) else sea

@@ -26,7 +26,8 @@ quite one.  This module prepares it, on whole numpy arrays:
    where the ground streets close them.  They stay rows of the roads (the
    blocks node draws their street surface).
 6. **Closing** -- with ``close="bbox"`` the graph is closed round the
-   bounding box of the streets (:func:`sengine.geom.segments.box_closure`),
+   bounding box of the streets (and of ``meta["extent"]``, the data's
+   extent an importer gives) (:func:`sengine.geom.segments.box_closure`),
    a margin beyond it: the land between the outermost streets and the edge
    of the data becomes a face too, which the blocks node clips back to the
    box (``meta["bbox"]``).  The closing edges are no streets (no row, no
@@ -354,7 +355,7 @@ def _duplicates(
     return keep, int(dup.sum() + straight.sum())
 
 
-def face_graph(nodes, u, v, row, ground, *, close: bool = False, decimals: int | None = None) -> dict:
+def face_graph(nodes, u, v, row, ground, *, close: bool = False, box=None, decimals: int | None = None) -> dict:
     """The graph the blocks are traced on: the ground-level segments, closed along the box when asked.
 
     Parameters
@@ -371,6 +372,9 @@ def face_graph(nodes, u, v, row, ground, *, close: bool = False, decimals: int |
         (:func:`sengine.geom.segments.box_closure`), with ``row`` -1: the land
         between the streets and the box is one more face, which the blocks
         node clips back to the box (``graph["bbox"]``).
+    box : (xmin, ymin, xmax, ymax), optional
+        The extent of the data (m; e.g. the map's buildings too): the box
+        closed along holds it and the nodes.
     decimals : int or None
         Number the nodes as :func:`sengine.nodes.blocks.circuits.find_blocks`'
         lines entry does after merging to this many decimals (only when that
@@ -393,18 +397,19 @@ def face_graph(nodes, u, v, row, ground, *, close: bool = False, decimals: int |
     fxy, fu, fv = nodes[used], renum[fu], renum[fv]
     closing = None
     if close and len(fu):
-        fxy, cu, cv = box_closure(fxy, fu, fv, margin=CLOSE_MARGIN)
+        fxy, cu, cv = box_closure(fxy, fu, fv, margin=CLOSE_MARGIN, box=box)
         if len(cu):
             ring = np.r_[cu, cu[:1]] if np.array_equal(np.roll(cu, -1), cv) else None
             closing = shapely.linestrings(fxy[ring]) if ring is not None else None
             if closing is None:  # a side lies along a street: the closing edges are pieces of the ring
                 closing = shapely.multilinestrings(shapely.linestrings(np.stack([fxy[cu], fxy[cv]], axis=1)))
             fu, fv, frow = np.r_[fu, cu], np.r_[fv, cv], np.r_[frow, np.full(len(cu), -1, np.int64)]
-    bbox = (
-        tuple(float(c) for c in np.r_[nodes[used].min(axis=0), nodes[used].max(axis=0)])
-        if closing is not None
-        else None
-    )
+    bbox = None
+    if closing is not None:
+        lo, hi = nodes[used].min(axis=0), nodes[used].max(axis=0)
+        if box is not None:
+            lo, hi = np.minimum(lo, box[:2]), np.maximum(hi, box[2:])
+        bbox = tuple(float(c) for c in np.r_[lo, hi])
     graph = {"xy": fxy, "u": fu, "v": fv, "row": frow, "decimals": None, "closing": closing, "bbox": bbox}
     if decimals is not None and len(fxy):
         mxy, inv = merge_points(fxy, decimals)
@@ -510,6 +515,7 @@ class RoadsClean(SENode):
             row,
             ground,
             close=self.p.close == "bbox",
+            box=roads.meta.get("extent"),
             decimals=BlocksCircuits.params["decimals"].default,
         )
         closing, bbox = graph.pop("closing"), graph.pop("bbox")
