@@ -178,12 +178,15 @@ def strtree_query(tree, geoms, *, threads: int | None = None) -> tuple[np.ndarra
     return out[0], out[1]
 
 
-def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = None):
+def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = None, rounded=None):
     """Offset polygons inwards by ``distance`` (m, scalar or per polygon).
 
     A mitred negative buffer: straight sides move parallel to themselves
     and corners stay sharp (up to ``mitre_limit``).  Parts thinner than
     ``2 * distance`` vanish; the result may be empty or a MultiPolygon.
+    Polygons flagged in ``rounded`` (bool per polygon) get round joins
+    instead (4 segments a quarter circle): the robust choice for rings
+    with zero-width spurs (:func:`sengine.geom.planar.spur_polygons`).
 
     GEOS buffers without holding Python's lock, so an array of at least
     :data:`PARALLEL_MIN` polygons is dealt out over ``threads`` threads
@@ -192,6 +195,12 @@ def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = No
     """
     polys = np.asarray(polys, dtype=object)
     dist = -np.broadcast_to(np.asarray(distance, np.float64), polys.shape)
+    if rounded is not None and np.any(rounded):
+        rounded = np.asarray(rounded, bool)
+        out = np.empty(len(polys), dtype=object)
+        out[~rounded] = inset(polys[~rounded], -dist[~rounded], mitre_limit=mitre_limit, threads=threads)
+        out[rounded] = threaded(shapely.buffer, polys[rounded], dist[rounded], threads=threads, quad_segs=4)
+        return out
     n = min(_cpus(), 4) if threads is None else int(threads)
     if n <= 1 or polys.ndim != 1 or len(polys) < PARALLEL_MIN:
         return shapely.buffer(polys, dist, join_style="mitre", mitre_limit=mitre_limit)

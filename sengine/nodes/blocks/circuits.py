@@ -251,7 +251,7 @@ def segment_widths(bf: BlockFaces, widths) -> np.ndarray:
     return np.where(bf.src >= 0, widths[np.maximum(bf.src, 0)], 0.0)
 
 
-def shrink_faces(faces, half_width, sidewalk: float, *, shape=None):
+def shrink_faces(faces, half_width, sidewalk: float, *, shape=None, rounded=None):
     """Street, sidewalk and block polygons of each face (§5.4, last paragraph).
 
     Parameters
@@ -266,6 +266,9 @@ def shrink_faces(faces, half_width, sidewalk: float, *, shape=None):
         What is inset, per face: the face, or the face with the dead ends
         inside it as spurs of its rings (:func:`sengine.geom.planar.spur_polygons`),
         which the insets then keep clear of too (default: the faces).
+    rounded : array_like of bool, optional
+        Faces inset with round joins (those given with spurs: see
+        :func:`sengine.geom.polygons.inset`); the others are mitred.
 
     Returns
     -------
@@ -277,20 +280,23 @@ def shrink_faces(faces, half_width, sidewalk: float, *, shape=None):
     faces = np.asarray(faces, dtype=object)
     shape = faces if shape is None else np.asarray(shape, dtype=object)
     hw = np.asarray(half_width, np.float64)
-    edge = inset(shape, hw)
+    edge = inset(shape, hw, rounded=rounded)
     if sidewalk <= 0:
         return _ring_between(faces, edge, gap=hw > 0), _ring_between(edge, edge, gap=np.zeros(len(faces), bool)), edge
     # a face with nothing left inside its street surface has no block either: no second inset for it
     block = edge.copy()
     live = np.flatnonzero(~shapely.is_empty(edge))
     with ThreadPoolExecutor(1) as pool:  # the second inset (GEOS threads) while this thread makes the streets
-        blocks = pool.submit(inset, shape[live], hw[live] + sidewalk)
+        rl = None if rounded is None else np.asarray(rounded, bool)[live]
+        blocks = pool.submit(inset, shape[live], hw[live] + sidewalk, rounded=rl)
         street = _ring_between(faces, edge, gap=hw > 0)
         block[live] = blocks.result()
     return street, _ring_between(edge, block, gap=np.ones(len(faces), bool)), block
 
 
-def inset_by_street(faces, bf: BlockFaces, face_ids, segment_distance, *, shape=None, inner=None) -> np.ndarray:
+def inset_by_street(
+    faces, bf: BlockFaces, face_ids, segment_distance, *, shape=None, inner=None, rounded=None
+) -> np.ndarray:
     """Each face shrunk street by street: every side by its own street's distance.
 
     Parameters
@@ -310,6 +316,8 @@ def inset_by_street(faces, bf: BlockFaces, face_ids, segment_distance, *, shape=
         Segments of ``bf`` inside the faces (dead ends) and the face (index
         into ``faces``) of each: the ground within their distance is taken
         off too, where it is farther than the face's nearest side.
+    rounded : array_like of bool, optional
+        Faces inset with round joins (see :func:`shrink_faces`).
 
     Returns
     -------
@@ -334,7 +342,7 @@ def inset_by_street(faces, bf: BlockFaces, face_ids, segment_distance, *, shape=
     seg, owner, dist = seg[known], owner[known], dist[known]
     nearest = np.full(len(faces), np.inf)
     np.minimum.at(nearest, owner, dist)
-    out = inset(shape, np.where(np.isfinite(nearest), np.maximum(nearest, 0.0), 0.0))
+    out = inset(shape, np.where(np.isfinite(nearest), np.maximum(nearest, 0.0), 0.0), rounded=rounded)
     if inner is not None and len(inner[0]):
         iseg, iown = (np.asarray(a, np.int64) for a in inner)
         seg, owner = np.r_[seg, iseg], np.r_[owner, iown]
@@ -360,22 +368,32 @@ def inset_by_street(faces, bf: BlockFaces, face_ids, segment_distance, *, shape=
 
 
 def shrink_faces_by_street(
-    faces, bf: BlockFaces, face_ids, segment_half_width, sidewalk: float, *, bare=None, shape=None, inner=None
+    faces,
+    bf: BlockFaces,
+    face_ids,
+    segment_half_width,
+    sidewalk: float,
+    *,
+    bare=None,
+    shape=None,
+    inner=None,
+    rounded=None,
 ):
     """:func:`shrink_faces` with each side moved by its own street's half-width (and the sidewalk).
 
     ``bare`` marks the segments of ``bf`` that are no streets (closing
     edges): they have no width of their own, and move by the face's
     nearest street's (the closing edges run beyond the box the caller clips to).
-    ``shape`` and ``inner`` are the dead ends inside the faces, as
-    :func:`inset_by_street` takes them.
+    ``shape``, ``inner`` and ``rounded`` are the dead ends inside the faces,
+    as :func:`inset_by_street` takes them.
     """
     faces = np.asarray(faces, dtype=object)
     hw = np.asarray(segment_half_width, np.float64)
     bare = np.zeros(len(hw), bool) if bare is None else np.asarray(bare, bool)
     hw = np.where(bare, np.nan, hw)
-    edge = inset_by_street(faces, bf, face_ids, hw, shape=shape, inner=inner)
-    block = inset_by_street(faces, bf, face_ids, hw + sidewalk, shape=shape, inner=inner) if sidewalk > 0 else edge
+    kw = {"shape": shape, "inner": inner, "rounded": rounded}
+    edge = inset_by_street(faces, bf, face_ids, hw, **kw)
+    block = inset_by_street(faces, bf, face_ids, hw + sidewalk, **kw) if sidewalk > 0 else edge
     # an inset keeps clear of the face's rings where every street around it has a width
     narrow = np.zeros(len(bf.faces), bool)
     for side in bf.edge_faces.T:
@@ -574,7 +592,8 @@ def shrink_city(faces, fid, hw, bf: BlockFaces, width, sidewalk: float, *, by_st
     -----
     A dead end hanging from a face's ring is a spur of it
     (:func:`sengine.geom.planar.spur_polygons`): the face's insets keep
-    clear of it in the same buffer, so it costs nothing more.  In a face
+    clear of it in the same buffer (with round joins, which GEOS offsets
+    robustly round a spur's tip), so it costs little more.  In a face
     shrunk by its mean half-width the spur takes that width too.  A face
     pinched at a vertex into several lobes is shrunk as its whole walk and
     the pieces are handed to the lobes.  Trees floating inside a face are
@@ -583,6 +602,7 @@ def shrink_city(faces, fid, hw, bf: BlockFaces, width, sidewalk: float, *, by_st
     k = len(faces)
     counts = {"dead_ends_cut": 0}
     shape = faces.copy()
+    spiky = np.zeros(k, bool)  # shaped with spurs: inset with round joins
     pinched = np.zeros(0, np.int64)
     slot = np.full(len(bf.faces), -1, np.int64)
     slot[fid] = np.arange(k)
@@ -615,13 +635,14 @@ def shrink_city(faces, fid, hw, bf: BlockFaces, width, sidewalk: float, *, by_st
         plain = np.ones(len(sid), bool)
         plain[pinched] = False
         shape[at[plain & (at >= 0)]] = spoly[plain & (at >= 0)]
+        spiky[at[plain & (at >= 0)]] = True
         shape[lobe_slot[lobe_slot >= 0]] = shapely.Polygon()
     street = np.empty(k, dtype=object)
     walk, block = street.copy(), street.copy()
     seg_hw = segment_widths(bf, width) / 2.0
     m = ~by_street
     if m.any():
-        street[m], walk[m], block[m] = shrink_faces(faces[m], hw[m], sidewalk, shape=shape[m])
+        street[m], walk[m], block[m] = shrink_faces(faces[m], hw[m], sidewalk, shape=shape[m], rounded=spiky[m])
     if by_street.any():
         pos = np.cumsum(by_street) - 1
         own = spurred & by_street[np.maximum(inside, 0)]
@@ -634,6 +655,7 @@ def shrink_city(faces, fid, hw, bf: BlockFaces, width, sidewalk: float, *, by_st
             bare=bare,
             shape=shape[by_street],
             inner=(seg[own], pos[inside[own]]),
+            rounded=spiky[by_street],
         )
     if len(pinched):
         lobe_slot = slot[lobes[:, 1]]
@@ -648,8 +670,8 @@ def shrink_city(faces, fid, hw, bf: BlockFaces, width, sidewalk: float, *, by_st
         edge_g = np.empty(len(grp), dtype=object)
         block_g = edge_g.copy()
         if (~bys).any():
-            edge_g[~bys] = inset(gshape[~bys], hw[gslot[~bys]])
-            block_g[~bys] = inset(gshape[~bys], hw[gslot[~bys]] + sidewalk)
+            edge_g[~bys] = inset(gshape[~bys], hw[gslot[~bys]], rounded=np.ones((~bys).sum(), bool))
+            block_g[~bys] = inset(gshape[~bys], hw[gslot[~bys]] + sidewalk, rounded=np.ones((~bys).sum(), bool))
         if bys.any():
             sl = gslot[bys]
             own = spurred & np.isin(inside, sl)
@@ -658,8 +680,9 @@ def shrink_city(faces, fid, hw, bf: BlockFaces, width, sidewalk: float, *, by_st
             d1 = np.where(bare, np.nan, seg_hw)
             d2 = d1 + sidewalk
             args = (faces[sl], bf, fid[sl])
-            edge_g[bys] = inset_by_street(*args, d1, shape=gshape[bys], inner=(seg[own], ipos))
-            block_g[bys] = inset_by_street(*args, d2, shape=gshape[bys], inner=(seg[own], ipos))
+            kw = {"shape": gshape[bys], "inner": (seg[own], ipos), "rounded": np.ones(bys.sum(), bool)}
+            edge_g[bys] = inset_by_street(*args, d1, **kw)
+            block_g[bys] = inset_by_street(*args, d2, **kw)
         ledge = _split_by_lobes(edge_g, lgroup, faces[lslot], lgroup)
         lblock = _split_by_lobes(block_g, lgroup, faces[lslot], lgroup)
         street[lslot] = _ring_between(faces[lslot], ledge, gap=~by_street[lslot] & (hw[lslot] > 0))
