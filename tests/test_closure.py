@@ -218,7 +218,7 @@ def test_lots_front_onto_a_cul_de_sac():
     assert {-1.0, 1.0} <= set(sides.tolist())
     # the street surface of the cul-de-sac is drawn with its block's street ring
     streets = shapely.union_all(out["streets"].geometry)
-    assert shapely.covers(shapely.buffer(streets, 1e-6), shapely.buffer(culdesac, 4.5, cap_style="flat"))
+    assert shapely.covers(shapely.buffer(streets, 1e-6), shapely.buffer(culdesac, 4.0, cap_style="flat"))
 
 
 def test_a_village_of_dead_ends_gets_blocks_and_lots():

@@ -185,7 +185,7 @@ def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = No
     and corners stay sharp (up to ``mitre_limit``).  Parts thinner than
     ``2 * distance`` vanish; the result may be empty or a MultiPolygon.
     Polygons flagged in ``rounded`` (bool per polygon) get round joins
-    instead (4 segments a quarter circle): the robust choice for rings
+    instead (2 segments a quarter circle): the robust choice for rings
     with zero-width spurs (:func:`sengine.geom.planar.spur_polygons`).
 
     GEOS buffers without holding Python's lock, so an array of at least
@@ -199,7 +199,7 @@ def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = No
         rounded = np.asarray(rounded, bool)
         out = np.empty(len(polys), dtype=object)
         out[~rounded] = inset(polys[~rounded], -dist[~rounded], mitre_limit=mitre_limit, threads=threads)
-        out[rounded] = threaded(shapely.buffer, polys[rounded], dist[rounded], threads=threads, quad_segs=4)
+        out[rounded] = threaded(shapely.buffer, polys[rounded], dist[rounded], threads=threads, quad_segs=2)
         return out
     n = min(_cpus(), 4) if threads is None else int(threads)
     if n <= 1 or polys.ndim != 1 or len(polys) < PARALLEL_MIN:

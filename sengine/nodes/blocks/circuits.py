@@ -63,6 +63,8 @@ __all__ = [
     "segment_widths",
     "inner_segments",
     "cut_inner_streets",
+    "clip_to_box",
+    "shrink_city",
     "street_graph",
     "BlocksCircuits",
 ]
@@ -286,9 +288,11 @@ def shrink_faces(faces, half_width, sidewalk: float, *, shape=None, rounded=None
     # a face with nothing left inside its street surface has no block either: no second inset for it
     block = edge.copy()
     live = np.flatnonzero(~shapely.is_empty(edge))
+    # a face with spurs: its block is its street edge shrunk by the sidewalk (a valid polygon, a third cheaper)
+    spur = np.zeros(len(faces), bool) if rounded is None else np.asarray(rounded, bool)
+    source = np.where(spur, edge, shape)[live]
     with ThreadPoolExecutor(1) as pool:  # the second inset (GEOS threads) while this thread makes the streets
-        rl = None if rounded is None else np.asarray(rounded, bool)[live]
-        blocks = pool.submit(inset, shape[live], hw[live] + sidewalk, rounded=rl)
+        blocks = pool.submit(inset, source, np.where(spur, sidewalk, hw + sidewalk)[live])
         street = _ring_between(faces, edge, gap=hw > 0)
         block[live] = blocks.result()
     return street, _ring_between(edge, block, gap=np.ones(len(faces), bool)), block
@@ -522,6 +526,15 @@ def _ring_between(outer, inner, gap=None):
     rest = ~direct & ~same
     if rest.any():
         out[rest] = threaded(shapely.difference, outer[rest], inner[rest], min_size=64)  # big, holed faces
+    return out
+
+
+def clip_to_box(geoms, box) -> np.ndarray:
+    """Polygons clipped to a box (GEOS's rectangle clip; a proper intersection where that comes out invalid)."""
+    out = shapely.clip_by_rect(np.asarray(geoms, dtype=object), *box)
+    bad = ~shapely.is_valid(out)
+    if bad.any():
+        out[bad] = shapely.intersection(np.asarray(geoms, dtype=object)[bad], shapely.box(*box))
     return out
 
 
@@ -835,9 +848,8 @@ class BlocksCircuits(SENode):
         report.update(counts)
         box = roads.meta.get("bbox")
         if box is not None and closed.any():  # the land round the streets, clipped back to their box
-            rect = shapely.box(*box)
             for arr in (faces, street, walk, block):
-                arr[closed] = shapely.intersection(arr[closed], rect)
+                arr[closed] = clip_to_box(arr[closed], box)
         # bridges and tunnels: over or under the blocks, closing none
         off = keep & ~ground
         tunnel = np.asarray(roads["tunnel"], bool) if "tunnel" in roads else np.zeros(n, bool)
