@@ -20,6 +20,22 @@ When the roads come from ``roads.clean``, which traces these faces on
 its plane segment graph anyway, the node takes them over from
 ``meta["graph"]`` (:func:`traced_faces`: same faces, same order).
 
+On a real map three more things hold (issue 11):
+
+* Only the ground level closes blocks (:func:`ground_level`): a bridge, a
+  tunnel or a way on another ``layer`` crosses the streets without a
+  junction, so the faces are traced without it and close on both sides of
+  it.  A bridge still gets its street surface (kind ``bridge``) and, with
+  ``bridges="cut"``, keeps the ground under its deck out of the block.
+* A cul-de-sac is a street inside its face: with ``dead_ends="cut"`` it is
+  a spur of the face's ring (:func:`sengine.geom.planar.spur_polygons`), so
+  that the street and sidewalk insets keep clear of it in the same buffer
+  and the lots front onto it.
+* Edges closing the graph round the data's box (``roads.clean``'s
+  ``close="bbox"``; ``src`` -1 here) are no streets: the land they close is
+  shrunk from its streets only and clipped back to the box
+  (``meta["bbox"]``), with no street or sidewalk along it.
+
 Blocks are then shrunk for the streets and sidewalks (§5.4, last
 paragraph): each face is inset by the length-weighted mean half-width of
 the streets around it, giving the street surface, and by the sidewalk

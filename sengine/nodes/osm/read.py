@@ -23,7 +23,10 @@ its end points into ``meta["nodes"]`` (planar xy) and ``meta["node_keys"]``.
 Water (``natural=water``, ``waterway=riverbank``, ``landuse=reservoir``),
 parks (``leisure=park``/``garden``) and buildings (with ``height`` /
 ``building:levels``) of the same file are optional extra layers, assembled
-by pyosmium in the same pass.
+by pyosmium in the same pass.  With the water comes the sea: the parts of
+the data's box on the right of the ``natural=coastline`` ways (kind
+``sea``).  The roads' ``meta["extent"]`` is the box of the streets and the
+map's buildings, along which ``roads.clean`` can close the street graph.
 
 References
 ----------
