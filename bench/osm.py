@@ -13,8 +13,10 @@ two ways, each in a fresh process so that peak memory is its own:
   graph when clean handed no faces on).
 * ``library``: what one writes with the libraries alone -- pyosmium with
   node locations (a Python list of coordinates per way), one pyproj call,
-  ``shapely.node`` and ``shapely.polygonize`` -- with the same class filter
-  and the same area threshold.
+  ``shapely.node`` and ``shapely.polygonize`` -- with the same class filter,
+  the same ground level (no bridge, tunnel or other layer), the same
+  closing edges (the streets' bounding box, when the load-map network
+  closes along it) and the same area threshold.
 
 Both give faces between street centre lines; they must agree within 1 % in
 count and in area.  Each route imports its libraries (pyosmium, pyproj,
@@ -72,12 +74,13 @@ def route_sengine(path: str) -> dict:
     from sengine.registry import get
 
     get("osm.read"), get("roads.clean"), get("blocks.circuits")  # load the node library before timing
+    params = _loadmap_params()
     base = _peak_mb()
     c0, t0 = _cpu(), time.perf_counter()
     read = get("osm.read")("majorRoads", {"path": path, "extras": ""}, Context())
     roads = read.run()["roads"]
     t1 = time.perf_counter()
-    clean = get("roads.clean")("clean", {}, Context())
+    clean = get("roads.clean")("clean", params["clean"], Context())
     cleaned = clean.run(roads=roads)["roads"]
     t2 = time.perf_counter()
     # the circuits alone (what polygonize gives): roads.clean traced them on its plane segment graph
@@ -90,10 +93,13 @@ def route_sengine(path: str) -> dict:
     circuits = bf.faces[shapely.area(bf.faces) >= MIN_AREA]
     c3, t3 = _cpu(), time.perf_counter()
     del bf
-    blocks = get("blocks.circuits")("blocks", {"node": "false", "min_area": str(MIN_AREA)}, Context())
+    blocks = get("blocks.circuits")("blocks", {**params["blocks"], "min_area": str(MIN_AREA)}, Context())
     out = blocks.run(roads=cleaned)
     c4, t4 = _cpu(), time.perf_counter()
     faces = out["faces"].geometry
+    box = cleaned.meta.get("bbox")
+    if box is not None:  # the land round the streets, as the library route closes it: within the box
+        faces = shapely.intersection(faces, shapely.box(*box))
     return {
         "seconds": (t2 - t0) + (t4 - t3),
         "cpu_seconds": c4 - c0,
@@ -119,6 +125,15 @@ def route_sengine(path: str) -> dict:
     }
 
 
+def _loadmap_params() -> dict:
+    """The parameters ``sengine/nodes/networks/loadmap.xml`` gives the clean and blocks nodes."""
+    from sengine.nodes.standard import NETWORKS_DIR
+    from sengine.xmlconfig import read_network_file
+
+    specs = read_network_file(NETWORKS_DIR / "loadmap.xml").specs
+    return {k: dict(specs[k].params) for k in ("clean", "blocks")}
+
+
 def _classes() -> frozenset[str]:
 
     import sengine.nodes.osm.read as osm
@@ -133,15 +148,20 @@ def route_library(path: str) -> dict:
     import shapely
 
     keep = _classes()
+    close = _loadmap_params()["clean"].get("close") == "bbox"
     base = _peak_mb()
     c0, t0 = _cpu(), time.perf_counter()
     lines: list = []
-    tunnel = ("yes", "building_passage", "culvert")
+    off = ("yes", "building_passage", "culvert")
 
     class Ways(osmium.SimpleHandler):
         def way(self, w):
             hw = w.tags.get("highway")
-            if hw not in keep or w.tags.get("tunnel") in tunnel:
+            if hw not in keep:
+                return
+            # the ground level: no tunnel, no bridge, no other layer (as the loadmap network traces it)
+            t = w.tags
+            if t.get("tunnel") in off or t.get("bridge", "no") != "no" or t.get("layer", "0") not in ("0", ""):
                 return
             pts = [(n.lon, n.lat) for n in w.nodes if n.location.valid()]
             if len(pts) >= 2:
@@ -156,6 +176,8 @@ def route_library(path: str) -> dict:
     tr = pyproj.Transformer.from_crs(4326, epsg, always_xy=True)
     x, y = tr.transform(lonlat[:, 0], lonlat[:, 1])
     geoms = shapely.linestrings(np.column_stack([x, y]), indices=np.repeat(np.arange(len(n)), n))
+    if close:  # closed along the streets' bounding box
+        geoms = np.r_[geoms, [shapely.boundary(shapely.box(*shapely.total_bounds(geoms)))]]
     t1 = time.perf_counter()
     noded = shapely.node(shapely.multilinestrings(geoms))
     t2 = time.perf_counter()

@@ -130,16 +130,26 @@ def test_node_shrinks_blocks_and_partitions_faces():
     out = node.run(roads=_roads(lines, 10.0))
     blocks, streets, walks, faces = out["blocks"], out["streets"], out["sidewalks"], out["faces"]
     assert len(faces) == 9 and len(blocks) == 9
-    assert np.allclose(shapely.area(blocks.geometry), (100 - 2 * 8) ** 2)
+    # the cul-de-sac is cut out of its block: its street (5 m round it, 2 segments a quarter circle), then
+    # the sidewalk (3 m more, mitred), from the block's edge to round its tip
+    cut = shapely.buffer(shapely.buffer(lines[-1], 5.0, quad_segs=2), 3.0, join_style="mitre", mitre_limit=3.0)
+    want = np.full(9, (100 - 2 * 8) ** 2.0)
+    want[0] = shapely.difference(shapely.box(8, 8, 92, 92), cut).area
+    assert np.allclose(shapely.area(blocks.geometry), want)
     assert set(walks["kind"]) == {"sidewalk"} and set(streets["kind"]) == {"street"}
-    # street ring + sidewalk ring + block = face, for every face
-    face_streets = streets.geometry[:9]
+    # street ring (with the cul-de-sac's surface) + sidewalk ring + block = face, for every face
     assert np.allclose(
-        shapely.area(face_streets) + shapely.area(walks.geometry) + shapely.area(blocks.geometry),
+        shapely.area(streets.geometry) + shapely.area(walks.geometry) + shapely.area(blocks.geometry),
         shapely.area(faces.geometry),
     )
-    assert node.report["bridges"] == 1 and len(streets) == 10
+    assert node.report["bridges"] == 1 and node.report["dead_ends_cut"] == 1 and len(streets) == 9
     assert shapely.within(blocks.geometry, faces.geometry[blocks["face"]]).all()
+    assert shapely.distance(blocks.geometry, lines[-1]).min() >= 5.0 * np.cos(np.pi / 8) + 3.0 - 1e-6  # chords
+    # laid over the block instead: the block whole, the cul-de-sac a street polygon of its own
+    over = get("blocks.circuits")("blocks", {"sidewalk": 3.0, "min_area": 1.0, "dead_ends": "over"})
+    out = over.run(roads=_roads(lines, 10.0))
+    assert np.allclose(shapely.area(out["blocks"].geometry), (100 - 2 * 8) ** 2)
+    assert len(out["streets"]) == 10 and over.report["dead_ends_cut"] == 0
 
 
 def test_street_inset_moves_each_side_by_its_own_street():

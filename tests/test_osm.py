@@ -264,16 +264,14 @@ def _sengine_faces(roads):
 
 
 def _library_faces(roads):
-    """shapely.node + shapely.polygonize of the same segments, each level noded on its own.
+    """shapely.node + shapely.polygonize of the ground-level segments.
 
-    Tunnels are left out (they pass under blocks) and every bridge is a level
-    of its own, which is what 'ways on different levels do not meet' means.
+    Tunnels pass under the blocks, bridges and ways on other layers over
+    them: none of them closes a block, so only the ground level is traced.
     """
-    keep = ~roads["tunnel"]
+    keep = ~roads["tunnel"] & ~roads["bridge"] & (roads["layer"] == 0)
     g = roads.geometry[keep]
-    level = np.where(roads["bridge"][keep], 10_000 + np.arange(keep.sum()), roads["layer"][keep])
-    parts = [shapely.get_parts(shapely.node(shapely.multilinestrings(g[level == lv]))) for lv in np.unique(level)]
-    polys = shapely.get_parts(shapely.polygonize(np.concatenate(parts)))
+    polys = shapely.get_parts(shapely.polygonize(shapely.get_parts(shapely.node(shapely.multilinestrings(g)))))
     return polys[shapely.area(polys) >= MIN_AREA]
 
 
@@ -315,7 +313,9 @@ def test_helsinki_config_runs_the_loadmap_network(tmp_path):
     counts = result.stats["counts"]
     assert counts["majorRoads"] > 800 and counts["blocks"] > 40 and counts["buildings"] > counts["blocks"]
     rep = result.stats["report"]["clean"]
-    assert rep["dead_ends_removed"] > 50 and rep["tunnels_dropped"] > 0
+    # cul-de-sacs are streets: kept (and cut out of their blocks), none removed
+    assert rep["dead_ends_kept"] > 50 and rep["dead_ends_removed"] == 0 and rep["tunnels_dropped"] > 0
+    assert result.stats["report"]["blocks"]["dead_ends_cut"] == rep["dead_ends_kept"]
     assert (tmp_path / "out" / "blocks.geojson").exists()
 
 

@@ -17,6 +17,8 @@ Public API
     :func:`containing` -- the polygon each point lies in.
     :func:`shared_areas` -- the pairs of geometries that overlap, and by how much.
     :func:`largest_share` -- the polygon holding the largest part of each geometry.
+    :func:`subtract_buffers` -- polygons minus the buffers of lines assigned to them.
+    :func:`right_of_lines` -- the parts of a box on the right of directed lines.
 """
 
 from __future__ import annotations
@@ -37,6 +39,8 @@ __all__ = [
     "containing",
     "shared_areas",
     "largest_share",
+    "subtract_buffers",
+    "right_of_lines",
 ]
 
 log = logging.getLogger(__name__)
@@ -177,12 +181,15 @@ def strtree_query(tree, geoms, *, threads: int | None = None) -> tuple[np.ndarra
     return out[0], out[1]
 
 
-def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = None):
+def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = None, rounded=None):
     """Offset polygons inwards by ``distance`` (m, scalar or per polygon).
 
     A mitred negative buffer: straight sides move parallel to themselves
     and corners stay sharp (up to ``mitre_limit``).  Parts thinner than
     ``2 * distance`` vanish; the result may be empty or a MultiPolygon.
+    Polygons flagged in ``rounded`` (bool per polygon) get round joins
+    instead (2 segments a quarter circle): the robust choice for rings
+    with zero-width spurs (:func:`sengine.geom.planar.spur_polygons`).
 
     GEOS buffers without holding Python's lock, so an array of at least
     :data:`PARALLEL_MIN` polygons is dealt out over ``threads`` threads
@@ -191,6 +198,12 @@ def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = No
     """
     polys = np.asarray(polys, dtype=object)
     dist = -np.broadcast_to(np.asarray(distance, np.float64), polys.shape)
+    if rounded is not None and np.any(rounded):
+        rounded = np.asarray(rounded, bool)
+        out = np.empty(len(polys), dtype=object)
+        out[~rounded] = inset(polys[~rounded], -dist[~rounded], mitre_limit=mitre_limit, threads=threads)
+        out[rounded] = threaded(shapely.buffer, polys[rounded], dist[rounded], threads=threads, quad_segs=2)
+        return out
     n = min(_cpus(), 4) if threads is None else int(threads)
     if n <= 1 or polys.ndim != 1 or len(polys) < PARALLEL_MIN:
         return shapely.buffer(polys, dist, join_style="mitre", mitre_limit=mitre_limit)
@@ -285,3 +298,100 @@ def largest_share(geoms, polys) -> np.ndarray:
     first &= area > 0
     out[gi[first]] = pi[first]
     return out
+
+
+def subtract_buffers(polys, lines, owner, distance, *, cap_style: str = "round", quad_segs: int = 4) -> np.ndarray:
+    """Each polygon minus the ground within ``distance`` of the lines given to it.
+
+    Parameters
+    ----------
+    polys : array_like of shapely.Geometry (k,)
+        Polygons (m); empty ones stay empty.
+    lines : array_like of shapely.LineString (n,)
+        Lines (m), each subtracted from one polygon.
+    owner : array_like of int (n,)
+        Index into ``polys`` of each line's polygon.
+    distance : float or array_like of float (n,)
+        Buffer distance of each line (m); lines at 0 or less take nothing.
+    cap_style : {"round", "flat", "square"}
+        End caps of the buffers.
+    quad_segs : int
+        Segments per quarter circle of the round joins and caps.
+
+    Returns
+    -------
+    ndarray of shapely.Geometry (k,)
+        The differences (possibly empty or MultiPolygons); polygons no line
+        is given to are returned as they are.
+
+    Notes
+    -----
+    The lines of one polygon at one distance (to the mm) are merged
+    (``shapely.line_merge``: one buffer of a few long lines costs much less
+    than one per segment) and buffered together; a polygon's few distances
+    are subtracted in rounds, one vectorized difference per round.
+    """
+    out = np.asarray(polys, dtype=object).copy()
+    lines = np.asarray(lines, dtype=object)
+    owner = np.asarray(owner, np.int64)
+    dist = np.broadcast_to(np.asarray(distance, np.float64), owner.shape)
+    live = dist > 0
+    if not live.any():
+        return out
+    lines, owner, dist = lines[live], owner[live], dist[live]
+    groups, group = np.unique(np.column_stack([owner, np.round(dist, 3)]), axis=0, return_inverse=True)
+    group = group.ravel()
+    reach = np.zeros(len(groups))
+    np.maximum.at(reach, group, dist)
+    o = np.argsort(group, kind="stable")
+    merged = shapely.line_merge(shapely.multilinestrings(lines[o], indices=group[o]))
+    cuts = threaded(shapely.buffer, merged, reach, min_size=64, quad_segs=quad_segs, cap_style=cap_style)
+    gpoly = groups[:, 0].astype(np.int64)
+    rank = np.arange(len(gpoly)) - np.searchsorted(gpoly, gpoly)  # groups come sorted by polygon
+    for k in range(int(rank.max()) + 1):
+        sel = rank == k
+        out[gpoly[sel]] = threaded(shapely.difference, out[gpoly[sel]], cuts[sel], min_size=64)
+    return out
+
+
+def right_of_lines(lines, box) -> np.ndarray:
+    """The parts of a box that lie on the right of directed lines.
+
+    The lines and the box's boundary are noded and polygonized; each part
+    votes by probes a millimetre either side of every segment of the lines
+    on its boundary, and the parts most probes find on the right are
+    returned (an OpenStreetMap coastline has the sea on its right).  Lines
+    that end inside the box close nothing: where they do not cut it, no
+    part is on their right.
+
+    Parameters
+    ----------
+    lines : array_like of shapely.LineString
+        Directed lines (m).
+    box : (xmin, ymin, xmax, ymax)
+        The box (m).
+
+    Returns
+    -------
+    ndarray of shapely.Polygon
+    """
+    lines = np.asarray(lines, dtype=object)
+    if not len(lines):
+        return np.empty(0, dtype=object)
+    rect = shapely.box(*box)
+    noded = shapely.node(shapely.union_all(np.r_[shapely.intersection(lines, rect), [shapely.boundary(rect)]]))
+    parts = shapely.get_parts(shapely.polygonize(shapely.get_parts(noded)))
+    if not len(parts):
+        return parts
+    xy, idx = shapely.get_coordinates(lines, return_index=True)
+    seg = np.flatnonzero(idx[1:] == idx[:-1])
+    d = xy[seg + 1] - xy[seg]
+    ln = np.hypot(*d.T)
+    seg, d, ln = seg[ln > 0], d[ln > 0], ln[ln > 0]
+    mid = (xy[seg] + xy[seg + 1]) / 2.0
+    right = np.stack([d[:, 1], -d[:, 0]], axis=1) / ln[:, None] * 1e-3
+    votes = np.zeros(len(parts))
+    for side, sign in ((right, 1.0), (-right, -1.0)):
+        host = containing(shapely.points(mid + side), parts)
+        np.add.at(votes, host[host >= 0], sign)
+    return parts[votes > 0]

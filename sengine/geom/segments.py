@@ -13,6 +13,7 @@ Public API
 :func:`planarize` -- split crossing segments of a ``(xy, u, v)`` graph.
 :func:`argsort_int` -- stable argsort of integer keys by radix passes.
 :func:`lines_from_groups` -- LineStrings from points grouped by line.
+:func:`box_closure` -- the edges that close a graph along its bounding box.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import logging
 import numpy as np
 import shapely
 
-__all__ = ["argsort_int", "merge_points", "segments_from_lines", "planarize", "lines_from_groups"]
+__all__ = ["argsort_int", "merge_points", "segments_from_lines", "planarize", "lines_from_groups", "box_closure"]
 
 log = logging.getLogger(__name__)
 
@@ -257,3 +258,72 @@ def lines_from_groups(xy: np.ndarray, group: np.ndarray) -> np.ndarray:
     ):
         return shapely.linestrings(xy.reshape(-1, 2, 2))
     return shapely.linestrings(xy, indices=group)
+
+
+def box_closure(xy, u=None, v=None, *, margin: float = 0.0, box=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Edges that close a segment graph along the bounding box of its nodes.
+
+    The box's four sides are cut at every node lying exactly on them (the
+    box is made from the same coordinates, so the nodes that make it lie on
+    it bit for bit), so that the graph plus these edges stays plane: no
+    straight segment of the graph can cross the bounding box of its own
+    end points.  Every bounded region between the graph and the box is
+    then a face of the closed graph.
+
+    Parameters
+    ----------
+    xy : ndarray (n, 2)
+        Node coordinates (m).
+    u, v : ndarray of int (m,), optional
+        The graph's segments: a closing edge that repeats one of them (a
+        segment lying along the box) is left out.
+    margin : float
+        Grow the box by this much on every side (m): no node lies on it
+        then, and the graph floats inside one face, the land round it
+        (which a caller clips back to the bounding box).
+    box : (xmin, ymin, xmax, ymax), optional
+        A box to close along instead, grown to hold every node.
+
+    Returns
+    -------
+    xy : ndarray (n + c, 2)
+        The nodes, then the ``c`` box corners that were not nodes already.
+    cu, cv : ndarray of int64
+        The closing edges, counter-clockwise round the box.  Empty when the
+        box has no area (fewer than three nodes, or all on one line).
+    """
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    none = np.empty(0, np.int64)
+    if len(xy) < 3:
+        return xy, none, none
+    x0, y0 = xy.min(axis=0)
+    x1, y1 = xy.max(axis=0)
+    if box is not None:
+        x0, y0, x1, y1 = min(x0, box[0]), min(y0, box[1]), max(x1, box[2]), max(y1, box[3])
+    if not (x1 > x0 and y1 > y0):
+        return xy, none, none
+    x0, y0, x1, y1 = x0 - margin, y0 - margin, x1 + margin, y1 + margin
+    w, h = x1 - x0, y1 - y0
+    x, y = xy[:, 0], xy[:, 1]
+    # position along the perimeter, counter-clockwise from (x0, y0); a corner takes its first side's value
+    sides = [y == y0, x == x1, y == y1, x == x0]
+    pos = [x - x0, w + (y - y0), w + h + (x1 - x), 2 * w + h + (y1 - y)]
+    on = np.any(sides, axis=0)
+    t = np.select(sides, pos, default=np.nan)
+    corner_t = np.array([0.0, w, w + h, 2 * w + h])
+    corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]])
+    have = np.isin(corner_t, t[on])
+    ids = np.r_[np.flatnonzero(on), len(xy) + np.arange(int((~have).sum()))]
+    ts = np.r_[t[on], corner_t[~have]]
+    xy = np.concatenate([xy, corners[~have]])
+    o = np.lexsort((ids, ts))
+    ring, ts = ids[o], ts[o]
+    ring = ring[np.r_[True, ts[1:] != ts[:-1]]]  # nodes stacked on one spot: the first
+    cu, cv = ring, np.roll(ring, -1)
+    if u is not None and v is not None and len(u):
+        n = len(xy)
+        have_e = np.minimum(u, v).astype(np.int64) * n + np.maximum(u, v)
+        new_e = np.minimum(cu, cv) * n + np.maximum(cu, cv)
+        keep = ~np.isin(new_e, have_e)
+        cu, cv = cu[keep], cv[keep]
+    return xy, cu.astype(np.int64), cv.astype(np.int64)

@@ -20,6 +20,22 @@ When the roads come from ``roads.clean``, which traces these faces on
 its plane segment graph anyway, the node takes them over from
 ``meta["graph"]`` (:func:`traced_faces`: same faces, same order).
 
+On a real map three more things hold (issue 11):
+
+* Only the ground level closes blocks (:func:`ground_level`): a bridge, a
+  tunnel or a way on another ``layer`` crosses the streets without a
+  junction, so the faces are traced without it and close on both sides of
+  it.  A bridge still gets its street surface (kind ``bridge``) and, with
+  ``bridges="cut"``, keeps the ground under its deck out of the block.
+* A cul-de-sac is a street inside its face: with ``dead_ends="cut"`` it is
+  a spur of the face's ring (:func:`sengine.geom.planar.spur_polygons`), so
+  that the street and sidewalk insets keep clear of it in the same buffer
+  and the lots front onto it.
+* Edges closing the graph round the data's box (``roads.clean``'s
+  ``close="bbox"``; ``src`` -1 here) are no streets: the land they close is
+  shrunk from its streets only and clipped back to the box
+  (``meta["bbox"]``), with no street or sidewalk along it.
+
 Blocks are then shrunk for the streets and sidewalks (§5.4, last
 paragraph): each face is inset by the length-weighted mean half-width of
 the streets around it, giving the street surface, and by the sidewalk
@@ -44,8 +60,8 @@ import numpy as np
 import shapely
 
 from sengine import Layer, Param, Port, SENode, register
-from sengine.geom.planar import PlanarFaces, planar_faces
-from sengine.geom.polygons import containing, frame_boxes, inset, threaded
+from sengine.geom.planar import PlanarFaces, planar_faces, spur_polygons
+from sengine.geom.polygons import containing, frame_boxes, inset, subtract_buffers, threaded
 from sengine.geom.segments import merge_points, planarize, segments_from_lines
 
 if TYPE_CHECKING:
@@ -59,6 +75,12 @@ __all__ = [
     "shrink_faces",
     "inset_by_street",
     "shrink_faces_by_street",
+    "ground_level",
+    "segment_widths",
+    "inner_segments",
+    "cut_inner_streets",
+    "clip_to_box",
+    "shrink_city",
     "street_graph",
     "BlocksCircuits",
 ]
@@ -203,24 +225,51 @@ def face_half_widths(bf: BlockFaces, widths) -> np.ndarray:
     ----------
     bf : BlockFaces
     widths : array_like of float
-        Street width (m) per input line / input edge (indexed by ``bf.src``).
+        Street width (m) per input line / input edge (indexed by ``bf.src``);
+        closing edges (``src`` -1) are no streets and do not count.
     """
     widths = np.asarray(widths, np.float64)
     nf = len(bf.faces)
     if nf == 0:
         return np.zeros(0)
     seg_len = np.hypot(*(bf.xy[bf.v] - bf.xy[bf.u]).T)
-    hw = widths[bf.src] / 2.0
+    hw = segment_widths(bf, widths) / 2.0
     f = bf.edge_faces.ravel()
     w = np.repeat(seg_len, 2)
     h = np.repeat(hw, 2)
-    ok = f >= 0
+    ok = (f >= 0) & np.repeat(bf.src >= 0, 2)
     tot = np.bincount(f[ok], weights=w[ok], minlength=nf)
     acc = np.bincount(f[ok], weights=(w * h)[ok], minlength=nf)
     return np.where(tot > 0, acc / np.where(tot > 0, tot, 1.0), 0.0)
 
 
-def shrink_faces(faces, half_width, sidewalk: float):
+def ground_level(roads: Layer) -> np.ndarray:
+    """Rows of a road layer at ground level: no bridge, no tunnel, ``layer`` 0.
+
+    The blocks are the faces of the ground-level street graph: a bridge or a
+    tunnel crosses other ways without a junction and closes no block; ways
+    tagged with another ``layer`` pass over or under the others likewise.
+    Columns that are absent count as ground level (all rows of a synthetic
+    or traced network).
+    """
+    ground = np.ones(len(roads), bool)
+    for col in ("bridge", "tunnel"):
+        if col in roads:
+            ground &= ~np.asarray(roads[col], bool)
+    if "layer" in roads:
+        ground &= np.asarray(roads["layer"], np.int64) == 0
+    return ground
+
+
+def segment_widths(bf: BlockFaces, widths) -> np.ndarray:
+    """Street width (m) of each traced segment of ``bf``: ``widths[src]``, 0 on closing edges (``src`` -1)."""
+    widths = np.asarray(widths, np.float64)
+    if not len(widths):
+        return np.zeros(len(bf.src))
+    return np.where(bf.src >= 0, widths[np.maximum(bf.src, 0)], 0.0)
+
+
+def shrink_faces(faces, half_width, sidewalk: float, *, shape=None, rounded=None):
     """Street, sidewalk and block polygons of each face (§5.4, last paragraph).
 
     Parameters
@@ -231,6 +280,13 @@ def shrink_faces(faces, half_width, sidewalk: float):
         Half the street width around each face (m).
     sidewalk : float
         Sidewalk width (m).
+    shape : array_like of shapely.Polygon, optional
+        What is inset, per face: the face, or the face with the dead ends
+        inside it as spurs of its rings (:func:`sengine.geom.planar.spur_polygons`),
+        which the insets then keep clear of too (default: the faces).
+    rounded : array_like of bool, optional
+        Faces inset with round joins (those given with spurs: see
+        :func:`sengine.geom.polygons.inset`); the others are mitred.
 
     Returns
     -------
@@ -240,21 +296,27 @@ def shrink_faces(faces, half_width, sidewalk: float):
         ``block`` may be empty (face too thin) or a MultiPolygon.
     """
     faces = np.asarray(faces, dtype=object)
+    shape = faces if shape is None else np.asarray(shape, dtype=object)
     hw = np.asarray(half_width, np.float64)
-    edge = inset(faces, hw)
+    edge = inset(shape, hw, rounded=rounded)
     if sidewalk <= 0:
         return _ring_between(faces, edge, gap=hw > 0), _ring_between(edge, edge, gap=np.zeros(len(faces), bool)), edge
     # a face with nothing left inside its street surface has no block either: no second inset for it
     block = edge.copy()
     live = np.flatnonzero(~shapely.is_empty(edge))
+    # a face with spurs: its block is its street edge shrunk by the sidewalk (a valid polygon, a third cheaper)
+    spur = np.zeros(len(faces), bool) if rounded is None else np.asarray(rounded, bool)
+    source = np.where(spur, edge, shape)[live]
     with ThreadPoolExecutor(1) as pool:  # the second inset (GEOS threads) while this thread makes the streets
-        blocks = pool.submit(inset, faces[live], hw[live] + sidewalk)
+        blocks = pool.submit(inset, source, np.where(spur, sidewalk, hw + sidewalk)[live])
         street = _ring_between(faces, edge, gap=hw > 0)
         block[live] = blocks.result()
     return street, _ring_between(edge, block, gap=np.ones(len(faces), bool)), block
 
 
-def inset_by_street(faces, bf: BlockFaces, face_ids, segment_distance) -> np.ndarray:
+def inset_by_street(
+    faces, bf: BlockFaces, face_ids, segment_distance, *, shape=None, inner=None, rounded=None
+) -> np.ndarray:
     """Each face shrunk street by street: every side by its own street's distance.
 
     Parameters
@@ -266,7 +328,16 @@ def inset_by_street(faces, bf: BlockFaces, face_ids, segment_distance) -> np.nda
     face_ids : array_like of int
         Index into ``bf.faces`` of each of ``faces``.
     segment_distance : array_like of float
-        Distance (m) to move off each segment of ``bf`` (its ``u``, ``v``).
+        Distance (m) to move off each segment of ``bf`` (its ``u``, ``v``);
+        NaN: none of its own (it moves by the face's nearest side's).
+    shape : array_like of shapely.Polygon, optional
+        What is inset, per face (see :func:`shrink_faces`; default the faces).
+    inner : (ndarray, ndarray) of int, optional
+        Segments of ``bf`` inside the faces (dead ends) and the face (index
+        into ``faces``) of each: the ground within their distance is taken
+        off too, where it is farther than the face's nearest side.
+    rounded : array_like of bool, optional
+        Faces inset with round joins (see :func:`shrink_faces`).
 
     Returns
     -------
@@ -279,6 +350,7 @@ def inset_by_street(faces, bf: BlockFaces, face_ids, segment_distance) -> np.nda
         together; a face's few distances are taken off in rounds.
     """
     faces = np.asarray(faces, dtype=object)
+    shape = faces if shape is None else np.asarray(shape, dtype=object)
     pos = np.full(len(bf.faces), -1, np.int64)
     pos[np.asarray(face_ids, np.int64)] = np.arange(len(faces))
     seg = np.repeat(np.arange(len(bf.u)), 2)
@@ -286,9 +358,15 @@ def inset_by_street(faces, bf: BlockFaces, face_ids, segment_distance) -> np.nda
     owner = np.where(owner >= 0, pos[np.maximum(owner, 0)], -1)
     seg, owner = seg[owner >= 0], owner[owner >= 0]
     dist = np.asarray(segment_distance, np.float64)[seg]
+    known = np.isfinite(dist)  # segments without a distance move with the nearest side
+    seg, owner, dist = seg[known], owner[known], dist[known]
     nearest = np.full(len(faces), np.inf)
     np.minimum.at(nearest, owner, dist)
-    out = inset(faces, np.where(np.isfinite(nearest), np.maximum(nearest, 0.0), 0.0))
+    out = inset(shape, np.where(np.isfinite(nearest), np.maximum(nearest, 0.0), 0.0), rounded=rounded)
+    if inner is not None and len(inner[0]):
+        iseg, iown = (np.asarray(a, np.int64) for a in inner)
+        seg, owner = np.r_[seg, iseg], np.r_[owner, iown]
+        dist = np.r_[dist, np.asarray(segment_distance, np.float64)[iseg]]
     farther = dist > nearest[owner]
     seg, owner, dist = seg[farther], owner[farther], dist[farther]
     if not len(seg):
@@ -309,12 +387,33 @@ def inset_by_street(faces, bf: BlockFaces, face_ids, segment_distance) -> np.nda
     return out
 
 
-def shrink_faces_by_street(faces, bf: BlockFaces, face_ids, segment_half_width, sidewalk: float):
-    """:func:`shrink_faces` with each side moved by its own street's half-width (and the sidewalk)."""
+def shrink_faces_by_street(
+    faces,
+    bf: BlockFaces,
+    face_ids,
+    segment_half_width,
+    sidewalk: float,
+    *,
+    bare=None,
+    shape=None,
+    inner=None,
+    rounded=None,
+):
+    """:func:`shrink_faces` with each side moved by its own street's half-width (and the sidewalk).
+
+    ``bare`` marks the segments of ``bf`` that are no streets (closing
+    edges): they have no width of their own, and move by the face's
+    nearest street's (the closing edges run beyond the box the caller clips to).
+    ``shape``, ``inner`` and ``rounded`` are the dead ends inside the faces,
+    as :func:`inset_by_street` takes them.
+    """
     faces = np.asarray(faces, dtype=object)
     hw = np.asarray(segment_half_width, np.float64)
-    edge = inset_by_street(faces, bf, face_ids, hw)
-    block = inset_by_street(faces, bf, face_ids, hw + sidewalk) if sidewalk > 0 else edge
+    bare = np.zeros(len(hw), bool) if bare is None else np.asarray(bare, bool)
+    hw = np.where(bare, np.nan, hw)
+    kw = {"shape": shape, "inner": inner, "rounded": rounded}
+    edge = inset_by_street(faces, bf, face_ids, hw, **kw)
+    block = inset_by_street(faces, bf, face_ids, hw + sidewalk, **kw) if sidewalk > 0 else edge
     # an inset keeps clear of the face's rings where every street around it has a width
     narrow = np.zeros(len(bf.faces), bool)
     for side in bf.edge_faces.T:
@@ -325,6 +424,84 @@ def shrink_faces_by_street(faces, bf: BlockFaces, face_ids, segment_half_width, 
         _ring_between(edge, block, gap=np.full(len(faces), sidewalk > 0)),
         block,
     )
+
+
+def inner_segments(bf: BlockFaces, faces, *, known=None) -> tuple[np.ndarray, np.ndarray]:
+    """Streets inside a face: the dead ends and connectors of ``bf``, and the face each lies in.
+
+    Parameters
+    ----------
+    bf : BlockFaces
+    faces : array_like of shapely.Polygon
+        The faces kept (some of ``bf.faces``).
+    known : (ndarray, ndarray), optional
+        Segments whose face is known already: sorted keys ``a * n + b``
+        (``a < b`` their nodes, ``n`` the number of nodes) and the face of
+        each (index into ``faces``, -1 for none); the others are looked up.
+
+    Returns
+    -------
+    seg : ndarray of int64
+        Segments of ``bf`` with the same face on both sides (``bf.bridge``)
+        that are streets (not closing edges).
+    face : ndarray of int64
+        Index into ``faces`` of the face holding each one's midpoint, -1
+        for none (outside the city, or in a face that was dropped).
+    """
+    seg = np.flatnonzero(bf.bridge & (bf.src >= 0))
+    face = np.full(len(seg), -1, np.int64)
+    if not len(seg) or not len(faces):
+        return seg, face
+    look = np.ones(len(seg), bool)
+    if known is not None and len(known[0]):
+        n = max(len(bf.xy), 1)
+        key = np.minimum(bf.u[seg], bf.v[seg]) * n + np.maximum(bf.u[seg], bf.v[seg])
+        at = np.minimum(np.searchsorted(known[0], key), len(known[0]) - 1)
+        hit = known[0][at] == key
+        face[hit] = known[1][at[hit]]
+        look = ~hit
+    if look.any():
+        mid = shapely.points((bf.xy[bf.u[seg[look]]] + bf.xy[bf.v[seg[look]]]) / 2.0)
+        face[look] = containing(mid, np.asarray(faces, dtype=object))
+    return seg, face
+
+
+def cut_inner_streets(face, street, walk, block, lines, owner, half_width, sidewalk: float):
+    """Streets inside faces (cul-de-sacs) cut out of their blocks, so that lots front onto them.
+
+    Parameters
+    ----------
+    face, street, walk, block : ndarray of shapely.Geometry (k,)
+        Per face: the face, its street ring, sidewalk ring and block, as
+        :func:`shrink_faces` gives them.
+    lines : ndarray of shapely.LineString (n,)
+        Street centre lines inside the faces.
+    owner : ndarray of int (n,)
+        Face (index into ``face``) of each line.
+    half_width : array_like of float (n,)
+        Half the street width of each line (m).
+    sidewalk : float
+        Sidewalk width (m).
+
+    Returns
+    -------
+    street, walk, block : ndarray of shapely.Geometry (k,)
+        The street surface within ``half_width`` of the lines joins the
+        street ring, the sidewalk around it joins the sidewalk ring, the
+        block loses both: the three still partition each face.
+    """
+    street, walk, block = street.copy(), walk.copy(), block.copy()
+    if not len(lines):
+        return street, walk, block
+    hw = np.asarray(half_width, np.float64)
+    have = np.unique(owner)
+    pos = np.searchsorted(have, owner)
+    edge = threaded(shapely.difference, face[have], street[have], min_size=64)  # inside the street ring
+    edge = subtract_buffers(edge, lines, pos, hw)
+    block[have] = subtract_buffers(block[have], lines, pos, hw + sidewalk)
+    street[have] = threaded(shapely.difference, face[have], edge, min_size=64)
+    walk[have] = threaded(shapely.difference, edge, block[have], min_size=64)
+    return street, walk, block
 
 
 def _ring_between(outer, inner, gap=None):
@@ -366,6 +543,191 @@ def _ring_between(outer, inner, gap=None):
     if rest.any():
         out[rest] = threaded(shapely.difference, outer[rest], inner[rest], min_size=64)  # big, holed faces
     return out
+
+
+def clip_to_box(geoms, box) -> np.ndarray:
+    """Polygons clipped to a box (GEOS's rectangle clip; a proper intersection where that comes out invalid)."""
+    out = shapely.clip_by_rect(np.asarray(geoms, dtype=object), *box)
+    bad = ~shapely.is_valid(out)
+    if bad.any():
+        out[bad] = shapely.intersection(np.asarray(geoms, dtype=object)[bad], shapely.box(*box))
+    return out
+
+
+def _split_by_lobes(geoms, group, lobes, lobe_group) -> np.ndarray:
+    """The parts of each group's geometry, handed to the lobe of that group that holds each part.
+
+    ``geoms[g]`` lies inside the union of the lobes ``lobes[lobe_group == g]``
+    (polygons touching only at vertices), kept clear of their rings, so that
+    every part of it lies in one lobe.  Returns one geometry per lobe
+    (empty when no part lies in it).
+    """
+    out = np.full(len(lobes), shapely.Polygon(), dtype=object)
+    parts, pg = shapely.get_parts(np.asarray(geoms, dtype=object)[group], return_index=True)
+    if not len(parts):
+        return out
+    pg = np.asarray(group)[pg]
+    host = containing(shapely.point_on_surface(parts), lobes)
+    ok = host >= 0
+    ok[ok] = np.asarray(lobe_group)[host[ok]] == pg[ok]
+    parts, host = parts[ok], host[ok]
+    o = np.argsort(host, kind="stable")
+    parts, host = parts[o], host[o]
+    one = np.bincount(host, minlength=len(lobes)) == 1
+    single = one[host]
+    out[host[single]] = parts[single]
+    if (~single).any():
+        out[np.unique(host[~single])] = shapely.multipolygons(
+            parts[~single], indices=np.unique(host[~single], return_inverse=True)[1].ravel()
+        )
+    return out
+
+
+def shrink_city(faces, fid, hw, bf: BlockFaces, width, sidewalk: float, *, by_street, bare, dead_ends: bool = True):
+    """Street, sidewalk and block of every face, the streets inside the faces cut out.
+
+    Parameters
+    ----------
+    faces : ndarray of shapely.Polygon (k,)
+        The faces kept, ``bf.faces[fid]``.
+    fid : ndarray of int64 (k,)
+    hw : ndarray of float (k,)
+        Mean street half-width of each face (m; :func:`face_half_widths`).
+    bf : BlockFaces
+    width : ndarray of float
+        Street width per row (``bf.src``; m).
+    sidewalk : float
+        Sidewalk width (m).
+    by_street : ndarray of bool (k,)
+        Faces shrunk side by side (:func:`shrink_faces_by_street`), the rest
+        by their mean half-width (:func:`shrink_faces`).
+    bare : ndarray of bool
+        Segments of ``bf`` that are no streets (closing edges).
+    dead_ends : bool
+        Cut the streets inside the faces (dead ends, connectors) out of
+        their blocks; else they get street polygons of their own over them.
+
+    Returns
+    -------
+    street, walk, block : ndarray of shapely.Geometry (k,)
+        As :func:`shrink_faces` gives them: they partition each face.
+    seg : ndarray of int64
+        The dead-end segments of ``bf`` left outside every block: they need
+        street polygons of their own.
+    counts : dict
+        ``dead_ends_cut`` (rows cut out of a block).
+
+    Notes
+    -----
+    A dead end hanging from a face's ring is a spur of it
+    (:func:`sengine.geom.planar.spur_polygons`): the face's insets keep
+    clear of it in the same buffer (with round joins, which GEOS offsets
+    robustly round a spur's tip), so it costs little more.  In a face
+    shrunk by its mean half-width the spur takes that width too.  A face
+    pinched at a vertex into several lobes is shrunk as its whole walk and
+    the pieces are handed to the lobes.  Trees floating inside a face are
+    cut out with :func:`cut_inner_streets`.
+    """
+    k = len(faces)
+    counts = {"dead_ends_cut": 0}
+    shape = faces.copy()
+    spiky = np.zeros(k, bool)  # shaped with spurs: inset with round joins
+    pinched = np.zeros(0, np.int64)
+    slot = np.full(len(bf.faces), -1, np.int64)
+    slot[fid] = np.arange(k)
+    if dead_ends:
+        sid, spoly, spurs, lobes = spur_polygons(bf, bf.xy)
+    else:
+        sid, spoly = np.empty(0, np.int64), np.empty(0, dtype=object)
+        spurs, lobes = np.empty((0, 3), np.int64), np.empty((0, 2), np.int64)
+    at = slot[sid]
+    # the face of each spur: the slot of its polygon, or of the lobe of its pinched face that holds it
+    n_xy = max(len(bf.xy), 1)
+    skey = spurs[:, 0] * n_xy + spurs[:, 1]
+    sface = at[spurs[:, 2]]
+    if len(lobes):
+        lobe_slot = slot[lobes[:, 1]]
+        lobes = lobes[lobe_slot >= 0]
+        in_lobe = np.flatnonzero(np.isin(spurs[:, 2], lobes[:, 0]))
+        mid = shapely.points((bf.xy[spurs[in_lobe, 0]] + bf.xy[spurs[in_lobe, 1]]) / 2.0)
+        host = containing(mid, faces[slot[lobes[:, 1]]])
+        sface[in_lobe] = np.where(host >= 0, slot[lobes[np.maximum(host, 0), 1]], -1)
+    o = np.argsort(skey)
+    seg, inside = inner_segments(bf, faces, known=(skey[o], sface[o]))
+    key = np.minimum(bf.u[seg], bf.v[seg]) * n_xy + np.maximum(bf.u[seg], bf.v[seg])
+    spurred = np.isin(key, skey) & (inside >= 0)
+    if dead_ends and len(seg):
+        counts["dead_ends_cut"] = int(len(np.unique(bf.src[seg[inside >= 0]])))
+        # pinched faces: shrunk apart, as one walk; their lobes are left empty here
+        pinched = np.unique(lobes[:, 0])
+        lobe_slot = slot[lobes[:, 1]]
+        plain = np.ones(len(sid), bool)
+        plain[pinched] = False
+        shape[at[plain & (at >= 0)]] = spoly[plain & (at >= 0)]
+        spiky[at[plain & (at >= 0)]] = True
+        shape[lobe_slot[lobe_slot >= 0]] = shapely.Polygon()
+    street = np.empty(k, dtype=object)
+    walk, block = street.copy(), street.copy()
+    seg_hw = segment_widths(bf, width) / 2.0
+    m = ~by_street
+    if m.any():
+        street[m], walk[m], block[m] = shrink_faces(faces[m], hw[m], sidewalk, shape=shape[m], rounded=spiky[m])
+    if by_street.any():
+        pos = np.cumsum(by_street) - 1
+        own = spurred & by_street[np.maximum(inside, 0)]
+        street[by_street], walk[by_street], block[by_street] = shrink_faces_by_street(
+            faces[by_street],
+            bf,
+            fid[by_street],
+            seg_hw,
+            sidewalk,
+            bare=bare,
+            shape=shape[by_street],
+            inner=(seg[own], pos[inside[own]]),
+            rounded=spiky[by_street],
+        )
+    if len(pinched):
+        lobe_slot = slot[lobes[:, 1]]
+        big = at[pinched]  # the largest lobe's slot (its face's mean width and side widths)
+        live = big >= 0
+        grp = np.flatnonzero(live)
+        gshape, gslot = spoly[pinched[grp]], big[grp]
+        sel = np.isin(lobes[:, 0], pinched[grp]) & (lobe_slot >= 0)
+        lgroup = np.searchsorted(pinched[grp], lobes[sel, 0])
+        lslot = lobe_slot[sel]
+        bys = by_street[gslot]
+        edge_g = np.empty(len(grp), dtype=object)
+        block_g = edge_g.copy()
+        if (~bys).any():
+            edge_g[~bys] = inset(gshape[~bys], hw[gslot[~bys]], rounded=np.ones((~bys).sum(), bool))
+            block_g[~bys] = inset(gshape[~bys], hw[gslot[~bys]] + sidewalk, rounded=np.ones((~bys).sum(), bool))
+        if bys.any():
+            sl = gslot[bys]
+            own = spurred & np.isin(inside, sl)
+            ipos = np.searchsorted(sl, inside[own], sorter=np.argsort(sl))
+            ipos = np.argsort(sl)[ipos]
+            d1 = np.where(bare, np.nan, seg_hw)
+            d2 = d1 + sidewalk
+            args = (faces[sl], bf, fid[sl])
+            kw = {"shape": gshape[bys], "inner": (seg[own], ipos), "rounded": np.ones(bys.sum(), bool)}
+            edge_g[bys] = inset_by_street(*args, d1, **kw)
+            block_g[bys] = inset_by_street(*args, d2, **kw)
+        ledge = _split_by_lobes(edge_g, lgroup, faces[lslot], lgroup)
+        lblock = _split_by_lobes(block_g, lgroup, faces[lslot], lgroup)
+        street[lslot] = _ring_between(faces[lslot], ledge, gap=~by_street[lslot] & (hw[lslot] > 0))
+        walk[lslot] = _ring_between(ledge, lblock, gap=np.full(len(lslot), sidewalk > 0))
+        block[lslot] = lblock
+    if dead_ends:
+        # the rest inside a face (trees floating in it): cut out one by one
+        cut = (inside >= 0) & ~spurred
+        seg_cut = seg[cut]
+        if len(seg_cut):
+            segs = shapely.linestrings(np.stack([bf.xy[bf.u[seg_cut]], bf.xy[bf.v[seg_cut]]], axis=1))
+            street, walk, block = cut_inner_streets(
+                faces, street, walk, block, segs, inside[cut], width[bf.src[seg_cut]] / 2.0, sidewalk
+            )
+        seg = seg[inside < 0]
+    return street, walk, block, seg, counts
 
 
 def street_graph(bf: BlockFaces) -> nx.Graph:
@@ -427,6 +789,20 @@ class BlocksCircuits(SENode):
         ),
         "min_area": Param("float", 50.0, min=0.0, unit="m2", doc="faces and blocks smaller than this are dropped"),
         "node": Param("bool", True, doc="split crossing segments first (turn off only for plane input)"),
+        "dead_ends": Param(
+            "str",
+            "cut",
+            choices=("cut", "over"),
+            doc="streets inside a block (cul-de-sacs, connectors): cut their street and sidewalk out of it, "
+            "so that lots front onto them, or lay their street surface over the block",
+        ),
+        "bridges": Param(
+            "str",
+            "cut",
+            choices=("cut", "over"),
+            doc="bridges and ways on another layer cross blocks without splitting them: keep the ground "
+            "under their deck out of the block (no lot under a bridge), or leave it to the block",
+        ),
         "decimals": Param("int", 6, min=0, max=12, unit="1", doc="merge nodes equal to this many decimals (m)"),
     }
 
@@ -434,18 +810,24 @@ class BlocksCircuits(SENode):
         meta = {k: v for k, v in roads.meta.items() if k != "graph"}  # the roads' graph, not the blocks'
         report: dict = {}
         lines = roads.geometry
-        keep = ~shapely.is_empty(lines) if len(lines) else np.zeros(0, bool)
-        lines = lines[keep]
-        width = np.full(len(lines), self.p.street_width)
+        n = len(roads)
+        keep = ~shapely.is_empty(lines) if n else np.zeros(0, bool)
+        width = np.full(n, self.p.street_width)
         if self.p.width_from == "roads" and "width" in roads:
-            w = np.asarray(roads["width"], np.float64)[keep]
+            w = np.asarray(roads["width"], np.float64)
             width = np.where(np.isfinite(w) & (w >= 0), w, self.p.street_width)
+        ground = ground_level(roads) & keep
         bf = None
         if not self.p.node and keep.all():  # faces roads.clean traced already
-            bf = traced_faces(roads.meta, len(roads), decimals=self.p.decimals)
+            bf = traced_faces(roads.meta, n, decimals=self.p.decimals)
         if bf is None:
-            bf = find_blocks(lines, node=self.p.node, decimals=self.p.decimals)
+            rows = np.flatnonzero(ground)
+            closing = roads.meta.get("closing")
+            traced = lines[rows] if closing is None else np.r_[lines[rows], np.array([closing], dtype=object)]
+            bf = find_blocks(traced, node=self.p.node, decimals=self.p.decimals)
+            bf = replace(bf, src=np.where(bf.src < len(rows), rows[np.minimum(bf.src, max(len(rows) - 1, 0))], -1))
         report.update({k: int(v) for k, v in bf.counts.items()})
+        bare = bf.src < 0  # closing edges: no street, no sidewalk
         faces = bf.faces
         fid = np.arange(len(faces))
         hw = face_half_widths(bf, width)
@@ -463,10 +845,48 @@ class BlocksCircuits(SENode):
             report["dropped_outside_outline"] = int((ok & ~inside).sum())
             ok &= inside
         faces, fid, hw = faces[ok], fid[ok], hw[ok]
-        if self.p.inset == "street":
-            street, walk, block = shrink_faces_by_street(faces, bf, fid, width[bf.src] / 2.0, self.p.sidewalk)
-        else:
-            street, walk, block = shrink_faces(faces, hw, self.p.sidewalk)
+        closed = np.zeros(len(bf.faces), bool)  # faces with a closing edge
+        ef = bf.edge_faces[bare].ravel()
+        closed[ef[ef >= 0]] = True
+        closed = closed[fid]
+        by_street = np.full(len(faces), self.p.inset == "street")
+        street, walk, block, seg, counts = shrink_city(
+            faces,
+            fid,
+            hw,
+            bf,
+            width,
+            self.p.sidewalk,
+            by_street=by_street,
+            bare=bare,
+            dead_ends=self.p.dead_ends == "cut",
+        )
+        report.update(counts)
+        box = roads.meta.get("bbox")
+        if box is not None and closed.any():  # the land round the streets, clipped back to their box
+            for arr in (faces, street, walk, block):
+                arr[closed] = clip_to_box(arr[closed], box)
+        # bridges and tunnels: over or under the blocks, closing none
+        off = keep & ~ground
+        tunnel = np.asarray(roads["tunnel"], bool) if "tunnel" in roads else np.zeros(n, bool)
+        deck = np.flatnonzero(off & ~tunnel)
+        deck_lines = shapely.get_parts(lines[deck], return_index=True) if len(deck) else (lines[:0], deck)
+        deck_rows = deck[deck_lines[1]] if len(deck) else deck
+        deck_lines = deck_lines[0]
+        report["bridges_over_blocks"] = report["tunnels_under_blocks"] = 0
+        if len(block) and (off.any()):
+            live = ~shapely.is_empty(block)
+            tree = shapely.STRtree(np.where(live, block, None))
+            if len(deck_lines):
+                li, bi = tree.query(deck_lines, predicate="intersects")
+                report["bridges_over_blocks"] = int(len(np.unique(deck_rows[li])))
+                if self.p.bridges == "cut" and len(li):
+                    block = subtract_buffers(block, deck_lines[li], bi, width[deck_rows[li]] / 2.0, cap_style="flat")
+            under = np.flatnonzero(off & tunnel)
+            if len(under):
+                report["tunnels_under_blocks"] = int(
+                    len(np.unique(tree.query(lines[under], predicate="intersects")[0]))
+                )
         gone = shapely.is_empty(block)
         report["vanished_by_inset"] = int(gone.sum())
         parts, pidx = shapely.get_parts(block, return_index=True)
@@ -475,6 +895,7 @@ class BlocksCircuits(SENode):
         report["dropped_small_after_inset"] = int((~big).sum())
         parts, pidx = parts[big], pidx[big]
         report["split_by_inset"] = int(len(pidx) - len(np.unique(pidx)))
+        report["closed_by_bbox"] = int(closed[pidx].sum())
         # districts and parent areas
         district = np.full(len(parts), -1, np.int64)
         parent = np.full(len(parts), -1, np.int64)
@@ -490,20 +911,25 @@ class BlocksCircuits(SENode):
         report["blocks"] = int(len(parts))
         self.report = report
         log.info("%s: %d faces -> %d blocks (%s)", self.where, len(bf.faces), len(parts), report)
-        blocks = Layer.from_geoms(parts, parent=parent, meta=meta, district=district, face=fid[pidx])
+        battrs = {"district": district, "face": fid[pidx]}
+        if bare.any():
+            battrs["closed"] = closed[pidx]
+        blocks = Layer.from_geoms(parts, parent=parent, meta=meta, **battrs)
         faces_l = Layer.from_geoms(faces, ids=fid, parent=fparent, meta=meta, district=fdistrict, half_width=hw)
-        # dead ends and connectors: their street surface as flat-capped rectangles
-        a, b = bf.xy[bf.u[bf.bridge]], bf.xy[bf.v[bf.bridge]]
+        # dead ends and connectors outside the faces: their street surface as flat-capped rectangles
+        a, b = bf.xy[bf.u[seg]], bf.xy[bf.v[seg]]
         ln = np.hypot(*(b - a).T)
-        hwd = width[bf.src[bf.bridge]] / 2.0
+        hwd = width[bf.src[seg]] / 2.0
         dead_poly = (
             frame_boxes((a + b) / 2.0, (b - a) / np.maximum(ln, 1e-12)[:, None], -ln / 2.0, ln / 2.0, -hwd, hwd)
             if len(a)
             else np.empty(0, object)
         )
-        sgeom = np.concatenate([street, dead_poly])
-        sgeom = sgeom[~shapely.is_empty(sgeom)]
-        streets = Layer.from_geoms(sgeom, meta=meta, kind=np.full(len(sgeom), "street"))
+        deck_poly = shapely.buffer(deck_lines, width[deck_rows] / 2.0, cap_style="flat", quad_segs=4)
+        sgeom = np.concatenate([street, dead_poly, deck_poly])
+        skind = np.r_[np.full(len(street) + len(dead_poly), "street"), np.full(len(deck_poly), "bridge")]
+        live = ~shapely.is_empty(sgeom)
+        streets = Layer.from_geoms(sgeom[live], meta=meta, kind=skind[live])
         wgeom = walk[~shapely.is_empty(walk)]
         walks = Layer.from_geoms(wgeom, meta=meta, kind=np.full(len(wgeom), "sidewalk"))
         return {"blocks": blocks, "streets": streets, "sidewalks": walks, "faces": faces_l}

@@ -12,6 +12,13 @@ or in the water.
 The edge a block gets along a park or the water counts as its boundary like
 a street edge does: lots may face the park.
 
+Land that no street serves is not built on either (:func:`open_land`): the
+land of a block larger than ``max_block_area``, or of a block along the
+edge of the data, farther than ``max_depth`` from its streets (its sides
+and the cul-de-sacs cut into it), and a piece that touches no street at
+all (cut off by the water), are kept as open land: column ``landuse`` is
+``"open"`` (``"built"`` elsewhere), and the lot nodes leave it whole.
+
 References
 ----------
 skylineEngine (paper 002), §4 (parks and land use) and §5.2 (real maps).
@@ -27,7 +34,10 @@ import shapely
 from sengine import Layer, Param, Port, SENode, register
 from sengine.geom.polygons import inset
 
-__all__ = ["cut_blocks", "BlocksLanduse"]
+__all__ = ["cut_blocks", "open_land", "BlocksLanduse"]
+
+#: Values of the blocks' ``landuse`` column: lots are drawn on ``BUILT`` blocks only.
+BUILT, OPEN = "built", "open"
 
 log = logging.getLogger(__name__)
 
@@ -101,6 +111,98 @@ def cut_blocks(blocks, cut, *, min_area: float = 0.0, min_width: float = 0.0) ->
     return pieces[keep], block[keep].astype(np.int64), counts
 
 
+def open_land(
+    pieces, block, blocks, *, max_area: float, max_depth: float, box=None, min_area: float = 0.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+    """The land of each block that no street serves, split off as open land.
+
+    Parameters
+    ----------
+    pieces : ndarray of shapely.Polygon (k,)
+        Pieces of blocks (what :func:`cut_blocks` leaves).
+    block : ndarray of int (k,)
+        Index into ``blocks`` of each piece.
+    blocks : ndarray of shapely.Polygon
+        The blocks before the cut: their boundary faces the streets (the
+        cul-de-sacs cut into them included).
+    max_area : float
+        Pieces larger than this (m2), and pieces of blocks along the edge
+        of the data, lose their land farther than ``max_depth`` from their
+        streets to open land (farmland behind a village street, the far
+        side of a rail yard, a lake the map does not tag).
+    max_depth : float
+        How far from a street (m) a large or border block is built on.
+    box : (xmin, ymin, xmax, ymax), optional
+        The edge of the data (m): a block side along it is no street.
+    min_area : float
+        Parts smaller than this (m2) are dropped (counted).
+
+    Returns
+    -------
+    pieces : ndarray of shapely.Polygon
+        The pieces, the split ones replaced by their built and open parts.
+    block : ndarray of int64
+        Index into ``blocks`` of each (non-decreasing when ``block`` was).
+    is_open : ndarray of bool
+        Open land: no street serves it.  A piece that touches no street at
+        all (cut off by the water, or closed only by the edge of the data)
+        is open as a whole.
+    counts : dict
+        ``open_no_street`` (whole pieces), ``open_split`` (pieces split into
+        built and open land), ``open_parts_dropped`` (under ``min_area``).
+    """
+    pieces = np.asarray(pieces, dtype=object)
+    block = np.asarray(block, np.int64)
+    blocks = np.asarray(blocks, dtype=object)
+    k = len(pieces)
+    counts = {"open_no_street": 0, "open_split": 0, "open_parts_dropped": 0}
+    if not k:
+        return pieces, block, np.zeros(0, bool), counts
+    area = shapely.area(pieces)
+    # the streets of a piece: its block's boundary, off the edge of the data
+    edge = shapely.boundary(blocks[block])
+    border = np.zeros(k, bool)
+    if box is not None:
+        rim = shapely.buffer(shapely.boundary(shapely.box(*box)), 1e-6, cap_style="flat", join_style="mitre")
+        border = shapely.intersects(edge, rim)
+        edge[border] = shapely.difference(edge[border], rim)
+    # only a cut piece, or a block along the edge of the data, can miss every street
+    whole = np.isclose(area, shapely.area(blocks[block]), rtol=1e-9)
+    ask = ~whole | border
+    lonely = np.zeros(k, bool)
+    lonely[ask] = ~shapely.intersects(pieces[ask], edge[ask])
+    counts["open_no_street"] = int(lonely.sum())
+    far = np.full(k, None, dtype=object)
+    big = np.flatnonzero(~lonely & ~border & (area > max_area))
+    if len(big):  # every side a street (or the water, a park, which lots may face): the land beyond reach
+        far[big] = shapely.buffer(pieces[big], -max_depth, quad_segs=4)
+    edgy = np.flatnonzero(~lonely & border)
+    if len(edgy):  # the sides along the edge of the data are no streets: grown past it, eroded, clipped back
+        rect = shapely.box(*box)
+        band = shapely.difference(shapely.box(*np.add(box, np.r_[-1, -1, 1, 1] * (2 * max_depth + 1))), rect)
+        grown = shapely.union(pieces[edgy], band)
+        far[edgy] = shapely.intersection(shapely.buffer(grown, -max_depth, quad_segs=4), rect)
+    split = np.flatnonzero(np.not_equal(far, None))
+    split = split[~shapely.is_empty(far[split])]
+    split = split[shapely.area(far[split]) >= max(min_area, 1e-9)]
+    counts["open_split"] = int(len(split))
+    geoms, owner, is_open = [pieces], [np.arange(k)], [lonely]
+    if len(split):
+        near = shapely.difference(pieces[split], far[split])
+        keep = np.ones(k, bool)
+        keep[split] = False
+        geoms = [pieces[keep], near, far[split]]
+        owner = [np.flatnonzero(keep), split, split]
+        is_open = [lonely[keep], np.zeros(len(split), bool), np.ones(len(split), bool)]
+    parts, pidx = shapely.get_parts(np.concatenate(geoms), return_index=True)
+    owner, is_open = np.concatenate(owner)[pidx], np.concatenate(is_open)[pidx]
+    ok = (shapely.get_type_id(parts) == 3) & (shapely.area(parts) >= min_area)
+    counts["open_parts_dropped"] = int((~ok & np.isin(owner, split)).sum())
+    parts, owner, is_open = parts[ok], owner[ok], is_open[ok]
+    o = np.lexsort((is_open, owner))  # piece by piece, its built part first
+    return parts[o], block[owner[o]], is_open[o], counts
+
+
 @register
 class BlocksLanduse(SENode):
     """Blocks minus the water and the parks in them: the land the lots are drawn on (§4, §5.2)."""
@@ -111,8 +213,31 @@ class BlocksLanduse(SENode):
         "water": Port("polygons", "water areas (e.g. osm.read's water)", required=False),
         "parks": Port("parks", "parks (e.g. osm.read's parks)", required=False),
     }
-    outputs = {"blocks": Port("blocks", "the buildable pieces; a block cut in two keeps its id on the first piece")}
+    outputs = {
+        "blocks": Port(
+            "blocks",
+            "the pieces of land; a block cut in two keeps its id on the first piece; column landuse "
+            "'built' or 'open' (no street serves it: the lot nodes leave it whole)",
+        )
+    }
     params = {
+        "max_block_area": Param(
+            "float",
+            500_000.0,
+            min=0.0,
+            unit="m2",
+            doc="a block larger than this (50 ha: 700 x 700 m, past the largest urban superblocks of "
+            "16-25 ha) is built on only within max_depth of its streets; the rest is open land: farmland, "
+            "forest, a rail yard, a lake the map does not tag",
+        ),
+        "max_depth": Param(
+            "float",
+            100.0,
+            min=1.0,
+            unit="m",
+            doc="how far from its streets (cul-de-sacs included) a large block, or one along the edge of "
+            "the data, is built on: two rows of lots back to back",
+        ),
         "min_area": Param("float", 50.0, min=0.0, unit="m2", doc="pieces smaller than this are dropped"),
         "min_width": Param(
             "float",
@@ -127,14 +252,26 @@ class BlocksLanduse(SENode):
         cut = [lay.geometry for lay in (water, parks) if lay is not None and len(lay)]
         geoms = np.concatenate(cut) if cut else np.empty(0, dtype=object)
         pieces, src, counts = cut_blocks(blocks.geometry, geoms, min_area=self.p.min_area, min_width=self.p.min_width)
+        pieces, src, is_open, ocounts = open_land(
+            pieces,
+            src,
+            blocks.geometry,
+            max_area=self.p.max_block_area,
+            max_depth=self.p.max_depth,
+            box=blocks.meta.get("bbox"),
+            min_area=self.p.min_area,
+        )
         out = blocks.take(src)
         # the first piece of a block keeps its id; further pieces get new ones after the largest
         again = np.r_[False, src[1:] == src[:-1]] if len(src) else np.zeros(0, bool)
         top = int(blocks.ids.max(initial=-1)) + 1
         ids = out.ids.copy()
         ids[again] = top + np.arange(int(again.sum()))
-        out = Layer(pieces, ids, out.parent, out.attrs, out.meta)
-        self.report = {**counts, "blocks": len(out)}
+        landuse = np.where(is_open, OPEN, BUILT)
+        # parts too small to keep, split off the open land, are removed land too
+        counts["area_removed_m2"] = round(float(blocks.area() - shapely.area(pieces).sum()), 1)
+        out = Layer(pieces, ids, out.parent, {**out.attrs, "landuse": landuse}, out.meta)
+        self.report = {**counts, **ocounts, "open_blocks": int(is_open.sum()), "blocks": len(out)}
         log.info(
             "%s: %d of %d blocks lose water or park land (%.0f m2); %d pieces",
             self.where,

@@ -238,6 +238,7 @@ class _Lots(SENode):
         raise NotImplementedError
 
     def run(self, *, blocks: Layer) -> dict[str, Layer]:
+        blocks = blocks.take(np.flatnonzero(blocks["landuse"] != "open")) if "landuse" in blocks else blocks
         report: dict = {"blocks": len(blocks)}
         geoms = blocks.geometry
         if len(blocks) == 0:

@@ -23,7 +23,10 @@ its end points into ``meta["nodes"]`` (planar xy) and ``meta["node_keys"]``.
 Water (``natural=water``, ``waterway=riverbank``, ``landuse=reservoir``),
 parks (``leisure=park``/``garden``) and buildings (with ``height`` /
 ``building:levels``) of the same file are optional extra layers, assembled
-by pyosmium in the same pass.
+by pyosmium in the same pass.  With the water comes the sea: the parts of
+the data's box on the right of the ``natural=coastline`` ways (kind
+``sea``).  The roads' ``meta["extent"]`` is the box of the streets and the
+map's buildings, along which ``roads.clean`` can close the street graph.
 
 References
 ----------
@@ -45,6 +48,7 @@ import shapely
 from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import InputDataError
 from sengine.geom.crs import from_lonlat, utm_crs
+from sengine.geom.polygons import right_of_lines
 from sengine.geom.segments import lines_from_groups
 
 from ..maps import check_regular_file
@@ -242,6 +246,24 @@ def polygons_layer(ext: OsmExtract, kind: str, meta: dict, *, floor_height: floa
     )
 
 
+def sea_layer(ext: OsmExtract, meta: dict) -> Layer:
+    """The sea of an extract: the parts of its box on the right of the coastline ways, kind ``sea``.
+
+    The box is that of the streets and the coastline together.  A
+    coastline that is cut short inside the box closes no sea there.
+    """
+    if not ext.coastline or "crs" not in meta:
+        return Layer.empty(meta=meta, kind=object)
+    coast = shapely.transform(shapely.from_wkb(ext.coastline), from_lonlat(meta["crs"]))
+    pts = [shapely.get_coordinates(coast)]
+    if "nodes" in meta and len(meta["nodes"]):
+        pts.append(meta["nodes"])
+    xy = np.concatenate(pts)
+    sea = right_of_lines(coast, (*xy.min(axis=0), *xy.max(axis=0)))
+    small = {k: v for k, v in meta.items() if k not in ("nodes", "node_keys", "node_ids")}
+    return Layer.from_geoms(sea, meta=small, kind="sea", osm_id=-1, name="")
+
+
 @register
 class OsmRead(SENode):
     """Read the street network (and optionally water, parks, buildings) of an OpenStreetMap file.
@@ -337,10 +359,19 @@ class OsmRead(SENode):
             out[kind] = polygons_layer(
                 ext, kind, small, floor_height=self.p.floor_height, default_height=self.p.default_height
             )
+        if len(out["buildings"]) and "nodes" in meta and len(meta["nodes"]):
+            # the data's extent: the streets and the map's buildings (a village's houses past its last street)
+            bb = shapely.total_bounds(out["buildings"].geometry)
+            lo, hi = np.minimum(meta["nodes"].min(axis=0), bb[:2]), np.maximum(meta["nodes"].max(axis=0), bb[2:])
+            out["roads"] = roads.with_meta(extent=tuple(float(c) for c in np.r_[lo, hi]))
+        sea = sea_layer(ext, meta)
+        if len(sea):
+            out["water"] = Layer.concat([out["water"], sea]) if len(out["water"]) else sea
         report = {
             "ways": len(ext.code),
             "segments": len(roads),
             "clipped_ways": ext.clipped,
+            "sea": len(sea),
             **{kind: len(out[kind]) for kind in ("water", "parks", "buildings")},
         }
         return NodeResult(out, report)

@@ -107,6 +107,9 @@ class OsmExtract:
         ``"water"``, ``"parks"``, ``"buildings"``: hex WKB multipolygons and their attributes.
     clipped : int
         Ways whose nodes are partly missing from the file (cut by the extract's bounding box).
+    coastline : list of str
+        Hex WKB LineStrings (lon, lat) of the ``natural=coastline`` ways, read
+        with the water: land on their left, the sea on their right.
     """
 
     fixed: np.ndarray = field(default_factory=lambda: np.empty((0, 2), np.int64))
@@ -118,6 +121,7 @@ class OsmExtract:
     node_ids: np.ndarray | None = None
     polygons: dict = field(default_factory=lambda: {k: ([], []) for k in ("water", "parks", "buildings")})
     clipped: int = 0
+    coastline: list = field(default_factory=list)
 
 
 @dataclass
@@ -133,6 +137,7 @@ class _Ways:
     node_ids: np.ndarray | None
     clipped: int
     polygons: dict  # the areas of the pass (see OsmExtract.polygons), empty without extras
+    coastline: list  # hex WKB of the coastline ways (with the water only)
     negative: bool = False  # some way uses a node with a negative id that the location index cannot hold
 
 
@@ -202,6 +207,7 @@ def read_osm(
         parts = [_read_pass(path, classes, extras=extras, node_ids=node_ids, where=where, negative=True)]
     for kind, (geoms, attrs) in parts[0].polygons.items():
         out.polygons[kind] = (geoms, attrs)
+    out.coastline = parts[0].coastline
     _merge(out, parts, node_ids=node_ids)
     return out
 
@@ -239,9 +245,19 @@ def _read_pass(
         if n.id < 0 and n.location.valid():
             neg[n.id] = (n.location.lon, n.location.lat, n.id)
 
+    coast: list = []
+    sea = "water" in extras
+
     def way(w):
         tags = w.tags
         hw = tags.get("highway")
+        if hw is None:  # the filter lets natural=* ways through only to find the coastline
+            if sea and tags.get("natural") == "coastline":
+                try:
+                    coast.append(create(w, every))
+                except (osmium.InvalidLocationError, RuntimeError):
+                    pass  # clipped by the extract: its other pieces still close the sea
+            return
         code = codes.get(hw)
         if code is None:
             code = codes[hw] = len(codes)
@@ -282,9 +298,10 @@ def _read_pass(
         polygons = {k: ([], []) for k in ("water", "parks", "buildings")}
         callbacks["area"] = _area_callback(wkb, extras, polygons)
     if select is None:
-        ways_filter = osmium.filter.KeyFilter("highway")
+        ways_filter = osmium.filter.KeyFilter("highway", *(("natural",) if sea else ()))
     else:
-        ways_filter = osmium.filter.TagFilter(*(("highway", c) for c in sorted(select)))
+        coastline = (("natural", "coastline"),) if sea else ()
+        ways_filter = osmium.filter.TagFilter(*(("highway", c) for c in sorted(select)), *coastline)
     ways_filter.enable_for(osmium.osm.WAY)  # areas, nodes and relations pass untouched
     try:
         osmium.make_simple_handler(**callbacks).apply_file(str(path), locations=True, filters=[ways_filter])
@@ -304,6 +321,7 @@ def _read_pass(
         np.fromiter((r for way in refs for r in way), np.int64) if node_ids else None,
         clipped[0],
         polygons,
+        coast,
         uses_negative[0],
     )
 

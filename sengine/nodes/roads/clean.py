@@ -17,8 +17,22 @@ quite one.  This module prepares it, on whole numpy arrays:
    different ``layer`` values pass over each other (in OSM most junctions
    are shared nodes already).  Then split and merge duplicates again.
 4. **Dead ends** -- segments ending at a degree-1 node are dropped,
-   repeatedly, until none is left: they bound no block.
-5. **Slivers** -- the thin faces between dual carriageways and the tiny
+   repeatedly, until none is left: they bound no block.  Off
+   (``dead_ends=false``) for real maps, where a cul-de-sac is a street the
+   blocks node cuts out of its block so that lots front onto it.
+5. **Ground level** -- the faces are traced on the ground-level graph only:
+   bridges, tunnels and ways on another ``layer`` pass over or under the
+   blocks and close none, so the faces on both sides of a bridge close
+   where the ground streets close them.  They stay rows of the roads (the
+   blocks node draws their street surface).
+6. **Closing** -- with ``close="bbox"`` the graph is closed round the
+   bounding box of the streets (and of ``meta["extent"]``, the data's
+   extent an importer gives) (:func:`sengine.geom.segments.box_closure`),
+   a margin beyond it: the land between the outermost streets and the edge
+   of the data becomes a face too, which the blocks node clips back to the
+   box (``meta["bbox"]``).  The closing edges are no streets (no row, no
+   width); they go on in the graph with ``row`` -1 and as ``meta["closing"]``.
+7. **Slivers** -- the thin faces between dual carriageways and the tiny
    traffic islands inside junctions are street surface, not blocks: faces
    narrower than ``sliver_width`` or smaller than ``island_area`` are found
    with the face tracer the blocks use (:mod:`.slivers`), counted (``slivers_merged``) and
@@ -51,15 +65,20 @@ from scipy.sparse import csr_matrix
 
 from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.geom.polygons import strtree_query
-from sengine.geom.segments import argsort_int, lines_from_groups, merge_points
+from sengine.geom.segments import argsort_int, box_closure, lines_from_groups, merge_points
 
-from ..blocks.circuits import find_blocks
+from ..blocks.circuits import find_blocks, ground_level
 from .junctions import Pieces, point_keys, split_at_junctions, take_pieces
 from .slivers import find_slivers, segment_graph
 
-__all__ = ["crossing_points", "clean_streets", "RoadsClean"]
+__all__ = ["crossing_points", "clean_streets", "face_graph", "RoadsClean"]
 
 log = logging.getLogger(__name__)
+
+#: How far beyond the streets' bounding box the closing edges run (m): farther than any street
+#: and sidewalk inset (``blocks.circuits`` allows 100 m + 50 m), so that the face round the
+#: streets, clipped back to the box, keeps no street surface along it.
+CLOSE_MARGIN = 250.0
 
 #: Rank of highway classes when duplicates are merged: the first one wins.
 CLASS_RANK = (
@@ -344,13 +363,78 @@ def _duplicates(
     return keep, int(dup.sum() + straight.sum())
 
 
+def face_graph(nodes, u, v, row, ground, *, close: bool = False, box=None, decimals: int | None = None) -> dict:
+    """The graph the blocks are traced on: the ground-level segments, closed along the box when asked.
+
+    Parameters
+    ----------
+    nodes : ndarray (k, 2)
+        Node coordinates of the plane segment graph (m).
+    u, v, row : ndarray of int64 (m,)
+        Its straight segments and the street segment (row) each lies on.
+    ground : ndarray of bool
+        Per row: at ground level (see :func:`sengine.nodes.blocks.circuits.ground_level`).
+    close : bool
+        Add the edges that close the graph round the bounding box of its
+        nodes, :data:`CLOSE_MARGIN` beyond it
+        (:func:`sengine.geom.segments.box_closure`), with ``row`` -1: the land
+        between the streets and the box is one more face, which the blocks
+        node clips back to the box (``graph["bbox"]``).
+    box : (xmin, ymin, xmax, ymax), optional
+        The extent of the data (m; e.g. the map's buildings too): the box
+        closed along holds it and the nodes.
+    decimals : int or None
+        Number the nodes as :func:`sengine.nodes.blocks.circuits.find_blocks`'
+        lines entry does after merging to this many decimals (only when that
+        merges no two nodes; ``graph["decimals"]`` says whether it did).
+
+    Returns
+    -------
+    dict
+        ``xy``, ``u``, ``v``, ``row`` (-1: a closing edge), ``decimals``
+        (None: numbered otherwise), ``closing`` (the closing edges as one
+        LineString ring, or None) and ``bbox`` (the box it closes, xmin,
+        ymin, xmax, ymax, or None).
+    """
+    sel = np.asarray(ground, bool)[row] if len(row) else np.zeros(0, bool)
+    fu, fv, frow = u[sel], v[sel], row[sel]
+    used = np.zeros(len(nodes), bool)
+    used[fu] = True
+    used[fv] = True
+    renum = np.cumsum(used) - 1
+    fxy, fu, fv = nodes[used], renum[fu], renum[fv]
+    closing = None
+    if close and len(fu):
+        fxy, cu, cv = box_closure(fxy, fu, fv, margin=CLOSE_MARGIN, box=box)
+        if len(cu):
+            ring = np.r_[cu, cu[:1]] if np.array_equal(np.roll(cu, -1), cv) else None
+            closing = shapely.linestrings(fxy[ring]) if ring is not None else None
+            if closing is None:  # a side lies along a street: the closing edges are pieces of the ring
+                closing = shapely.multilinestrings(shapely.linestrings(np.stack([fxy[cu], fxy[cv]], axis=1)))
+            fu, fv, frow = np.r_[fu, cu], np.r_[fv, cv], np.r_[frow, np.full(len(cu), -1, np.int64)]
+    bbox = None
+    if closing is not None:
+        lo, hi = nodes[used].min(axis=0), nodes[used].max(axis=0)
+        if box is not None:
+            lo, hi = np.minimum(lo, box[:2]), np.maximum(hi, box[2:])
+        bbox = tuple(float(c) for c in np.r_[lo, hi])
+    graph = {"xy": fxy, "u": fu, "v": fv, "row": frow, "decimals": None, "closing": closing, "bbox": bbox}
+    if decimals is not None and len(fxy):
+        mxy, inv = merge_points(fxy, decimals)
+        if len(mxy) == len(fxy):  # no two nodes merge: only the numbering changes
+            graph.update(xy=mxy, u=inv[fu], v=inv[fv], decimals=decimals)
+    return graph
+
+
 @register
 class RoadsClean(SENode):
     """Make a real street network plane and tidy before block detection.
 
     Nodes same-level crossings (not bridges or tunnels), merges duplicate
-    ways, drops dead ends and finds the slivers between dual carriageways and
-    the traffic islands (skylineEngine 002 §5.4 needs a plane graph).
+    ways, drops dead ends (or keeps them), traces the faces of the
+    ground-level graph (closed along the data's bounding box on request) and
+    finds the slivers between dual carriageways and the traffic islands
+    (skylineEngine 002 §5.4 needs a plane graph).
     """
 
     name = "roads.clean"
@@ -365,7 +449,7 @@ class RoadsClean(SENode):
             "str",
             "drop",
             choices=("drop", "keep"),
-            doc="tunnels pass under blocks: drop them, or keep them as block edges",
+            doc="tunnels pass under blocks: drop them, or keep them as streets that close no block",
         ),
         "dup_tol": Param(
             "float",
@@ -375,7 +459,16 @@ class RoadsClean(SENode):
             unit="m",
             doc="segments between the same junctions closer than this are duplicates",
         ),
-        "dead_ends": Param("bool", True, doc="drop dead ends iteratively"),
+        "dead_ends": Param(
+            "bool", True, doc="drop dead ends iteratively (false: keep cul-de-sacs, the blocks node cuts them out)"
+        ),
+        "close": Param(
+            "str",
+            "none",
+            choices=("none", "bbox"),
+            doc="close the ground-level graph along the streets' bounding box (closing edges are no streets), "
+            "so that the land at the edge of the data makes faces too",
+        ),
         "sliver_width": Param(
             "float", 8.0, min=0.0, max=100.0, unit="m", doc="faces thinner than this (2 area / perimeter) are medians"
         ),
@@ -429,17 +522,31 @@ class RoadsClean(SENode):
             rest = np.flatnonzero(~whole)
             geoms[rest] = lines_from_groups(xy[pieces.vertex[sel]], np.searchsorted(rest, pieces.piece[sel]))
         nodes, su, sv, pu, pv, row = segment_graph(pieces, xy, key)
-        graph = {"rows": len(pieces), "xy": nodes, "u": su, "v": sv, "row": row, "decimals": None}
+        ground = ground_level(lay)[pieces.line]
+        # the faces are traced once, here, and blocks.circuits takes them over: numbered as its
+        # lines entry numbers nodes (merged to its default decimals), they come out in the same order
+        graph = face_graph(
+            nodes,
+            su,
+            sv,
+            row,
+            ground,
+            close=self.p.close == "bbox",
+            box=roads.meta.get("extent"),
+            decimals=self.p.decimals,
+        )
+        closing, bbox = graph.pop("closing"), graph.pop("bbox")
+        graph["rows"] = len(pieces)
         faces = None
-        if self.p.find_slivers and len(pieces):
-            # the faces are traced once, here, and blocks.circuits takes them over: numbered as its
-            # lines entry numbers nodes (merged to its default decimals), they come out in the same order
-            decimals = self.p.decimals
-            mxy, inv = merge_points(nodes, decimals)
-            if len(mxy) == len(nodes):  # no two nodes merge: only the numbering changes
-                graph.update(xy=mxy, u=inv[su], v=inv[sv], decimals=decimals)
+        if self.p.find_slivers and len(graph["u"]):
             faces = find_blocks((graph["xy"], graph["u"], graph["v"]), node=False, decimals=None)
             graph["blocks"] = faces
+        counts["off_ground"] = int((~ground).sum())
+        counts["dead_ends_kept"] = 0
+        counts["closing_edges"] = int((graph["row"] < 0).sum())
+        if faces is not None:
+            erow = graph["row"][faces.src]  # the row of each traced edge
+            counts["dead_ends_kept"] = int(len(np.unique(erow[faces.bridge & (erow >= 0)])))
         out = lay.take(pieces.line)
         out = Layer(
             np.asarray(geoms, dtype=object),
@@ -450,10 +557,14 @@ class RoadsClean(SENode):
                 **meta,
                 "planar": True,
                 "nodes": nodes,
-                # the plane straight-segment graph, valid for exactly these rows (see find_blocks):
-                # segment k joins nodes u[k], v[k] (indices into graph xy) and lies on row[k];
-                # its traced faces when found; xy numbered as find_blocks(lines, decimals) would
+                # the plane straight-segment graph of the ground-level rows, valid for exactly these
+                # rows (see find_blocks): segment k joins nodes u[k], v[k] (indices into graph xy) and
+                # lies on row[k] (-1: a closing edge); its traced faces when found; xy numbered as
+                # find_blocks(lines, decimals) would
                 "graph": graph,
+                # the edges closing the graph round the bounding box (no streets), and the box; or None
+                "closing": closing,
+                "bbox": bbox,
             },
         )
         counts["tunnels_dropped"] = int(n0 - n)
@@ -468,6 +579,9 @@ class RoadsClean(SENode):
                 island_area=self.p.island_area,
                 faces=faces,
             )
+            if closing is not None and len(polys):  # the land along the box is no street surface
+                keep = ~shapely.intersects(polys, closing)
+                polys, kind = polys[keep], kind[keep]
             slivers = Layer.from_geoms(polys, meta=meta, kind=kind)
             counts["faces"] = nfaces
             counts["islands"] = int((kind == "island").sum())

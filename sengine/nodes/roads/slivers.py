@@ -104,8 +104,8 @@ def find_slivers(
     nxt = np.where(k + 1 < first + size[walk], k + 1, first)
     p, q = nodes[wv], nodes[wv[nxt]]
     perimeter = np.bincount(walk, weights=np.hypot(*(q - p).T), minlength=nf)
-    # bounded faces turn the other way round from the outer face (the largest walk)
-    area = warea * -np.sign(warea[np.argmax(np.abs(warea))])
+    # bounded faces turn counter-clockwise (positive), the outer walks clockwise (see planar_faces)
+    area = warea
     bounded = area > 0
     width = 2.0 * area / np.maximum(perimeter, 1e-12)
     island = bounded & (area < island_area)
