@@ -410,7 +410,9 @@ _P_RECURSIVE = {
 }
 _P_PARIS = {
     "segment": Param("float", 20.0, min=1.0, unit="m", doc="contour segment length (one perimeter lot each)"),
-    "depth": Param("float", 15.0, min=0.5, unit="m", doc="mean lot depth (inward displacement)"),
+    "depth": Param(
+        "float", 22.0, min=0.5, unit="m", doc="mean lot depth (inward displacement; European perimeter blocks: 15-35 m)"
+    ),
     "deviation": Param("float", 3.0, min=0.0, unit="m", doc="standard deviation of the lot depth"),
     "min_frontage": Param(
         "float", 2.0, min=0.0, unit="m", doc="perimeter pieces with less frontage join a neighbouring lot"
