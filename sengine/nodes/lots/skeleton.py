@@ -523,7 +523,8 @@ def skeleton_lots(
         fpart = np.r_[fpart[~inner], fpart[ii][sub[1]]]
         inner = np.r_[np.zeros(int((~inner).sum()), bool), np.ones(len(sub[0]), bool)]
     elif interior == "merge" and inner.any():
-        faces, fpart, inner = _merge_interior(faces, fpart, inner)
+        spacing = 0.5 * np.minimum(w_b, d_b)[own[fpart]]
+        faces, fpart, inner = _merge_interior(faces, fpart, inner, spacing, report)
     # slivers left (inner ones, or with no street neighbour): into any neighbour
     tiny = shapely.area(faces) < np.where(inner, amin_b[own[fpart]], SLIVER)
     if tiny.any():
@@ -536,6 +537,71 @@ def skeleton_lots(
     return SkeletonLots(faces[o], own[fpart[o]].astype(np.int64), inner[o], park[o], report)
 
 
-def _merge_interior(faces, fpart, inner):
-    """Each interior face split among the street lots along it (nearest back edge), so all reach a street."""
-    return faces, fpart, inner
+def _merge_interior(faces, fpart, inner, spacing, report):
+    """Each interior face shared out among the street lots along it, so that every lot reaches a street.
+
+    The interior's boundary is sampled every ``spacing`` (m, per face); each
+    sample belongs to the street lot whose back edge it lies on, and each
+    point of the interior goes to the lot of the nearest sample (Voronoi
+    cells of the samples, clipped to the interior): lots from facing
+    streets meet half way, near the interior's medial axis.  A part where
+    a lot would come out in pieces keeps its interior as inner lots
+    (counted in ``skeleton_merge_kept``).
+    """
+    ii = np.flatnonzero(inner)
+    si = np.flatnonzero(~inner)
+    F = faces[ii]
+    dens = shapely.segmentize(F, spacing[ii])
+    p0, p1, fidx, _ = ring_segments(dens)
+    mids = 0.5 * (p0 + p1)
+    owner = np.full(len(mids), -1, np.int64)
+    if len(mids) and len(si):
+        qi, li = shapely.STRtree(faces[si]).query(shapely.points(mids), predicate="dwithin", distance=1e-6)
+        ok = fpart[si[li]] == fpart[ii[fidx[qi]]]
+        qi, li = qi[ok], li[ok]
+        o = np.lexsort((li, qi))
+        f = np.r_[True, qi[o][1:] != qi[o][:-1]] if len(o) else np.zeros(0, bool)
+        owner[qi[o][f]] = si[li[o][f]]
+    keep = owner >= 0
+    mids, fidx, owner = mids[keep], fidx[keep], owner[keep]
+    # one sample per point of a face (Voronoi cells merge equal points)
+    key = np.c_[fidx.astype(np.float64), mids]
+    _, first = np.unique(key, axis=0, return_index=True)
+    first = np.sort(first)
+    mids, fidx, owner = mids[first], fidx[first], owner[first]
+    nf = np.bincount(fidx, minlength=len(ii))
+    go = np.flatnonzero(nf >= 2)
+    bad_part = np.zeros(int(fpart.max()) + 1, bool)
+    bad_part[fpart[ii[nf < 2]]] = True  # an interior touching fewer than two samples stays inner
+    sel = np.isin(fidx, go)
+    mids, fidx, owner = mids[sel], fidx[sel], owner[sel]
+    mp = shapely.multipoints(mids, indices=np.searchsorted(go, fidx))
+    vor = shapely.voronoi_polygons(mp, extend_to=F[go], ordered=True)
+    cells, ci = shapely.get_parts(vor, return_index=True)
+    ok_count = np.bincount(ci, minlength=len(go)) == nf[go]
+    bad_part[fpart[ii[go[~ok_count]]]] = True
+    cell_ok = ok_count[ci]
+    cells, cowner, cface = cells[cell_ok], owner[cell_ok], go[ci[cell_ok]]
+    clipped = threaded(shapely.intersection, cells, F[cface])
+    # each street lot with its cells
+    o = np.lexsort((np.arange(len(cowner)), cowner))
+    cowner, clipped = cowner[o], clipped[o]
+    hosts, cnt = np.unique(cowner, return_counts=True)
+    grid = np.full((len(hosts), int(cnt.max()) + 1 if len(cnt) else 1), None, dtype=object)
+    grid[:, 0] = faces[hosts]
+    grid[np.repeat(np.arange(len(hosts)), cnt), 1 + ramp(cnt)] = clipped
+    grown = shapely.union_all(grid, axis=1) if len(hosts) else np.empty(0, object)
+    bad_part[fpart[hosts[shapely.get_type_id(grown) != 3]]] = True
+    new = faces.copy()
+    new[hosts] = grown
+    # every part's area must be kept (to 1e-9): else its interior stays inner
+    P = int(fpart.max()) + 1
+    before = np.bincount(fpart, weights=shapely.area(faces), minlength=P)
+    after = np.bincount(fpart[si], weights=shapely.area(new[si]), minlength=P)
+    bad_part |= np.abs(after - before) > 1e-9 * np.maximum(before, 1.0)
+    bad_part &= np.bincount(fpart[ii], minlength=P) > 0
+    report["skeleton_merge_kept"] = report.get("skeleton_merge_kept", 0) + int(bad_part.sum())
+    use_new = ~bad_part[fpart]
+    out = np.where(use_new, new, faces)
+    stay = ~inner | bad_part[fpart]
+    return out[stay], fpart[stay], inner[stay]
