@@ -8,7 +8,7 @@ areas and overlays keep their precision.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +36,7 @@ def _blocks(path: Path, *, minor: str | None, clean: dict, blocks: dict) -> Laye
     )
 
 
-@lru_cache(maxsize=None)
+@cache
 def osm_blocks(name: str) -> Layer:
     """Blocks of ``helsinki``, ``monaco`` or ``liege`` as their demo configs make them."""
     if name == "helsinki":

@@ -78,6 +78,7 @@ INTERIORS = ("inner", "merge", "park")
 MARGIN = 0.5  # m: cuts keep this much more than the corner's clearance (rays do not meet at the mitre point)
 OVERSHOOT = 1e-3  # m: rays run this far past what they hit, so that noding makes the junction
 SLIVER = 1.0  # m2: no lot is smaller
+SNAP = 1e-6  # m: grid of the snap-rounding noder used where GEOS's fast noder fails
 
 
 @dataclass
@@ -190,10 +191,12 @@ def _cuts(rs, own, d, width, lmin, amax, irregularity, seeds, corner_angle, corn
     # lot widths: lot_width_min plus a random share of the rest
     cs = np.repeat(np.arange(S), m)
     j = ramp(m)
-    part_rank = (sp - np.searchsorted(sp, sp)).astype(np.uint64)  # street rank in its part
-    key = (part_rank[cs] << np.uint64(20)) + j.astype(np.uint64) + (np.uint64(1) << np.uint64(40))
+    # key: (part's rank in its block, street's rank in its part, lot): the same in any batch
+    street_rank = (np.arange(S) - np.searchsorted(sp, sp)).astype(np.uint64)
+    part_rank = (np.arange(len(own)) - np.searchsorted(own, own)).astype(np.uint64)
+    key = (part_rank[sp[cs]] << np.uint64(44)) + (street_rank[cs] << np.uint64(20)) + j.astype(np.uint64)
     z = np.clip(_normal(seeds[own[sp[cs]]], key), -2.5, 2.5)
-    f = np.clip(1.0 + 0.5 * irregularity[own[sp[cs]]] * z, 0.05, None)
+    f = np.clip(1.0 + 0.5 * irregularity[sp[cs]] * z, 0.05, None)
     fs = np.bincount(cs, weights=f, minlength=S)
     wl = lminS[cs] + (U[cs] - m[cs] * lminS[cs]) * f / np.maximum(fs[cs], 1e-300)
     # cut arcs: c0 then c0 + cumulative widths (closed streets: from 0, m cuts)
@@ -278,6 +281,21 @@ def _cast(p, nrm, ray_part, reach, seg0, seg1, seg_part, seg_key, tmin=1e-6):
     return best, key
 
 
+def _node(lines):
+    """``shapely.node`` of each MultiLineString; one GEOS cannot node (rays meeting at a point, nearly)
+    is noded by snap rounding to a micrometre grid instead."""
+    try:
+        return threaded(shapely.node, lines)
+    except shapely.errors.GEOSException:
+        out = np.empty(len(lines), dtype=object)
+        for k, g in enumerate(lines):  # rare: only after a failure, to find the culprits
+            try:
+                out[k] = shapely.node(g)
+            except shapely.errors.GEOSException:
+                out[k] = shapely.union_all([g], grid_size=SNAP)
+        return out
+
+
 # -- faces and merges -----------------------------------------------------------------------------
 
 
@@ -298,14 +316,17 @@ def _neighbours(faces, fpart, want=None):
     _, vid = merge_points(np.r_[p0, p1])
     a, b = vid[: len(idx)], vid[len(idx) :]
     key = np.minimum(a, b) * (int(vid.max()) + 1) + np.maximum(a, b)
-    o = argsort_int(key)
-    same = key[o][1:] == key[o][:-1]
+    part = fpart[idx]
+    o = np.lexsort((part, key))
+    same = (key[o][1:] == key[o][:-1]) & (part[o][1:] == part[o][:-1])
     i, j = idx[o][:-1][same], idx[o][1:][same]
     ln = np.hypot(*(p1 - p0)[o][:-1][same].T)
     keep = i != j
     i, j, ln = i[keep], j[keep], ln[keep]
     # both directions, summed per pair
     ii, jj, ll = np.r_[i, j], np.r_[j, i], np.r_[ln, ln]
+    if len(ii) == 0:
+        return ii, jj, ll
     pk = ii * len(faces) + jj
     o = argsort_int(pk)
     first = np.r_[True, pk[o][1:] != pk[o][:-1]]
@@ -313,48 +334,72 @@ def _neighbours(faces, fpart, want=None):
     return ii[o][first], jj[o][first], np.bincount(grp, weights=ll[o])
 
 
-def _merge_into(faces, small, allowed, fpart, rounds=3):
-    """Faces flagged ``small`` joined to the ``allowed`` neighbour sharing most boundary.
+def _touching(faces, fpart, sel):
+    """Neighbours of faces ``sel`` found geometrically (boundaries within 1 um), with the length shared."""
+    if len(sel) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    qi, j = shapely.STRtree(faces).query(faces[sel], predicate="dwithin", distance=1e-6)
+    i = sel[qi]
+    ok = (i != j) & (fpart[i] == fpart[j])
+    i, j = i[ok], j[ok]
+    bi, bj = shapely.boundary(faces[i]), shapely.boundary(faces[j])
+    ln = shapely.length(shapely.intersection(bi, shapely.buffer(bj, 1e-6, quad_segs=1)))
+    return i, j, ln
 
-    Returns the faces (joined ones removed, their hosts grown) and the
-    number merged; a small face with no allowed neighbour stays.
+
+def _merge_into(faces, small, allowed, fpart, rounds=4):
+    """Faces flagged ``small`` joined to the neighbour sharing most boundary.
+
+    Neighbours are preferred ``allowed`` and not small, then any not small,
+    then small ones (which may then grow out of it in the next round).
+    Faces of no area (under 1e-9 m2: rays meeting at a point) are dropped.
+    Returns the faces (joined ones removed, their hosts grown), the mask of
+    the input faces kept, and the number merged or dropped; a small face
+    with no neighbour stays.
     """
     faces = faces.copy()
-    alive = np.ones(len(faces), bool)
-    merged = 0
+    alive = shapely.area(faces) > 1e-9
+    merged = int((~alive).sum())
+    small = small & alive
     for _ in range(rounds):
         todo = small & alive
         if not todo.any():
             break
-        i, j, ln = _neighbours(faces[alive], fpart[alive], todo[alive])
         live = np.flatnonzero(alive)
+        i, j, ln = _neighbours(faces[live], fpart[live], todo[live])
         i, j = live[i], live[j]
-        ok = todo[i] & allowed[j] & ~small[j] & alive[j]
-        if not ok.any():
-            ok = todo[i] & alive[j] & ~todo[j]
+        lonely = np.setdiff1d(np.flatnonzero(todo), i)
+        if len(lonely):
+            gi, gj, gl = _touching(faces, fpart, lonely)
+            keep = alive[gj]
+            i, j, ln = np.r_[i, gi[keep]], np.r_[j, gj[keep]], np.r_[ln, gl[keep]]
+        ok = todo[i] & alive[j] & (ln > 0)
         i, j, ln = i[ok], j[ok], ln[ok]
         if len(i) == 0:
             break
-        o = np.lexsort((j, -ln, i))
+        rank = np.where(allowed[j] & ~small[j], 0, np.where(~small[j], 1, 2))
+        o = np.lexsort((j, -ln, rank, i))
         first = np.r_[True, i[o][1:] != i[o][:-1]]
         src, dst = i[o][first], j[o][first]
+        go = ~np.isin(dst, src)  # a host that joins another this round waits
+        src, dst = src[go], dst[go]
+        if len(src) == 0:
+            break
         # group by host: union of the host and all faces joining it
         g = np.lexsort((src, dst))
         src, dst = src[g], dst[g]
-        hosts, start, cnt = np.unique(dst, return_index=True, return_counts=True)
-        width = int(cnt.max()) + 1
-        grid = np.full((len(hosts), width), None, dtype=object)
+        hosts, cnt = np.unique(dst, return_counts=True)
+        grid = np.full((len(hosts), int(cnt.max()) + 1), None, dtype=object)
         grid[:, 0] = faces[hosts]
-        col = 1 + ramp(cnt)
-        grid[np.repeat(np.arange(len(hosts)), cnt), col] = faces[src]
+        grid[np.repeat(np.arange(len(hosts)), cnt), 1 + ramp(cnt)] = faces[src]
         u = shapely.union_all(grid, axis=1)
-        one = shapely.get_type_id(u) == 3
+        one = (shapely.get_type_id(u) == 3) & shapely.is_valid(u)
         faces[hosts[one]] = u[one]
         gone = src[one[np.repeat(np.arange(len(hosts)), cnt)]]
         alive[gone] = False
         merged += len(gone)
         small = small.copy()
-        small[hosts[one]] &= False
+        small[hosts[one]] = False
     return faces[alive], alive, merged
 
 
@@ -481,7 +526,7 @@ def skeleton_lots(
     ml = np.full(P, None, dtype=object)
     has = np.unique(lpart)
     ml[has] = shapely.multilinestrings(lines[o], indices=np.searchsorted(has, lpart[o]))
-    noded = threaded(shapely.node, ml[has])
+    noded = _node(ml[has])
     coll = threaded(shapely.polygonize, noded.reshape(-1, 1), axis=-1) if len(has) else np.empty(0, object)
     faces, fi = shapely.get_parts(np.asarray(coll).ravel(), return_index=True)
     fpart = has[fi]
@@ -510,6 +555,15 @@ def skeleton_lots(
     small = ~inner & (area < amin)
     if force_street_access:
         small |= ~inner & (front < np.minimum(lmin_b[own[fpart]], 0.5 * w_b[own[fpart]]))
+    # a part with no face big enough (a block about one lot in size) is one lot
+    whole = np.flatnonzero(np.bincount(fpart, weights=~small & ~inner, minlength=P) == 0)
+    if len(whole):
+        drop = np.isin(fpart, whole)
+        report["skeleton_merged"] += int(drop.sum())
+        faces = np.r_[faces[~drop], parts[whole]]
+        fpart = np.r_[fpart[~drop], whole]
+        inner = np.r_[inner[~drop], np.zeros(len(whole), bool)]
+        small = np.r_[small[~drop], np.zeros(len(whole), bool)]
     faces, alive, nm = _merge_into(faces, small, ~inner, fpart)
     report["skeleton_merged"] += nm
     fpart, inner = fpart[alive], inner[alive]
@@ -517,7 +571,11 @@ def skeleton_lots(
     if interior == "inner" and inner.any():
         ii = np.flatnonzero(inner)
         sub = recursive_lots(
-            faces[ii], max_area=amax_b[own[fpart[ii]]], min_frontage=0.0, jitter=0.25, seeds=seeds[own[fpart[ii]]]
+            faces[ii],
+            max_area=amax_b[own[fpart[ii]]],
+            min_frontage=0.0,
+            jitter=min(0.9, float(irr_b.max())),  # the node passes one irregularity for all its blocks
+            seeds=seeds[own[fpart[ii]]],
         )
         faces = np.r_[faces[~inner], sub[0]]
         fpart = np.r_[fpart[~inner], fpart[ii][sub[1]]]
