@@ -206,6 +206,12 @@ def edge_tags(lots, owner, blocks, *, corner_angle: float = 30.0, tol: float = O
     EdgeTags
         ``front``: on the block boundary; ``side``: shared with another lot
         that fronts one of the same streets; ``rear``: the rest.
+
+    Notes
+    -----
+    The lot across a segment is the one touching its midpoint: a segment
+    running along two lots (a T-junction, as recursive cuts make) is tagged
+    by the one at its middle.
     """
     lots = np.asarray(lots, dtype=object).ravel()
     owner = np.asarray(owner, np.int64)
