@@ -595,6 +595,20 @@ def skeleton_lots(
     return SkeletonLots(faces[o], own[fpart[o]].astype(np.int64), inner[o], park[o], report)
 
 
+def _robust(func, *arrays):
+    """``func`` over arrays (rows), with ``None`` where GEOS fails (only rows, not the whole call)."""
+    try:
+        return threaded(func, *arrays)
+    except shapely.errors.GEOSException:
+        out = np.empty(len(arrays[0]), dtype=object)
+        for k in range(len(out)):  # rare: after a failure, to find the culprits
+            try:
+                out[k] = func(*(a[k : k + 1] for a in arrays))[0]
+            except shapely.errors.GEOSException:
+                out[k] = None
+        return out
+
+
 def _merge_interior(faces, fpart, inner, spacing, report):
     """Each interior face shared out among the street lots along it, so that every lot reaches a street.
 
@@ -640,7 +654,8 @@ def _merge_interior(faces, fpart, inner, spacing, report):
     bad_part[fpart[ii[go[~ok_count]]]] = True
     cell_ok = ok_count[ci]
     cells, cowner, cface = cells[cell_ok], owner[cell_ok], go[ci[cell_ok]]
-    clipped = threaded(shapely.intersection, cells, F[cface])
+    clipped = _robust(shapely.intersection, cells, F[cface])
+    bad_part[fpart[ii[cface[shapely.is_missing(clipped)]]]] = True
     # each street lot with its cells
     o = np.lexsort((np.arange(len(cowner)), cowner))
     cowner, clipped = cowner[o], clipped[o]
@@ -648,8 +663,8 @@ def _merge_interior(faces, fpart, inner, spacing, report):
     grid = np.full((len(hosts), int(cnt.max()) + 1 if len(cnt) else 1), None, dtype=object)
     grid[:, 0] = faces[hosts]
     grid[np.repeat(np.arange(len(hosts)), cnt), 1 + ramp(cnt)] = clipped
-    grown = shapely.union_all(grid, axis=1) if len(hosts) else np.empty(0, object)
-    bad_part[fpart[hosts[shapely.get_type_id(grown) != 3]]] = True
+    grown = _robust(lambda g: shapely.union_all(g, axis=1), grid) if len(hosts) else np.empty(0, object)
+    bad_part[fpart[hosts[shapely.get_type_id(grown) != 3]]] = True  # a missing one (None) has type -1
     new = faces.copy()
     new[hosts] = grown
     # every part's area must be kept (to 1e-9): else its interior stays inner
