@@ -33,8 +33,10 @@ def check_vocabulary(blocks: Layer, lots: Layer, name: str):
     # depth: positive, no more than the lot's extent
     _, _, length, width = obb_frame(lots.geometry)
     depth = lots["depth"]
-    assert np.all(np.isfinite(depth)) and np.all(depth > 0), name
-    assert np.all(depth <= np.hypot(length, width) + 1e-6), name
+    has = front > 0
+    assert np.all(np.isnan(depth[~has])), name  # no front, no depth
+    assert np.all(np.isfinite(depth[has])) and np.all(depth[has] > 0), name
+    assert np.all(depth[has] <= np.hypot(length, width)[has] + 1e-6), name
     owner = owner_of(blocks, lots)
     tags = edge_tags(lots.geometry, owner, blocks.geometry)
     seg_len = np.hypot(*(tags.p1 - tags.p0).T)

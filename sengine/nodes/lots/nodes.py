@@ -387,9 +387,11 @@ def _skeleton(self, geoms, ids, report, *, where=None, **p):
     owner = np.r_[go[res.owner], keep].astype(np.int64)
     inner = np.r_[res.inner, np.zeros(len(keep), bool)]
     park = np.r_[res.park, np.zeros(len(keep), bool)]
+    flags = _SegmentFlags(res.lots, res.on, res.known).append(geoms[keep])
     o = np.argsort(owner, kind="stable")
+    flags = flags.take(o)
     meth = np.full(len(lots), "skeleton")
-    return LotSplit(lots[o], owner[o], meth, inner[o], park=park[o])
+    return LotSplit(lots[o], owner[o], meth, inner[o], flags.on, flags.known, park[o])
 
 
 _P_MANHATTAN = {

@@ -65,7 +65,7 @@ from sengine.geom.polygons import inset, threaded
 from sengine.geom.segments import argsort_int, merge_points
 from sengine.geom.split import RingSet
 
-from .contour import _scan, ramp
+from .contour import Marks, _scan, ramp
 from .paris import _normal
 from .recursive import recursive_lots
 
@@ -98,6 +98,10 @@ class SkeletonLots:
         Counts: ``skeleton_cuts``, ``skeleton_merged`` (faces merged into a
         neighbour: slivers, too small or without enough street),
         ``skeleton_thin`` (rays crossing a part thinner than twice the depth).
+    on, known : ndarray of bool
+        Which boundary segment of each lot lies on its block's boundary
+        (order of :func:`sengine.geom.boundary.ring_segments`), for the lots
+        ``known`` says (not for lots grown by a merge).
     """
 
     lots: np.ndarray
@@ -105,6 +109,8 @@ class SkeletonLots:
     inner: np.ndarray
     park: np.ndarray
     report: dict = field(default_factory=dict)
+    on: np.ndarray | None = None
+    known: np.ndarray | None = None
 
 
 def _per_block(x, n, dtype=np.float64):
@@ -304,11 +310,13 @@ def _neighbours(faces, fpart, want=None):
 
     Faces of one polygonize call share their edges vertex for vertex, so an
     edge is shared when the same two points bound a segment of both.  Only
-    parts holding a face of ``want`` (default all) are looked at.
+    the faces of ``want`` (default all) and those near them are looked at.
     """
     sel = np.arange(len(faces))
-    if want is not None:
-        sel = np.flatnonzero(np.isin(fpart, np.unique(fpart[want])))
+    if want is not None:  # the wanted faces and those whose boxes meet theirs
+        w = np.flatnonzero(want)
+        near = shapely.STRtree(faces).query(faces[w])[1] if len(w) else np.zeros(0, np.int64)
+        sel = np.unique(np.r_[w, near])
     p0, p1, idx, _ = ring_segments(faces[sel])
     if len(idx) == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
@@ -359,6 +367,7 @@ def _merge_into(faces, small, allowed, fpart, rounds=4):
     """
     faces = faces.copy()
     alive = shapely.area(faces) > 1e-9
+    changed = np.zeros(len(faces), bool)
     merged = int((~alive).sum())
     small = small & alive
     for _ in range(rounds):
@@ -395,12 +404,13 @@ def _merge_into(faces, small, allowed, fpart, rounds=4):
         u = shapely.union_all(grid, axis=1)
         one = (shapely.get_type_id(u) == 3) & shapely.is_valid(u)
         faces[hosts[one]] = u[one]
+        changed[hosts[one]] = True
         gone = src[one[np.repeat(np.arange(len(hosts)), cnt)]]
         alive[gone] = False
         merged += len(gone)
         small = small.copy()
         small[hosts[one]] = False
-    return faces[alive], alive, merged
+    return faces[alive], alive, merged, changed[alive]
 
 
 # -- all blocks -----------------------------------------------------------------------------------
@@ -551,6 +561,8 @@ def skeleton_lots(
 
     s0, s1, sidx, _, on = segments_on_boundary(faces, fpart, parts, tol=1e-5)
     front = np.bincount(sidx[on], weights=np.hypot(*(s1 - s0)[on].T), minlength=len(faces))
+    marks = Marks(on, np.bincount(sidx, minlength=len(faces)))  # the node need not measure them again
+    known = np.ones(len(faces), bool)
     amin = amin_b[own[fpart]]
     small = ~inner & (area < amin)
     if force_street_access:
@@ -564,9 +576,12 @@ def skeleton_lots(
         fpart = np.r_[fpart[~drop], whole]
         inner = np.r_[inner[~drop], np.zeros(len(whole), bool)]
         small = np.r_[small[~drop], np.zeros(len(whole), bool)]
-    faces, alive, nm = _merge_into(faces, small, ~inner, fpart)
+        marks = Marks.concat([marks.take(np.flatnonzero(~drop)), Marks.unknown(parts[whole])])
+        known = np.r_[known[~drop], np.zeros(len(whole), bool)]
+    faces, alive, nm, changed = _merge_into(faces, small, ~inner, fpart)
     report["skeleton_merged"] += nm
     fpart, inner = fpart[alive], inner[alive]
+    marks, known = marks.take(np.flatnonzero(alive)), known[alive] & ~changed
     # 5. the interior
     if interior == "inner" and inner.any():
         ii = np.flatnonzero(inner)
@@ -579,20 +594,26 @@ def skeleton_lots(
         )
         faces = np.r_[faces[~inner], sub[0]]
         fpart = np.r_[fpart[~inner], fpart[ii][sub[1]]]
+        # interior lots lie depth metres from the block's boundary: none of their segments is on it
+        marks = Marks.concat([marks.take(np.flatnonzero(~inner)), Marks.unknown(sub[0])])
+        known = np.r_[known[~inner], np.ones(len(sub[0]), bool)]
         inner = np.r_[np.zeros(int((~inner).sum()), bool), np.ones(len(sub[0]), bool)]
     elif interior == "merge" and inner.any():
         spacing = 0.5 * np.minimum(w_b, d_b)[own[fpart]]
-        faces, fpart, inner = _merge_interior(faces, fpart, inner, spacing, report)
+        faces, fpart, inner, stay, changed = _merge_interior(faces, fpart, inner, spacing, report)
+        marks, known = marks.take(np.flatnonzero(stay)), known[stay] & ~changed
     # slivers left (inner ones, or with no street neighbour): into any neighbour
     tiny = shapely.area(faces) < np.where(inner, amin_b[own[fpart]], SLIVER)
     if tiny.any():
-        faces, alive, nm = _merge_into(faces, tiny, np.ones(len(faces), bool), fpart)
+        faces, alive, nm, changed = _merge_into(faces, tiny, np.ones(len(faces), bool), fpart)
         report["skeleton_merged"] += nm
         fpart, inner = fpart[alive], inner[alive]
+        marks, known = marks.take(np.flatnonzero(alive)), known[alive] & ~changed
     report["skeleton_slivers"] = int((shapely.area(faces) < SLIVER).sum())
     park = inner.copy() if interior == "park" else np.zeros(len(faces), bool)
     o = np.lexsort((np.arange(len(faces)), own[fpart]))
-    return SkeletonLots(faces[o], own[fpart[o]].astype(np.int64), inner[o], park[o], report)
+    marks = marks.take(o)
+    return SkeletonLots(faces[o], own[fpart[o]].astype(np.int64), inner[o], park[o], report, marks.flat, known[o])
 
 
 def _robust(func, *arrays):
@@ -677,4 +698,7 @@ def _merge_interior(faces, fpart, inner, spacing, report):
     use_new = ~bad_part[fpart]
     out = np.where(use_new, new, faces)
     stay = ~inner | bad_part[fpart]
-    return out[stay], fpart[stay], inner[stay]
+    changed = np.zeros(len(faces), bool)
+    changed[hosts] = True
+    changed &= use_new
+    return out[stay], fpart[stay], inner[stay], stay, changed[stay]

@@ -11,8 +11,8 @@ way for the lots of any method (they all pass through
   boundary (every block edge faces a street: blocks are faces of the street
   graph);
 * ``depth`` (m): the lot's extent perpendicular to its front, i.e. along
-  the inner normal of its longest frontage segment (the short side of its
-  oriented bounding box for a lot without frontage);
+  the normal of its longest frontage segment (``nan`` for a lot without
+  frontage: it has no front to be deep from);
 * edge tags, by :func:`edge_tags` (not stored as columns: a building node
   asks for them when it needs them): each boundary segment of a lot is
   ``front`` (on a street), ``side`` (shared with a lot that fronts one of
@@ -34,7 +34,6 @@ import numpy as np
 import shapely
 
 from sengine.geom.boundary import ring_segments, segments_on_boundary
-from sengine.geom.polygons import obb_frame
 
 __all__ = ["KINDS", "FRONT", "SIDE", "REAR", "TAGS", "LotSplit", "EdgeTags", "lot_kind", "lot_depth", "edge_tags"]
 
@@ -93,12 +92,11 @@ def lot_kind(frontage, corner, inner) -> np.ndarray:
 def lot_depth(lots, front_angle) -> np.ndarray:
     """Extent (m) of each lot perpendicular to its front direction (``front_angle``, deg).
 
-    Lots without a front (``nan`` angle) get the short side of their
-    oriented bounding box.
+    Lots without a front (``nan`` angle) get ``nan``.
     """
     lots = np.asarray(lots, dtype=object)
     k = len(lots)
-    out = np.zeros(k)
+    out = np.full(k, np.nan)
     if k == 0:
         return out
     ang = np.asarray(front_angle, np.float64)
@@ -113,8 +111,7 @@ def lot_depth(lots, front_angle) -> np.ndarray:
         hi = np.maximum.reduceat(proj, start)
         lo = np.minimum.reduceat(proj, start)
         out[lots_with] = hi - lo
-    if (~has).any():
-        out[~has] = obb_frame(lots[~has])[3]
+    out[~has] = np.nan
     return out
 
 
