@@ -61,6 +61,7 @@ import numpy as np
 import shapely
 
 from sengine.geom.boundary import polygon_parts, ring_segments
+from sengine.geom.planar import planar_faces
 from sengine.geom.polygons import inset, threaded
 from sengine.geom.segments import argsort_int, merge_points
 from sengine.geom.split import RingSet
@@ -226,6 +227,7 @@ def _cuts(rs, own, d, width, lmin, amax, irregularity, seeds, corner_angle, corn
     edge_of[o[isc] - N] = ids[last_edge[isc]]
     e = edge_of
     t = np.clip(arc - es[e], 0.0, ln[e])
+    toff = t.copy()
     p = rs.xy[e] + t[:, None] * u[e]
     nrm = np.stack([-u[e, 1], u[e, 0]], axis=1)
     at_v = t <= 1e-9  # a cut through a vertex: the mean of both edges' normals
@@ -247,21 +249,25 @@ def _cuts(rs, own, d, width, lmin, amax, irregularity, seeds, corner_angle, corn
         p = np.r_[p, rs.xy[cv]]
         nrm = np.r_[nrm, bv]
         e = np.r_[e, cv]
+        toff = np.r_[toff, np.zeros(len(cv))]
         cut_s = np.r_[cut_s, run[cv]]
         bis = np.r_[bis, np.ones(len(cv), bool)]
-    return p, nrm, cut_s, e, bis, run, ncut
+    return p, nrm, cut_s, e, bis, run, toff
 
 
 def _cast(p, nrm, ray_part, reach, seg0, seg1, seg_part, seg_key, tmin=1e-6):
     """First hit of each ray ``p + t nrm`` (0 < t <= reach) on the segments of its own part.
 
-    Returns the distance (inf for none) and the key of the segment hit (-1).
+    Returns the distance (inf for none), the key of the segment hit (-1),
+    the segment hit (-1) and where along it (0 at ``seg0``, 1 at ``seg1``).
     """
     R = len(p)
     best = np.full(R, np.inf)
     key = np.full(R, -1, np.int64)
+    seg = np.full(R, -1, np.int64)
+    par = np.zeros(R)
     if R == 0 or len(seg0) == 0:
-        return best, key
+        return best, key, seg, par
     q = p + reach[:, None] * nrm
     lo, hi = np.minimum(seg0, seg1), np.maximum(seg0, seg1)
     tree = shapely.STRtree(shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]))
@@ -278,13 +284,15 @@ def _cast(p, nrm, ray_part, reach, seg0, seg1, seg_part, seg_key, tmin=1e-6):
         t = (ap[:, 0] * ab[:, 1] - ap[:, 1] * ab[:, 0]) / den
         s = (ap[:, 0] * n[:, 1] - ap[:, 1] * n[:, 0]) / den
     ok = (den != 0) & (t > tmin) & (t <= reach[ri]) & (s >= -1e-12) & (s <= 1 + 1e-12)
-    ri, si, t = ri[ok], si[ok], t[ok]
+    ri, si, t, s = ri[ok], si[ok], t[ok], np.clip(s[ok], 0.0, 1.0)
     o = np.lexsort((si, t, ri))
     firstm = np.r_[True, ri[o][1:] != ri[o][:-1]] if len(o) else np.zeros(0, bool)
     f = o[firstm]
     best[ri[f]] = t[f]
     key[ri[f]] = seg_key[si[f]]
-    return best, key
+    seg[ri[f]] = si[f]
+    par[ri[f]] = s[f]
+    return best, key, seg, par
 
 
 def _node(lines):
@@ -300,6 +308,151 @@ def _node(lines):
             except shapely.errors.GEOSException:
                 out[k] = shapely.union_all([g], grid_size=SNAP)
         return out
+
+
+def _chain(item_seg, item_par, item_node, seg_end, nseg):
+    """Edges along segments cut at points: for each segment, its start, the points in order, its end.
+
+    ``item_*``: one item per segment start (parameter -1) and per point on
+    a segment; ``seg_end``: the end node of each segment.  Returns the
+    edges ``u, v`` and the segment of each.
+    """
+    o = np.lexsort((item_par, item_seg))
+    sg, nd = item_seg[o], item_node[o]
+    last = np.r_[sg[1:] != sg[:-1], True]
+    nxt = np.r_[nd[1:], 0]
+    v = np.where(last, seg_end[sg], nxt)
+    return nd, v, sg
+
+
+def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part):
+    """Faces of the plane graph: block rings, offset rings and rays, all joined at exact nodes.
+
+    Every ray starts at a known point of a block edge and ends at a known
+    point of the segment it hit, so the graph is plane by construction
+    except where rays cross one another (found with an STRtree query and
+    split).  Its faces (:func:`sengine.geom.planar.planar_faces`) are the
+    lots; those right of a block edge fill a hole of the block and are
+    dropped, those left of an offset edge are the interior.  Returns faces,
+    their part, the interior flag, and per part whether its faces add up
+    to its area (else it needs GEOS).
+    """
+    N, NI, P = len(rs.xy), len(rsI.xy), rs.n
+    xy0 = np.r_[rs.xy, rsI.xy]
+    seg_start = np.arange(N + NI)
+    seg_end = np.r_[rs.next_vertex(), N + rsI.next_vertex()]
+    seg_part = np.r_[rs.vertex_poly(), ipart]
+    R = len(p)
+    ln = rs.edge_lengths()
+    q = p + t[:, None] * nrm
+    # ray ends: a segment's end node, or a new point on it
+    end_node = np.where(hpar <= 0.0, seg_start[hseg], np.where(hpar >= 1.0, seg_end[hseg], -1))
+    start_node = np.where(toff <= 0.0, cut_e, -1)
+    ev_seg = np.r_[cut_e[start_node < 0], hseg[end_node < 0]]
+    ev_par = np.r_[(toff / np.maximum(ln[cut_e], 1e-300))[start_node < 0], hpar[end_node < 0]]
+    ev_xy = np.r_[p[start_node < 0], q[end_node < 0]]
+    ev_ray = np.r_[np.flatnonzero(start_node < 0), np.flatnonzero(end_node < 0)]
+    ev_is_end = np.r_[np.zeros(int((start_node < 0).sum()), bool), np.ones(int((end_node < 0).sum()), bool)]
+    # one node per distinct point of a segment
+    key = np.c_[ev_seg.astype(np.float64), ev_par]
+    uniq, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    inv = inv.ravel()
+    ev_node = N + NI + inv
+    start_node[ev_ray[~ev_is_end]] = ev_node[~ev_is_end]
+    end_node[ev_ray[ev_is_end]] = ev_node[ev_is_end]
+    xy = np.r_[xy0, ev_xy[first]]
+    # crossings of rays with rays
+    a0, a1 = p, q
+    lo, hi = np.minimum(a0, a1), np.maximum(a0, a1)
+    boxes = shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1])
+    i, j = shapely.STRtree(boxes).query(boxes) if R else (np.zeros(0, np.int64), np.zeros(0, np.int64))
+    sel = (i < j) & (ray_part[i] == ray_part[j])
+    i, j = i[sel], j[sel]
+    shared = (start_node[i] == start_node[j]) | (start_node[i] == end_node[j])
+    shared |= (end_node[i] == start_node[j]) | (end_node[i] == end_node[j])
+    i, j = i[~shared], j[~shared]
+    r, sv = a1[i] - a0[i], a1[j] - a0[j]
+    den = r[:, 0] * sv[:, 1] - r[:, 1] * sv[:, 0]
+    qp = a0[j] - a0[i]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ta = (qp[:, 0] * sv[:, 1] - qp[:, 1] * sv[:, 0]) / den
+        tb = (qp[:, 0] * r[:, 1] - qp[:, 1] * r[:, 0]) / den
+    eps = 1e-12
+    cross = (den != 0) & (ta > eps) & (ta < 1 - eps) & (tb > eps) & (tb < 1 - eps)
+    i, j, ta, tb = i[cross], j[cross], ta[cross], tb[cross]
+    cxy = a0[i] + ta[:, None] * r[cross]
+    # crossings at one point (several rays through it) are one node
+    ckey = np.c_[ray_part[i].astype(np.float64), np.round(cxy, 9)]
+    _, cfirst, cinv = np.unique(ckey, axis=0, return_index=True, return_inverse=True)
+    cnode = len(xy) + cinv.ravel()
+    xy = np.r_[xy, cxy[cfirst]]
+    # edges: segments cut at the ray ends, rays cut at their crossings
+    su, sv_, sg = _chain(
+        np.r_[seg_start, ev_seg], np.r_[np.full(N + NI, -1.0), ev_par], np.r_[seg_start, ev_node], seg_end, N + NI
+    )
+    ru, rv, rg = _chain(
+        np.r_[np.arange(R), i, j], np.r_[np.full(R, -1.0), ta, tb], np.r_[start_node, cnode, cnode], end_node, R
+    )
+    u = np.r_[su, ru]
+    v = np.r_[sv_, rv]
+    epart = np.r_[seg_part[sg], ray_part[rg]]
+    kind = np.r_[np.where(sg < N, 0, 1), np.full(len(ru), 2)]  # 0 block, 1 offset, 2 ray
+    pf = planar_faces(xy, u, v)
+    faces = pf.polygons
+    F = len(faces)
+    fpart = np.full(F, -1, np.int64)
+    ef = pf.edge_faces
+    left = ef[:, 0]
+    has = left >= 0
+    fpart[left[has]] = epart[has]
+    right = ef[:, 1]
+    has = right >= 0
+    fpart[right[has]] = epart[has]
+    drop = np.zeros(F, bool)
+    hole = (kind == 0) & (right >= 0)  # right of a block edge: inside one of its holes
+    drop[right[hole]] = True
+    inner = np.zeros(F, bool)
+    io = (kind == 1) & (left >= 0)
+    inner[left[io]] = True
+    keep = ~drop & (fpart >= 0)
+    faces, fpart, inner = faces[keep], fpart[keep], inner[keep]
+    total = np.bincount(fpart, weights=shapely.area(faces), minlength=P)
+    ok = np.abs(total - rs.areas()) <= 1e-9 * np.maximum(np.abs(rs.areas()), 1.0)
+    return faces, fpart, inner, ok
+
+
+def _geos_faces(parts, core, cparts, cown, p, nrm, t, ray_part, sel):
+    """Faces of parts ``sel`` by GEOS: lines noded (snap rounding where that fails) and polygonized."""
+    P = len(parts)
+    want = np.zeros(P, bool)
+    want[sel] = True
+    rk = want[ray_part]
+    end = p[rk] + (t[rk] + OVERSHOOT)[:, None] * nrm[rk]
+    rays = shapely.linestrings(np.stack([p[rk] - OVERSHOOT * nrm[rk], end], axis=1))  # crossing, not touching
+    bnd = shapely.get_parts(shapely.boundary(parts[sel]), return_index=True)
+    ck = want[cown]
+    cb = shapely.get_parts(shapely.boundary(cparts[ck]), return_index=True)
+    lines = np.r_[bnd[0], cb[0], rays]
+    lpart = np.r_[sel[bnd[1]], cown[ck][cb[1]], ray_part[rk]]
+    o = np.argsort(lpart, kind="stable")
+    has = np.unique(lpart)
+    ml = shapely.multilinestrings(lines[o], indices=np.searchsorted(has, lpart[o]))
+    coll = shapely.polygonize(_node(ml).reshape(-1, 1), axis=-1)
+    faces, fi = shapely.get_parts(np.asarray(coll).ravel(), return_index=True)
+    fpart = has[fi]
+    pt = shapely.point_on_surface(faces)
+    inpart = shapely.area(faces) > 0
+    shapely.prepare(parts)
+    inpart &= shapely.contains_properly(parts[fpart], pt)
+    faces, fpart, pt = faces[inpart], fpart[inpart], pt[inpart]
+    inner = np.zeros(len(faces), bool)
+    has_core = np.zeros(P, bool)
+    has_core[cown] = True
+    cq = np.flatnonzero(has_core[fpart])
+    if len(cq):
+        shapely.prepare(core)
+        inner[cq] = shapely.contains_properly(core[fpart[cq]], pt[cq])
+    return faces, fpart, inner
 
 
 # -- faces and merges -----------------------------------------------------------------------------
@@ -505,57 +658,36 @@ def skeleton_lots(
     core = inset(parts, d)
     cparts, cown = polygon_parts(core, np.arange(P))
     # 2-3. streets and cut rays
-    p, nrm, cut_s, cut_e, bis, run, _ = _cuts(
+    p, nrm, cut_s, cut_e, bis, run, toff = _cuts(
         rs, own, d, w_b[own], lmin_b[own], amax_b[own], irr_b[own], seeds, corner_angle, corner
     )
     vp = rs.vertex_poly()
     ray_part = vp[cut_e]
-    b0, b1 = rs.xy, rs.xy[rs.next_vertex()]
-    c0, c1, cidx, _ = ring_segments(cparts)
-    S0 = np.r_[b0, c0]
-    S1 = np.r_[b1, c1]
-    spart = np.r_[vp, cown[cidx]]
-    skey = np.r_[run, np.full(len(cidx), -1, np.int64)]  # street of a boundary segment, -1 on the offset
+    rsI = RingSet.from_polygons(cparts)
+    ipart = cown[rsI.vertex_poly()]
+    S0 = np.r_[rs.xy, rsI.xy]
+    S1 = np.r_[rs.xy[rs.next_vertex()], rsI.xy[rsI.next_vertex()]]
+    spart = np.r_[vp, ipart]
+    skey = np.r_[run, np.full(len(rsI.xy), -1, np.int64)]  # street of a boundary segment, -1 on the offset
     reach = 3.0 * d[ray_part] + 1.0
-    t, hit = _cast(p, nrm, ray_part, reach, S0, S1, spart, skey)
+    t, hit, hseg, hpar = _cast(p, nrm, ray_part, reach, S0, S1, spart, skey)
     through = hit >= 0
     # a part thinner than twice the depth: only the rays of the lower street cross it
     keep = np.isfinite(t) & (~through | (cut_s < hit) | ((cut_s == hit) & ~bis))
     keep |= bis & np.isfinite(t)
     report["skeleton_thin"] = int((through & keep).sum())
     p, nrm, t, ray_part = p[keep], nrm[keep], t[keep], ray_part[keep]
+    cut_e, toff, hseg, hpar = cut_e[keep], toff[keep], hseg[keep], hpar[keep]
     report["skeleton_cuts"] = int(len(p))
-    end = p + (t + OVERSHOOT)[:, None] * nrm
-    rays = shapely.linestrings(np.stack([p - OVERSHOOT * nrm, end], axis=1))  # crossing, not touching
-    # 4. faces: block boundary, offset curve and rays, noded and polygonized per part
-    bnd = shapely.get_parts(shapely.boundary(parts), return_index=True)
-    cb = shapely.get_parts(shapely.boundary(cparts), return_index=True)
-    lines = np.r_[bnd[0], cb[0], rays]
-    lpart = np.r_[bnd[1], cown[cb[1]], ray_part]
-    o = np.argsort(lpart, kind="stable")
-    ml = np.full(P, None, dtype=object)
-    has = np.unique(lpart)
-    ml[has] = shapely.multilinestrings(lines[o], indices=np.searchsorted(has, lpart[o]))
-    noded = _node(ml[has])
-    coll = threaded(shapely.polygonize, noded.reshape(-1, 1), axis=-1) if len(has) else np.empty(0, object)
-    faces, fi = shapely.get_parts(np.asarray(coll).ravel(), return_index=True)
-    fpart = has[fi]
+    # 4. faces of the plane graph of block boundary, offset curve and rays
+    faces, fpart, inner, ok = _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part)
+    bad = np.flatnonzero(~ok)
+    if len(bad):  # parts the graph could not close (overlapping blocks): GEOS noding and polygonize
+        report["skeleton_geos"] = int(len(bad))
+        g = _geos_faces(parts, core, cparts, cown, p, nrm, t, ray_part, bad)
+        keepf = ~np.isin(fpart, bad)
+        faces, fpart, inner = np.r_[faces[keepf], g[0]], np.r_[fpart[keepf], g[1]], np.r_[inner[keepf], g[2]]
     area = shapely.area(faces)
-    inpart = area > 0
-    holed = shapely.get_num_interior_rings(parts) > 0
-    pt = shapely.point_on_surface(faces)
-    hq = np.flatnonzero(holed[fpart])
-    if len(hq):  # faces filling a hole of the block are not lots
-        shapely.prepare(parts)
-        inpart[hq] &= shapely.contains_properly(parts[fpart[hq]], pt[hq])
-    faces, fpart, pt, area = faces[inpart], fpart[inpart], pt[inpart], area[inpart]
-    has_core = np.zeros(P, bool)
-    has_core[cown] = True
-    inner = np.zeros(len(faces), bool)
-    cq = np.flatnonzero(has_core[fpart])
-    if len(cq):
-        shapely.prepare(core)
-        inner[cq] = shapely.contains_properly(core[fpart[cq]], pt[cq])
     # frontage of every face on its part's boundary
     from sengine.geom.boundary import segments_on_boundary
 
@@ -585,8 +717,12 @@ def skeleton_lots(
     # 5. the interior
     if interior == "inner" and inner.any():
         ii = np.flatnonzero(inner)
+        # the interior without the ray ends along its straight sides: fewer vertices to cut
+        simple = shapely.simplify(faces[ii], 0.0)
+        ok = (shapely.get_type_id(simple) == 3) & shapely.is_valid(simple)
+        simple = np.where(ok, simple, faces[ii])
         sub = recursive_lots(
-            faces[ii],
+            simple,
             max_area=amax_b[own[fpart[ii]]],
             min_frontage=0.0,
             jitter=min(0.9, float(irr_b.max())),  # the node passes one irregularity for all its blocks
