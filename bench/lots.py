@@ -20,6 +20,10 @@ oriented box is thinner than 1:10), ``thin_share_all`` (all lots),
 ``median_frontage`` and ``median_depth`` (m, street-facing lots) and the
 count of each ``kind``.  Results go to ``bench/results/lots.json``.
 
+``lots.skeleton?interior=park`` is the skeleton method with its interior
+kept whole (one lot per block interior instead of inner lots under
+``lot_area_max``).
+
 Usage::
 
     python bench/lots.py [--repeat 3] [--cases liege,manhattan,paris] [--out bench/results/lots.json]
@@ -52,7 +56,15 @@ LIEGE = next(
     ),
     ROOT / "configs/data/liege_streets.osm.pbf",
 )
-METHODS = ("lots.skeleton", "lots.recursive", "lots.paris", "lots.partition", "lots.manhattan")
+# a method, or a method with parameters: "lots.skeleton?interior=park"
+METHODS = (
+    "lots.skeleton",
+    "lots.skeleton?interior=park",
+    "lots.recursive",
+    "lots.paris",
+    "lots.partition",
+    "lots.manhattan",
+)
 
 
 def _peak_mb() -> float:
@@ -119,9 +131,11 @@ def run_method(case: str, method: str, repeat: int) -> dict:
     from sengine.registry import get
 
     blocks, _ = blocks_of(case)
+    name, _, query = method.partition("?")
+    params = dict(kv.split("=", 1) for kv in query.split("&") if kv)
     best, out, node = float("inf"), None, None
     for _ in range(repeat):
-        node = get(method)("lots", {}, Context(seed=1))
+        node = get(name)("lots", params, Context(seed=1))
         t = time.perf_counter()
         out = node.run(blocks=blocks)["lots"]
         best = min(best, time.perf_counter() - t)
@@ -184,7 +198,7 @@ def main(argv=None) -> int:
         print(prep.stdout.strip(), file=sys.stderr)
         from sengine.registry import names
 
-        for method in [m for m in METHODS if m in names()]:
+        for method in [m for m in METHODS if m.partition("?")[0] in names()]:
             proc = subprocess.run(
                 [sys.executable, __file__, "--run", case, method, "--repeat", str(args.repeat)],
                 capture_output=True,
