@@ -20,9 +20,9 @@ oriented box is thinner than 1:10), ``thin_share_all`` (all lots),
 ``median_frontage`` and ``median_depth`` (m, street-facing lots) and the
 count of each ``kind``.  Results go to ``bench/results/lots.json``.
 
-``lots.skeleton?interior=park`` is the skeleton method with its interior
-kept whole (one lot per block interior instead of inner lots under
-``lot_area_max``).
+``lots.skeleton?interior=split`` is the skeleton method with its interior
+cut into inner lots under ``lot_area_max`` (instead of one inner lot per
+block interior).
 
 Usage::
 
@@ -56,10 +56,10 @@ LIEGE = next(
     ),
     ROOT / "configs/data/liege_streets.osm.pbf",
 )
-# a method, or a method with parameters: "lots.skeleton?interior=park"
+# a method, or a method with parameters: "lots.skeleton?interior=split"
 METHODS = (
     "lots.skeleton",
-    "lots.skeleton?interior=park",
+    "lots.skeleton?interior=split",
     "lots.recursive",
     "lots.paris",
     "lots.partition",

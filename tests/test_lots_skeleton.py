@@ -93,7 +93,7 @@ def thin_share(lots: Layer) -> float:
 @SETTINGS
 @given(
     st.lists(block_polygon(), min_size=1, max_size=4),
-    st.sampled_from(["inner", "park", "merge"]),
+    st.sampled_from(["inner", "split", "park", "merge"]),
     st.sampled_from(["merge", "split"]),
 )
 def test_skeleton_partitions_generated_blocks(polys, interior, corner):
@@ -208,8 +208,10 @@ def test_interior_modes():
     def run(interior):
         return get("lots.skeleton")("lots", {"interior": interior}, Context(seed=4)).run(blocks=block)["lots"]
 
-    inner, park, merge = run("inner"), run("park"), run("merge")
-    assert inner["inner"].sum() >= 2 and (shapely.area(inner.geometry[inner["inner"]]) <= 2000.0 + 1e-6).all()
+    inner, split, park, merge = run("inner"), run("split"), run("park"), run("merge")
+    assert inner["inner"].sum() == 1 and not inner["park"].any()
+    assert abs(inner.geometry[inner["inner"]][0].area - 156 * 96) < 1e-6
+    assert split["inner"].sum() >= 2 and (shapely.area(split.geometry[split["inner"]]) <= 2000.0 + 1e-6).all()
     assert park["park"].sum() == 1 and abs(park.geometry[park["park"]][0].area - 156 * 96) < 1e-6
     assert not merge["inner"].any() and (merge["frontage"] > 0).all()  # every lot reaches a street
     # the street lots are the same whatever becomes of the interior

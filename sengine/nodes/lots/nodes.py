@@ -434,7 +434,11 @@ _P_SKELETON = {
     "lot_width_min": Param("float", 6.0, min=0.0, unit="m", doc="least street frontage of a lot"),
     "lot_area_min": Param("float", 50.0, min=1.0, unit="m2", doc="smaller lots join a neighbour (counted)"),
     "lot_area_max": Param(
-        "float", 2000.0, min=1.0, unit="m2", doc="lots are no wider than this / depth; inner lots are cut under it"
+        "float",
+        2000.0,
+        min=1.0,
+        unit="m2",
+        doc="lots are no wider than this / depth; interior=split cuts inner lots under it",
     ),
     "irregularity": Param(
         "float", 0.3, min=0.0, max=1.0, unit="1", doc="spread of lot widths: standard deviation of a share / 2"
@@ -446,7 +450,7 @@ _P_SKELETON = {
         "str",
         "inner",
         choices=INTERIORS,
-        doc="land deeper than depth: inner lots (flagged), merged into the street lots, or one park lot",
+        doc="land deeper than depth: one inner lot, inner lots under lot_area_max, merged into the street lots, a park",
     ),
     "force_street_access": Param(
         "bool", True, doc="street pieces with less than lot_width_min of frontage join a neighbour"

@@ -36,10 +36,12 @@ block subdivision, for all blocks at once:
    frontage, are merged into the neighbour they share most boundary with
    (counted).
 5. **Interior.** What lies deeper than ``depth`` is by ``interior``:
-   ``inner`` (cut into inner lots under ``lot_area_max`` by the recursive
-   method, flagged), ``park`` (one courtyard lot per offset component,
-   flagged) or ``merge`` (each part of the interior joins the street lot
-   whose back edge is nearest, so every lot reaches a street).
+   ``inner`` (left as one inner lot per offset component, flagged: the
+   shared courtyard of a perimeter block, the backland of a large one),
+   ``split`` (cut into inner lots under ``lot_area_max`` by the recursive
+   method, flagged), ``park`` (one courtyard / park lot per component,
+   flagged ``park`` too) or ``merge`` (each part of the interior joins the
+   street lot whose back edge is nearest, so every lot reaches a street).
 
 Randomness is a hash of (block seed, part, street, lot), so the lots of a
 block do not depend on the other blocks of the call.
@@ -75,11 +77,12 @@ __all__ = ["skeleton_lots", "SkeletonLots", "CORNERS", "INTERIORS"]
 log = logging.getLogger(__name__)
 
 CORNERS = ("merge", "split")
-INTERIORS = ("inner", "merge", "park")
+INTERIORS = ("inner", "split", "merge", "park")
 MARGIN = 0.5  # m: cuts keep this much more than the corner's clearance (rays do not meet at the mitre point)
 OVERSHOOT = 1e-3  # m: rays run this far past what they hit, so that noding makes the junction
 SLIVER = 1.0  # m2: no lot is smaller
 SNAP = 1e-6  # m: grid of the snap-rounding noder used where GEOS's fast noder fails
+SAME = 1e-9  # m: points of the face graph closer than this are one node
 
 
 @dataclass
@@ -345,16 +348,18 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part):
     R = len(p)
     ln = rs.edge_lengths()
     q = p + t[:, None] * nrm
-    # ray ends: a segment's end node, or a new point on it
-    end_node = np.where(hpar <= 0.0, seg_start[hseg], np.where(hpar >= 1.0, seg_end[hseg], -1))
-    start_node = np.where(toff <= 0.0, cut_e, -1)
+    # ray ends: a segment's end node (within a nanometre), or a new point on it
+    slen = np.hypot(*(xy0[seg_end] - xy0[seg_start]).T)
+    at = hpar * slen[hseg]
+    end_node = np.where(at <= SAME, seg_start[hseg], np.where(at >= slen[hseg] - SAME, seg_end[hseg], -1))
+    start_node = np.where(toff <= SAME, cut_e, np.where(toff >= ln[cut_e] - SAME, rs.next_vertex()[cut_e], -1))
     ev_seg = np.r_[cut_e[start_node < 0], hseg[end_node < 0]]
     ev_par = np.r_[(toff / np.maximum(ln[cut_e], 1e-300))[start_node < 0], hpar[end_node < 0]]
     ev_xy = np.r_[p[start_node < 0], q[end_node < 0]]
     ev_ray = np.r_[np.flatnonzero(start_node < 0), np.flatnonzero(end_node < 0)]
     ev_is_end = np.r_[np.zeros(int((start_node < 0).sum()), bool), np.ones(int((end_node < 0).sum()), bool)]
-    # one node per distinct point of a segment
-    key = np.c_[ev_seg.astype(np.float64), ev_par]
+    # one node per distinct point of a segment (to a nanometre)
+    key = np.c_[ev_seg.astype(np.float64), np.round(ev_par * slen[ev_seg], 9)]
     uniq, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
     inv = inv.ravel()
     ev_node = N + NI + inv
@@ -377,8 +382,8 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part):
     with np.errstate(divide="ignore", invalid="ignore"):
         ta = (qp[:, 0] * sv[:, 1] - qp[:, 1] * sv[:, 0]) / den
         tb = (qp[:, 0] * r[:, 1] - qp[:, 1] * r[:, 0]) / den
-    eps = 1e-12
-    cross = (den != 0) & (ta > eps) & (ta < 1 - eps) & (tb > eps) & (tb < 1 - eps)
+    la, lb = np.hypot(*r.T), np.hypot(*sv.T)
+    cross = (den != 0) & (ta * la > SAME) & ((1 - ta) * la > SAME) & (tb * lb > SAME) & ((1 - tb) * lb > SAME)
     i, j, ta, tb = i[cross], j[cross], ta[cross], tb[cross]
     cxy = a0[i] + ta[:, None] * r[cross]
     # crossings at one point (several rays through it) are one node
@@ -508,11 +513,12 @@ def _touching(faces, fpart, sel):
     return i, j, ln
 
 
-def _merge_into(faces, small, allowed, fpart, rounds=4):
+def _merge_into(faces, small, group, fpart, rounds=4, strict=False):
     """Faces flagged ``small`` joined to the neighbour sharing most boundary.
 
-    Neighbours are preferred ``allowed`` and not small, then any not small,
-    then small ones (which may then grow out of it in the next round).
+    Neighbours of the same ``group`` (street or interior) that are not
+    small come first, then any not small, then small ones (which may then
+    grow out of it in the next round); with ``strict`` only the same group.
     Faces of no area (under 1e-9 m2: rays meeting at a point) are dropped.
     Returns the faces (joined ones removed, their hosts grown), the mask of
     the input faces kept, and the number merged or dropped; a small face
@@ -536,10 +542,12 @@ def _merge_into(faces, small, allowed, fpart, rounds=4):
             keep = alive[gj]
             i, j, ln = np.r_[i, gi[keep]], np.r_[j, gj[keep]], np.r_[ln, gl[keep]]
         ok = todo[i] & alive[j] & (ln > 0)
+        if strict:
+            ok &= group[i] == group[j]
         i, j, ln = i[ok], j[ok], ln[ok]
         if len(i) == 0:
             break
-        rank = np.where(allowed[j] & ~small[j], 0, np.where(~small[j], 1, 2))
+        rank = np.where((group[i] == group[j]) & ~small[j], 0, np.where(~small[j], 1, 2))
         o = np.lexsort((j, -ln, rank, i))
         first = np.r_[True, i[o][1:] != i[o][:-1]]
         src, dst = i[o][first], j[o][first]
@@ -607,9 +615,10 @@ def skeleton_lots(
     corner : {"merge", "split"}
         A convex corner is one lot facing both streets, or two lots split on
         the corner's bisector.
-    interior : {"inner", "merge", "park"}
-        What is deeper than ``depth``: inner lots, merged into the street
-        lots, or one courtyard / park lot per component.
+    interior : {"inner", "split", "merge", "park"}
+        What is deeper than ``depth``: one inner lot per component, inner
+        lots under ``lot_area_max``, merged into the street lots, or one
+        courtyard / park lot per component.
     force_street_access : bool
         Street faces with less than ``lot_width_min`` of frontage join a
         neighbour (else they stay, as inner lots).
@@ -710,12 +719,12 @@ def skeleton_lots(
         small = np.r_[small[~drop], np.zeros(len(whole), bool)]
         marks = Marks.concat([marks.take(np.flatnonzero(~drop)), Marks.unknown(parts[whole])])
         known = np.r_[known[~drop], np.zeros(len(whole), bool)]
-    faces, alive, nm, changed = _merge_into(faces, small, ~inner, fpart)
+    faces, alive, nm, changed = _merge_into(faces, small, inner, fpart, strict=True)
     report["skeleton_merged"] += nm
     fpart, inner = fpart[alive], inner[alive]
     marks, known = marks.take(np.flatnonzero(alive)), known[alive] & ~changed
     # 5. the interior
-    if interior == "inner" and inner.any():
+    if interior == "split" and inner.any():
         ii = np.flatnonzero(inner)
         # the interior without the ray ends along its straight sides: fewer vertices to cut
         simple = shapely.simplify(faces[ii], 0.0)
@@ -739,9 +748,13 @@ def skeleton_lots(
         faces, fpart, inner, stay, changed = _merge_interior(faces, fpart, inner, spacing, report)
         marks, known = marks.take(np.flatnonzero(stay)), known[stay] & ~changed
     # slivers left (inner ones, or with no street neighbour): into any neighbour
-    tiny = shapely.area(faces) < np.where(inner, amin_b[own[fpart]], SLIVER)
-    if tiny.any():
-        faces, alive, nm, changed = _merge_into(faces, tiny, np.ones(len(faces), bool), fpart)
+    for strict in (True, False):  # into their own kind first
+        tiny = shapely.area(faces) < np.where(inner, amin_b[own[fpart]], SLIVER)
+        if strict is False:
+            tiny &= shapely.area(faces) < SLIVER
+        if not tiny.any():
+            break
+        faces, alive, nm, changed = _merge_into(faces, tiny, inner, fpart, strict=strict)
         report["skeleton_merged"] += nm
         fpart, inner = fpart[alive], inner[alive]
         marks, known = marks.take(np.flatnonzero(alive)), known[alive] & ~changed
