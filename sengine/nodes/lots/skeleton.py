@@ -62,7 +62,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from sengine.geom.boundary import polygon_parts, ring_segments
+from sengine.geom.boundary import polygon_parts, ring_segments, segments_on_boundary
 from sengine.geom.planar import planar_faces
 from sengine.geom.polygons import inset, threaded
 from sengine.geom.segments import argsort_int, merge_points
@@ -420,10 +420,69 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part):
     io = (kind == 1) & (left >= 0)
     inner[left[io]] = True
     keep = ~drop & (fpart >= 0)
-    faces, fpart, inner = faces[keep], fpart[keep], inner[keep]
+    kept = np.flatnonzero(keep)
+    fmap = np.full(F, -1, np.int64)
+    fmap[kept] = np.arange(len(kept))
+    el = np.hypot(*(xy[v] - xy[u]).T)
+    # street frontage of each face: the block edges it lies left of
+    onb = (kind == 0) & (left >= 0)
+    front = np.bincount(np.maximum(fmap[left[onb]], 0), weights=el[onb] * (fmap[left[onb]] >= 0), minlength=len(kept))
+    # neighbours: faces on both sides of an edge, with the length they share
+    both = (left >= 0) & (right >= 0) & (left != right)
+    a, b = fmap[left[both]], fmap[right[both]]
+    okp = (a >= 0) & (b >= 0)
+    adj = _pair_sums(np.r_[a[okp], b[okp]], np.r_[b[okp], a[okp]], np.r_[el[both][okp], el[both][okp]], len(kept))
+    # per boundary segment of each face, whether it is a block edge: the face's walk, step by step
+    marks, known = _walk_marks(pf, faces, u[kind == 0], v[kind == 0], len(xy))
+    faces, fpart, inner = faces[kept], fpart[kept], inner[kept]
+    marks, known = marks.take(kept), known[kept]
     total = np.bincount(fpart, weights=shapely.area(faces), minlength=P)
     ok = np.abs(total - rs.areas()) <= 1e-9 * np.maximum(np.abs(rs.areas()), 1.0)
-    return faces, fpart, inner, ok
+    return faces, fpart, inner, ok, front, adj, marks, known
+
+
+def _pair_sums(i, j, w, n):
+    """Unique (i, j) pairs with the sum of ``w`` over each."""
+    if len(i) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    key = i * n + j
+    o = argsort_int(key)
+    first = np.r_[True, key[o][1:] != key[o][:-1]]
+    grp = np.cumsum(first) - 1
+    return i[o][first], j[o][first], np.bincount(grp, weights=w[o])
+
+
+def _walk_marks(pf, faces, bu, bv, n):
+    """Which boundary segment of each face lies on a block edge (``bu``, ``bv``: block edge pieces).
+
+    A face whose shell is one simple walk and that has no hole has its
+    segments in walk order (:class:`sengine.geom.planar.PlanarFaces`); the
+    others are left unknown (measured later).
+    """
+    F = len(faces)
+    nseg = np.maximum(shapely.get_num_coordinates(faces) - 1 - shapely.get_num_interior_rings(faces), 0)
+    known = np.zeros(F, bool)
+    wp = pf.walk_polygon
+    w = np.flatnonzero(wp >= 0)
+    wlen = np.diff(pf.walk_start)[w]
+    good = shapely.get_num_interior_rings(faces[wp[w]]) == 0
+    good &= wlen == nseg[wp[w]]
+    w, wlen = w[good], wlen[good]
+    known[wp[w]] = True
+    flat = np.zeros(int(nseg.sum()), bool)
+    if len(w):
+        bkey = np.unique(np.minimum(bu, bv) * n + np.maximum(bu, bv))
+        row = np.repeat(np.arange(len(w)), wlen)
+        k = ramp(wlen)
+        start = pf.walk_start[w][row]
+        a = pf.walk_vertex[start + k]
+        b = pf.walk_vertex[start + np.mod(k + 1, wlen[row])]
+        key = np.minimum(a, b) * n + np.maximum(a, b)
+        pos = np.minimum(np.searchsorted(bkey, key), max(len(bkey) - 1, 0))
+        on = (bkey[pos] == key) if len(bkey) else np.zeros(len(key), bool)
+        fstart = np.cumsum(nseg) - nseg
+        flat[fstart[wp[w]][row] + k] = on
+    return Marks(flat, nseg), known
 
 
 def _geos_faces(parts, core, cparts, cown, p, nrm, t, ray_part, sel):
@@ -513,7 +572,7 @@ def _touching(faces, fpart, sel):
     return i, j, ln
 
 
-def _merge_into(faces, small, group, fpart, rounds=4, strict=False):
+def _merge_into(faces, small, group, fpart, rounds=4, strict=False, adj=None):
     """Faces flagged ``small`` joined to the neighbour sharing most boundary.
 
     Neighbours of the same ``group`` (street or interior) that are not
@@ -522,20 +581,29 @@ def _merge_into(faces, small, group, fpart, rounds=4, strict=False):
     Faces of no area (under 1e-9 m2: rays meeting at a point) are dropped.
     Returns the faces (joined ones removed, their hosts grown), the mask of
     the input faces kept, and the number merged or dropped; a small face
-    with no neighbour stays.
+    with no neighbour stays.  ``adj`` (pairs of faces and the length they
+    share, when known, e.g. from the face graph) spares looking for them.
     """
     faces = faces.copy()
     alive = shapely.area(faces) > 1e-9
     changed = np.zeros(len(faces), bool)
     merged = int((~alive).sum())
     small = small & alive
+    if adj is not None:  # only small faces look for neighbours
+        sel = small[adj[0]]
+        adj = (adj[0][sel], adj[1][sel], adj[2][sel])
     for _ in range(rounds):
         todo = small & alive
         if not todo.any():
             break
-        live = np.flatnonzero(alive)
-        i, j, ln = _neighbours(faces[live], fpart[live], todo[live])
-        i, j = live[i], live[j]
+        if adj is not None:
+            i, j, ln = adj
+            sel = alive[i] & alive[j]
+            i, j, ln = i[sel], j[sel], ln[sel]
+        else:
+            live = np.flatnonzero(alive)
+            i, j, ln = _neighbours(faces[live], fpart[live], todo[live])
+            i, j = live[i], live[j]
         lonely = np.setdiff1d(np.flatnonzero(todo), i)
         if len(lonely):
             gi, gj, gl = _touching(faces, fpart, lonely)
@@ -566,9 +634,16 @@ def _merge_into(faces, small, group, fpart, rounds=4, strict=False):
         one = (shapely.get_type_id(u) == 3) & shapely.is_valid(u)
         faces[hosts[one]] = u[one]
         changed[hosts[one]] = True
-        gone = src[one[np.repeat(np.arange(len(hosts)), cnt)]]
+        went = one[np.repeat(np.arange(len(hosts)), cnt)]
+        gone = src[went]
         alive[gone] = False
         merged += len(gone)
+        if adj is not None:  # the joined faces' neighbours are their host's now
+            host = np.arange(len(faces))
+            host[gone] = dst[went]
+            ai, aj = adj[0], host[adj[1]]
+            sel = alive[ai] & (ai != aj)
+            adj = _pair_sums(ai[sel], aj[sel], adj[2][sel], len(faces))
         small = small.copy()
         small[hosts[one]] = False
     return faces[alive], alive, merged, changed[alive]
@@ -689,21 +764,30 @@ def skeleton_lots(
     cut_e, toff, hseg, hpar = cut_e[keep], toff[keep], hseg[keep], hpar[keep]
     report["skeleton_cuts"] = int(len(p))
     # 4. faces of the plane graph of block boundary, offset curve and rays
-    faces, fpart, inner, ok = _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part)
+    faces, fpart, inner, ok, front, adj, marks, known = _graph_faces(
+        rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part
+    )
     bad = np.flatnonzero(~ok)
     if len(bad):  # parts the graph could not close (overlapping blocks): GEOS noding and polygonize
         report["skeleton_geos"] = int(len(bad))
         g = _geos_faces(parts, core, cparts, cown, p, nrm, t, ray_part, bad)
         keepf = ~np.isin(fpart, bad)
+        idx = np.flatnonzero(keepf)
+        remap = np.full(len(faces), -1, np.int64)
+        remap[idx] = np.arange(len(idx))
+        sel = keepf[adj[0]] & keepf[adj[1]]
+        adj = (remap[adj[0][sel]], remap[adj[1][sel]], adj[2][sel])
         faces, fpart, inner = np.r_[faces[keepf], g[0]], np.r_[fpart[keepf], g[1]], np.r_[inner[keepf], g[2]]
+        marks = Marks.concat([marks.take(idx), Marks.unknown(g[0])])
+        known = np.r_[known[keepf], np.zeros(len(g[0]), bool)]
+        front = np.r_[front[keepf], np.zeros(len(g[0]))]
     area = shapely.area(faces)
-    # frontage of every face on its part's boundary
-    from sengine.geom.boundary import segments_on_boundary
-
-    s0, s1, sidx, _, on = segments_on_boundary(faces, fpart, parts, tol=1e-5)
-    front = np.bincount(sidx[on], weights=np.hypot(*(s1 - s0)[on].T), minlength=len(faces))
-    marks = Marks(on, np.bincount(sidx, minlength=len(faces)))  # the node need not measure them again
-    known = np.ones(len(faces), bool)
+    # frontage of the faces the graph did not give (GEOS ones), measured on the part's boundary
+    unk = np.flatnonzero(front == 0) if len(bad) else np.zeros(0, np.int64)
+    unk = unk[np.isin(fpart[unk], bad)]
+    if len(unk):
+        s0, s1, sidx, _, on = segments_on_boundary(faces[unk], fpart[unk], parts, tol=1e-5)
+        front[unk] = np.bincount(sidx[on], weights=np.hypot(*(s1 - s0)[on].T), minlength=len(unk))
     amin = amin_b[own[fpart]]
     small = ~inner & (area < amin)
     if force_street_access:
@@ -719,7 +803,10 @@ def skeleton_lots(
         small = np.r_[small[~drop], np.zeros(len(whole), bool)]
         marks = Marks.concat([marks.take(np.flatnonzero(~drop)), Marks.unknown(parts[whole])])
         known = np.r_[known[~drop], np.zeros(len(whole), bool)]
-    faces, alive, nm, changed = _merge_into(faces, small, inner, fpart, strict=True)
+        remap = np.cumsum(~drop) - 1
+        sel = ~drop[adj[0]] & ~drop[adj[1]]
+        adj = (remap[adj[0][sel]], remap[adj[1][sel]], adj[2][sel])
+    faces, alive, nm, changed = _merge_into(faces, small, inner, fpart, strict=True, adj=adj)
     report["skeleton_merged"] += nm
     fpart, inner = fpart[alive], inner[alive]
     marks, known = marks.take(np.flatnonzero(alive)), known[alive] & ~changed
