@@ -835,10 +835,8 @@ def skeleton_lots(
         faces, fpart, inner, stay, changed = _merge_interior(faces, fpart, inner, spacing, report)
         marks, known = marks.take(np.flatnonzero(stay)), known[stay] & ~changed
     # slivers left (inner ones, or with no street neighbour): into any neighbour
-    for strict in (True, False):  # into their own kind first
+    for strict in (True, False):  # into their own kind first (an interior scrap may join a street lot)
         tiny = shapely.area(faces) < np.where(inner, amin_b[own[fpart]], SLIVER)
-        if strict is False:
-            tiny &= shapely.area(faces) < SLIVER
         if not tiny.any():
             break
         faces, alive, nm, changed = _merge_into(faces, tiny, inner, fpart, strict=strict)
