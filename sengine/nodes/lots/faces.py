@@ -448,9 +448,34 @@ def _merge_interior(faces, fpart, inner, spacing, report):
     grid[:, 0] = faces[hosts]
     grid[np.repeat(np.arange(len(hosts)), cnt), 1 + ramp(cnt)] = clipped
     grown = _robust(lambda g: shapely.union_all(g, axis=1), grid) if len(hosts) else np.empty(0, object)
-    bad_part[fpart[hosts[shapely.get_type_id(grown) != 3]]] = True  # a missing one (None) has type -1
+    bad_part[fpart[hosts[shapely.is_missing(grown)]]] = True
+    # a lot whose cells came out in pieces keeps the piece it stands in; the others join a neighbour
+    multi = np.flatnonzero(shapely.get_type_id(grown) == 6)
+    orphans = np.empty(0, object)
+    opart = np.empty(0, np.int64)
+    if len(multi):
+        pieces, pi = shapely.get_parts(grown[multi], return_index=True)
+        mine = shapely.intersects(pieces, shapely.point_on_surface(faces[hosts[multi[pi]]]))
+        first = np.zeros(len(multi), bool)
+        own_piece = np.full(len(multi), -1, np.int64)
+        for_host = np.flatnonzero(mine)
+        own_piece[pi[for_host[::-1]]] = for_host[::-1]  # the first piece holding the lot
+        first[own_piece >= 0] = True
+        bad_part[fpart[hosts[multi[~first]]]] = True
+        grown[multi[first]] = pieces[own_piece[first]]
+        rest = np.ones(len(pieces), bool)
+        rest[own_piece[first]] = False
+        orphans, opart = pieces[rest], fpart[hosts[multi[pi[rest]]]]
     new = faces.copy()
     new[hosts] = grown
+    if len(orphans):  # the orphans join the lot they share most boundary with
+        pool = np.r_[new[si], orphans]
+        ppart = np.r_[fpart[si], opart]
+        small = np.r_[np.zeros(len(si), bool), np.ones(len(orphans), bool)]
+        merged, alive, _, _ = _merge_into(pool, small, np.zeros(len(pool), bool), ppart)
+        if alive[len(si) :].any():  # an orphan found no neighbour: its part stays inner
+            bad_part[opart[alive[len(si) :]]] = True
+        new[si] = merged[: len(si)] if alive[: len(si)].all() else new[si]
     # every part's area must be kept (to 1e-9): else its interior stays inner
     P = int(fpart.max()) + 1
     before = np.bincount(fpart, weights=shapely.area(faces), minlength=P)
