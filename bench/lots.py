@@ -9,11 +9,20 @@ Blocks come from
   ``configs/paris.xml`` when they exist, run up to their ``blocks`` node.
 
 Blocks are made once per case and cached (pickled ``Layer``) in the
-temporary folder.  Each lot node (``lots.manhattan``, ``lots.recursive``,
-``lots.paris``, default parameters) then runs on them in a fresh process, so
-that ``peak_rss_mb`` (the process's peak resident memory, ``resource``) is
-its own; times are the best of ``--repeat`` runs of ``node.run`` (method plus
-lot attributes).  Results go to ``bench/results/lots.json``.
+temporary folder.  Each lot node (``lots.skeleton``, ``lots.recursive``,
+``lots.paris``, ``lots.manhattan``, and ``lots.partition`` once it exists;
+default parameters) then runs on them in a fresh process, so that
+``peak_rss_mb`` (the process's peak resident memory, ``resource``) is its
+own; times are the best of ``--repeat`` runs of ``node.run`` (method plus
+lot attributes).  Besides seconds and lots per second each result has the
+lot shapes a planner checks: ``thin_share`` (street-facing lots whose
+oriented box is thinner than 1:10), ``thin_share_all`` (all lots),
+``median_frontage`` and ``median_depth`` (m, street-facing lots) and the
+count of each ``kind``.  Results go to ``bench/results/lots.json``.
+
+``lots.skeleton?interior=split`` is the skeleton method with its interior
+cut into inner lots under ``lot_area_max`` (instead of one inner lot per
+block interior).
 
 Usage::
 
@@ -47,7 +56,15 @@ LIEGE = next(
     ),
     ROOT / "configs/data/liege_streets.osm.pbf",
 )
-METHODS = ("lots.manhattan", "lots.recursive", "lots.paris")
+# a method, or a method with parameters: "lots.skeleton?interior=split"
+METHODS = (
+    "lots.skeleton",
+    "lots.skeleton?interior=split",
+    "lots.recursive",
+    "lots.paris",
+    "lots.partition",
+    "lots.manhattan",
+)
 
 
 def _peak_mb() -> float:
@@ -114,13 +131,21 @@ def run_method(case: str, method: str, repeat: int) -> dict:
     from sengine.registry import get
 
     blocks, _ = blocks_of(case)
+    name, _, query = method.partition("?")
+    params = dict(kv.split("=", 1) for kv in query.split("&") if kv)
     best, out, node = float("inf"), None, None
     for _ in range(repeat):
-        node = get(method)("lots", {}, Context(seed=1))
+        node = get(name)("lots", params, Context(seed=1))
         t = time.perf_counter()
         out = node.run(blocks=blocks)["lots"]
         best = min(best, time.perf_counter() - t)
     g = out.geometry
+    from sengine.geom.polygons import obb_frame
+
+    _, _, length, width = obb_frame(g)
+    thin = width < 0.1 * length
+    street = out["kind"] != "inner" if "kind" in out else ~out["inner"]
+    depth = out["depth"] if "depth" in out else np.full(len(out), np.nan)
     barea = shapely.area(blocks.geometry)
     larea = np.bincount(np.searchsorted(blocks.ids, out["block"]), weights=shapely.area(g), minlength=len(blocks))
     rel = np.abs(larea - barea) / np.maximum(barea, 1e-12)
@@ -135,6 +160,12 @@ def run_method(case: str, method: str, repeat: int) -> dict:
         "max_partition_error": float(rel.max()) if len(rel) else 0.0,
         "no_frontage": int(((out["frontage"] <= 0) & ~out["inner"]).sum()),
         "invalid": int((~shapely.is_valid(g)).sum()),
+        "under_1m2": int((shapely.area(g) < 1.0).sum()),
+        "thin_share": round(float(thin[street].mean()), 4) if street.any() else 0.0,
+        "thin_share_all": round(float(thin.mean()), 4) if len(thin) else 0.0,
+        "median_frontage": round(float(np.median(out["frontage"][street])), 2) if street.any() else None,
+        "median_depth": round(float(np.nanmedian(depth[street])), 2) if street.any() else None,
+        "kinds": {k: int((out["kind"] == k).sum()) for k in ("street", "corner", "inner")} if "kind" in out else None,
         "report": node.report,
     }
 
@@ -165,7 +196,9 @@ def main(argv=None) -> int:
             print(f"skip {case}: {prep.stderr.strip().splitlines()[-1:]}", file=sys.stderr)
             continue
         print(prep.stdout.strip(), file=sys.stderr)
-        for method in METHODS:
+        from sengine.registry import names
+
+        for method in [m for m in METHODS if m.partition("?")[0] in names()]:
             proc = subprocess.run(
                 [sys.executable, __file__, "--run", case, method, "--repeat", str(args.repeat)],
                 capture_output=True,

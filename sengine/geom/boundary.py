@@ -64,7 +64,7 @@ def ring_segments(polys):
     return c[a], c[a + 1], ci[a].astype(np.int64), ring[a]
 
 
-def segments_on_boundary(geoms, owner, polys, *, tol: float = 1e-6, chunk: int = 12):
+def segments_on_boundary(geoms, owner, polys, *, tol: float = 1e-6, chunk: int = 12, return_match: bool = False):
     """Boundary segments of each geometry and whether each lies on its owner's boundary.
 
     A segment lies on the owner's boundary when its midpoint is within
@@ -82,21 +82,32 @@ def segments_on_boundary(geoms, owner, polys, *, tol: float = 1e-6, chunk: int =
     chunk : int
         Geometries with more segments are queried in runs of this many
         consecutive segments (their envelope would meet too many).
+    return_match : bool
+        Also return, for each segment, the owner's boundary segment it lies
+        on (index into :func:`ring_segments` of ``polys``; -1 for none; the
+        nearest where several are within ``tol``).
 
     Returns
     -------
     p0, p1, index, ring : as :func:`ring_segments` of ``geoms``
     on : ndarray of bool (s,)
+    match : ndarray of int64 (s,), only with ``return_match``
     """
     geoms = np.asarray(geoms, dtype=object).ravel()
     owner = np.asarray(owner, np.int64)
     p0, p1, idx, ring = ring_segments(geoms)
     on = np.zeros(len(idx), bool)
+    match = np.full(len(idx), -1, np.int64)
+    best = np.full(len(idx), np.inf) if return_match else None
+
+    def out():
+        return (p0, p1, idx, ring, on) + ((match,) if return_match else ())
+
     if len(idx) == 0:
-        return p0, p1, idx, ring, on
+        return out()
     b0, b1, bown, _ = ring_segments(np.asarray(polys, dtype=object))
     if len(bown) == 0:
-        return p0, p1, idx, ring, on
+        return out()
     lo = np.minimum(b0, b1) - tol
     hi = np.maximum(b0, b1) + tol
     tree = shapely.STRtree(shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]))
@@ -142,6 +153,16 @@ def segments_on_boundary(geoms, owner, polys, *, tol: float = 1e-6, chunk: int =
         ee = np.einsum("ij,ij->i", e, e)
         tt = np.clip(np.einsum("ij,ij->i", w, e) / np.where(ee > 0, ee, 1.0), 0.0, 1.0)
         r = w - tt[:, None] * e
-        on[ps[np.einsum("ij,ij->i", r, r) <= tol * tol]] = True
+        dd = np.einsum("ij,ij->i", r, r)
+        near = dd <= tol * tol
+        on[ps[near]] = True
+        if return_match:
+            ps_n, pb_n, dd_n = ps[near], pb[near], dd[near]
+            o = np.lexsort((pb_n, dd_n))  # nearest first; ties: the lowest boundary segment
+            ps_n, pb_n, dd_n = ps_n[o], pb_n[o], dd_n[o]
+            u, f = np.unique(ps_n, return_index=True)
+            better = dd_n[f] < best[u]
+            best[u[better]] = dd_n[f][better]
+            match[u[better]] = pb_n[f][better]
         j0 = j1
-    return p0, p1, idx, ring, on
+    return out()

@@ -9,9 +9,13 @@ Three methods, as in the paper, each in its own module:
   the middle.
 * **Recursive** (:mod:`.lots_recursive`; Parish and Müller [13]): cut across
   the longest edge until lots are under ``max_area``, keeping street access.
+* **Skeleton** (:mod:`.skeleton`; Vanegas et al. 2012): street strips of a
+  target depth from the block's offset, cut into lots of a target width,
+  corner lots facing two streets, the interior left inner, merged or a park.
 
 This module holds what they share: the street-facing attributes of a lot
-(frontage, street edges, corner) and the node classes.  Every block edge
+(frontage, street edges, corner, and through :mod:`.vocabulary` its kind
+and depth) and the node classes.  Every block edge
 faces a street (blocks are faces of the street graph), so a lot's
 *frontage* is the length of its boundary lying on its block's boundary.
 
@@ -37,6 +41,8 @@ from sengine.registry import declare_rule
 from .manhattan import manhattan_lots
 from .paris import paris_lots
 from .recursive import recursive_lots
+from .skeleton import CORNERS, INTERIORS, skeleton_lots
+from .vocabulary import LotSplit, lot_depth, lot_kind
 
 __all__ = [
     "lot_attributes",
@@ -44,7 +50,9 @@ __all__ = [
     "manhattan_lots",
     "recursive_lots",
     "paris_lots",
+    "skeleton_lots",
     "LotsManhattan",
+    "LotsSkeleton",
     "LotsParis",
     "LotsRecursive",
     "LotsDistrict",
@@ -175,7 +183,7 @@ def _cross(a, b):
 
 # -- nodes ---------------------------------------------------------------------------
 
-_METHODS = ("manhattan", "paris", "recursive")
+_METHODS = ("manhattan", "paris", "recursive", "skeleton")
 
 
 def _check_partition(blocks, lots, owner, report):
@@ -232,9 +240,8 @@ class _Lots(SENode):
     maps_features = True
     method = ""
 
-    def split(self, blocks: Layer, report: dict):
-        """-> lots, owner (non-decreasing), method names, inner flags, and the method's
-        knowledge of frontage: segment flags and which lots they cover (or None, None)."""
+    def split(self, blocks: Layer, report: dict) -> LotSplit:
+        """The method's lots of ``blocks`` (see :class:`.vocabulary.LotSplit`)."""
         raise NotImplementedError
 
     def run(self, *, blocks: Layer) -> dict[str, Layer]:
@@ -255,28 +262,36 @@ class _Lots(SENode):
                     method=np.empty(0, "<U9"),
                     inner=np.empty(0, bool),
                     front_angle=np.empty(0),
+                    kind=np.empty(0, "<U6"),
+                    depth=np.empty(0),
+                    park=np.empty(0, bool),
                 )
             }
         empty = shapely.is_empty(geoms) | (shapely.area(geoms) <= 0)
         report["skipped_empty"] = int(empty.sum())
-        lots, owner, method, inner, on, known = self.split(blocks, report)
-        flags = _SegmentFlags(lots, on, known)
+        res = self.split(blocks, report)
+        lots, owner, method, inner, park = res.lots, res.owner, res.method, res.inner, res.park
+        flags = _SegmentFlags(lots, res.on, res.known)
         ok = np.flatnonzero(~shapely.is_empty(lots) & (shapely.get_type_id(lots) == 3))
-        lots, owner, method, inner, flags = lots[ok], owner[ok], method[ok], inner[ok], flags.take(ok)
+        lots, owner, method, inner, park = lots[ok], owner[ok], method[ok], inner[ok], park[ok]
+        flags = flags.take(ok)
         lots, owner, keep, nwhole = _check_partition(geoms, lots, owner, report)
         method = np.r_[method[keep], np.full(nwhole, "whole")]
         inner = np.r_[inner[keep], np.zeros(nwhole, bool)]
+        park = np.r_[park[keep], np.zeros(nwhole, bool)]
         flags = flags.take(np.flatnonzero(keep)).append(lots[len(lots) - nwhole :])
         o = np.lexsort((np.arange(len(owner)), owner))
-        lots, owner, method, inner, flags = lots[o], owner[o], method[o], inner[o], flags.take(o)
+        lots, owner, method, inner, park, flags = lots[o], owner[o], method[o], inner[o], park[o], flags.take(o)
         att = lot_attributes(lots, owner, geoms, on=flags.on, known=flags.known)
         district = (
             np.asarray(blocks["district"], np.int64)[owner]
             if "district" in blocks
             else np.full(len(lots), -1, np.int64)
         )
+        kind = lot_kind(att["frontage"], att["corner"], inner)
         report["lots"] = int(len(lots))
         report["no_frontage"] = int(((att["frontage"] <= 0) & ~inner).sum())
+        report["kinds"] = {k: int((kind == k).sum()) for k in ("street", "corner", "inner")}
         self.report = report
         lay = Layer.from_geoms(
             lots,
@@ -290,6 +305,9 @@ class _Lots(SENode):
             method=method.astype(str),
             inner=inner,
             front_angle=att["front_angle"],
+            kind=kind,
+            depth=lot_depth(lots, att["front_angle"]),
+            park=park,
         )
         return {"lots": lay}
 
@@ -297,7 +315,7 @@ class _Lots(SENode):
 def _manhattan(self, geoms, report, *, count, width, min_depth):
     lots, owner = manhattan_lots(geoms, count=count, width=width, min_depth=min_depth)
     o = np.argsort(owner, kind="stable")
-    return lots[o], owner[o], np.full(len(lots), "manhattan"), np.zeros(len(lots), bool), None, None
+    return LotSplit(lots[o], owner[o], np.full(len(lots), "manhattan"), np.zeros(len(lots), bool))
 
 
 def _seeds(self, ids) -> np.ndarray:
@@ -318,7 +336,9 @@ def _recursive(self, geoms, ids, report, *, max_area, min_frontage, jitter):
     )
     over = int((shapely.area(lots) > max_area).sum())
     report["over_max_area"] = report.get("over_max_area", 0) + over
-    return lots, owner, np.full(len(lots), "recursive"), np.zeros(len(lots), bool), on, np.ones(len(lots), bool)
+    return LotSplit(
+        lots, owner, np.full(len(lots), "recursive"), np.zeros(len(lots), bool), on, np.ones(len(lots), bool)
+    )
 
 
 def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage):
@@ -332,7 +352,47 @@ def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage)
         report=report,
         street=True,
     )
-    return lots, owner, np.full(len(lots), "paris"), inner, on, known
+    return LotSplit(lots, owner, np.full(len(lots), "paris"), inner, on, known)
+
+
+def _skeleton(self, geoms, ids, report, *, where=None, **p):
+    """Skeleton lots of ``geoms``; a block whose whole boundary is shorter than ``lot_width_min`` is
+    kept whole (counted), and when every block is so, the parameter cannot hold: an error."""
+    where = where or self.where
+    if p["lot_width_min"] > p["width"]:
+        raise ParameterError(
+            f"lot_width_min={p['lot_width_min']:g} m is more than the target width={p['width']:g} m", where=where
+        )
+    if p["lot_area_min"] > p["lot_area_max"]:
+        raise ParameterError(
+            f"lot_area_min={p['lot_area_min']:g} m2 is more than lot_area_max={p['lot_area_max']:g} m2", where=where
+        )
+    perim = shapely.length(shapely.boundary(geoms)) if len(geoms) else np.zeros(0)
+    live = shapely.area(geoms) > 0
+    short = live & (perim < p["lot_width_min"])
+    if live.any() and short[live].all():
+        raise ParameterError(
+            f"lot_width_min={p['lot_width_min']:g} m is more than the whole boundary of every block "
+            f"(the longest is {perim[live].max():.1f} m)",
+            where=where,
+        )
+    report["skipped_width"] = report.get("skipped_width", 0) + int(short.sum())
+    if short.any():
+        log.warning("%s: %d block(s) shorter all round than lot_width_min are kept whole", where, int(short.sum()))
+    go = np.flatnonzero(~short)
+    res = skeleton_lots(geoms[go], seeds=_seeds(self, ids[go]), **p)
+    for k, v in res.report.items():
+        report[k] = report.get(k, 0) + v
+    keep = np.flatnonzero(short)
+    lots = np.r_[res.lots, geoms[keep]]
+    owner = np.r_[go[res.owner], keep].astype(np.int64)
+    inner = np.r_[res.inner, np.zeros(len(keep), bool)]
+    park = np.r_[res.park, np.zeros(len(keep), bool)]
+    flags = _SegmentFlags(res.lots, res.on, res.known).append(geoms[keep])
+    o = np.argsort(owner, kind="stable")
+    flags = flags.take(o)
+    meth = np.full(len(lots), "skeleton")
+    return LotSplit(lots[o], owner[o], meth, inner[o], flags.on, flags.known, park[o])
 
 
 _P_MANHATTAN = {
@@ -353,11 +413,51 @@ _P_RECURSIVE = {
 }
 _P_PARIS = {
     "segment": Param("float", 20.0, min=1.0, unit="m", doc="contour segment length (one perimeter lot each)"),
-    "depth": Param("float", 15.0, min=0.5, unit="m", doc="mean lot depth (inward displacement)"),
+    "depth": Param(
+        "float", 22.0, min=0.5, unit="m", doc="mean lot depth (inward displacement; European perimeter blocks: 15-35 m)"
+    ),
     "deviation": Param("float", 3.0, min=0.0, unit="m", doc="standard deviation of the lot depth"),
     "min_frontage": Param(
         "float", 2.0, min=0.0, unit="m", doc="perimeter pieces with less frontage join a neighbouring lot"
     ),
+}
+
+
+_P_SKELETON = {
+    "depth": Param(
+        "float",
+        22.0,
+        min=0.5,
+        unit="m",
+        doc="target strip depth: how far lots reach from the street (European perimeter blocks: 15-35 m)",
+    ),
+    "width": Param("float", 15.0, min=0.5, unit="m", doc="target lot width along the street"),
+    "lot_width_min": Param("float", 6.0, min=0.0, max=1000.0, unit="m", doc="least street frontage of a lot"),
+    "lot_area_min": Param("float", 50.0, min=1.0, max=1e6, unit="m2", doc="smaller lots join a neighbour (counted)"),
+    "lot_area_max": Param(
+        "float",
+        2000.0,
+        min=1.0,
+        max=1e7,
+        unit="m2",
+        doc="lots are no wider than this / depth; interior=split cuts inner lots under it",
+    ),
+    "irregularity": Param(
+        "float", 0.3, min=0.0, max=1.0, unit="1", doc="spread of lot widths: standard deviation of a share / 2"
+    ),
+    "corner": Param(
+        "str", "merge", choices=CORNERS, doc="merge: one corner lot facing both streets; split: halved on the bisector"
+    ),
+    "interior": Param(
+        "str",
+        "inner",
+        choices=INTERIORS,
+        doc="land deeper than depth: one inner lot, inner lots under lot_area_max, merged into the street lots, a park",
+    ),
+    "force_street_access": Param(
+        "bool", True, doc="street pieces with less than lot_width_min of frontage join a neighbour"
+    ),
+    "corner_angle": Param("float", 30.0, min=1.0, max=170.0, unit="deg", doc="a turn of more than this ends a street"),
 }
 
 
@@ -413,6 +513,17 @@ class LotsParis(_Lots):
         )
 
 
+@register
+class LotsSkeleton(_Lots):
+    """Skeleton lots (Vanegas et al. 2012): street strips of a depth cut into lots, corner lots, an interior."""
+
+    name = "lots.skeleton"
+    params = dict(_P_SKELETON)
+
+    def split(self, blocks, report):
+        return _skeleton(self, blocks.geometry, blocks.ids, report, **dict(self.p))
+
+
 # district rule attribute -> node parameter
 _RULE_ATTRS = {
     "lot-count": "count",
@@ -424,7 +535,16 @@ _RULE_ATTRS = {
     "lot-segment": "segment",
     "lot-depth": "depth",
     "lot-deviation": "deviation",
+    "lot-width-min": "lot_width_min",
+    "lot-area-min": "lot_area_min",
+    "lot-area-max": "lot_area_max",
+    "lot-irregularity": "irregularity",
+    "lot-corner": "corner",
+    "lot-interior": "interior",
+    "lot-street-access": "force_street_access",
 }
+# skeleton parameters a district takes from the district node (width: the rule's lot-width, else 15 m)
+_SKELETON_SHARED = ("depth", "lot_width_min", "lot_area_min", "lot_area_max", "irregularity", "corner", "interior")
 
 
 @register
@@ -439,13 +559,17 @@ class LotsDistrict(_Lots):
         "segment": _P_PARIS["segment"],
         "depth": _P_PARIS["depth"],
         "deviation": _P_PARIS["deviation"],
+        **{k: _P_SKELETON[k] for k in _SKELETON_SHARED if k != "depth"},
+        "force_street_access": _P_SKELETON["force_street_access"],
     }
 
-    def _rule_params(self, district: int) -> tuple[str, dict]:
+    def _rule_params(self, district: int) -> tuple[str, dict, str]:
         plan = self.context.plan
         rules = plan.rules_of("district") if plan is not None else []
         values = dict(self.p)
+        values["skeleton_width"] = _P_SKELETON["width"].default
         method = self.p.default
+        where = self.where
         if 0 <= district < len(rules):
             rule = rules[district]
             method = rule.get("lots", method) or method
@@ -456,17 +580,20 @@ class LotsDistrict(_Lots):
             for attr, pname in _RULE_ATTRS.items():
                 if rule.get(attr) is not None:
                     values[pname] = self.params[pname].coerce(rule.get(attr), rule.where or self.where, attr)
-        return method, values
+            if rule.get("lot-width") is not None:
+                values["skeleton_width"] = values["width"]
+            where = rule.where or self.where
+        return method, values, where
 
     def split(self, blocks, report):
         geoms = blocks.geometry
         district = (
             np.asarray(blocks["district"], np.int64) if "district" in blocks else np.full(len(blocks), -1, np.int64)
         )
-        out_l, out_o, out_m, out_i, out_f = [], [], [], [], []
+        outs, sels = [], []
         for dist in np.unique(district):
             sel = np.flatnonzero(district == dist)
-            method, v = self._rule_params(int(dist))
+            method, v, where = self._rule_params(int(dist))
             if method == "manhattan":
                 res = _manhattan(self, geoms[sel], report, count=v["count"], width=v["width"], min_depth=v["min_depth"])
             elif method == "recursive":
@@ -479,6 +606,17 @@ class LotsDistrict(_Lots):
                     min_frontage=v["min_frontage"],
                     jitter=v["jitter"],
                 )
+            elif method == "skeleton":
+                res = _skeleton(
+                    self,
+                    geoms[sel],
+                    blocks.ids[sel],
+                    report,
+                    where=where,
+                    width=v["skeleton_width"],
+                    force_street_access=v["force_street_access"],
+                    **{k: v[k] for k in _SKELETON_SHARED},
+                )
             else:
                 res = _paris(
                     self,
@@ -490,26 +628,23 @@ class LotsDistrict(_Lots):
                     deviation=v["deviation"],
                     min_frontage=min(v["min_frontage"], 2.0),
                 )
-            lots, owner, meth, inner, on, known = res
-            out_l.append(lots)
-            out_o.append(sel[owner])
-            out_m.append(meth)
-            out_i.append(inner)
-            out_f.append(_SegmentFlags(lots, on, known))
+            outs.append(res)
+            sels.append(sel)
             report[f"blocks_{method}"] = report.get(f"blocks_{method}", 0) + len(sel)
-        flags = out_f[0]
-        for f in out_f[1:]:
-            flags = flags.join(f)
-        owner = np.concatenate(out_o)
+        flags = _SegmentFlags(outs[0].lots, outs[0].on, outs[0].known)
+        for r in outs[1:]:
+            flags = flags.join(_SegmentFlags(r.lots, r.on, r.known))
+        owner = np.concatenate([sel[r.owner] for sel, r in zip(sels, outs)])
         o = np.argsort(owner, kind="stable")
         flags = flags.take(o)
-        return (
-            np.concatenate(out_l)[o],
+        return LotSplit(
+            np.concatenate([r.lots for r in outs])[o],
             owner[o],
-            np.concatenate(out_m)[o],
-            np.concatenate(out_i)[o],
+            np.concatenate([r.method for r in outs]).astype(str)[o],
+            np.concatenate([r.inner for r in outs])[o],
             flags.on,
             flags.known,
+            np.concatenate([r.park for r in outs])[o],
         )
 
 

@@ -12,9 +12,9 @@ How it is computed, for all blocks at once and without polygon overlay:
 1. Sample points, inner normals (the contour's direction averaged over two
    lot depths, so that lots fan out around corners and curves instead of
    crossing) and displaced points come from numpy interpolation along the
-   exterior rings (:mod:`.lots_contour`); depths are clamped to 0.3 of the
-   block's typical width (2 area / perimeter) so that thin blocks keep a
-   courtyard.
+   exterior rings (:mod:`.lots_contour`); depths are clamped to ``REACH``
+   of the radius of the block's largest inscribed circle (half its
+   inscribed depth), so that lots from facing streets do not cross.
 2. Each candidate lot is the polygon "contour segment, then its displaced
    points backwards"; the core is the polygon through all displaced points.
    Their boundaries add up to the block's contour (radial edges and the inner
@@ -83,8 +83,21 @@ def _clean(geoms, area):
 
 # -- one pass over a set of polygons ------------------------------------------------------------
 
+REACH = 0.9  # lots reach at most this share of the way to the centre of the block's inscribed circle
 RISK = 0.5  # an inner segment shorter than this share of its contour segment (or reversed) is risky
 TOUCH = 1e-3  # m: less street than this is none (an inner lot may touch a street by less)
+
+
+def inscribed_radius(polys) -> np.ndarray:
+    """Radius (m) of the largest circle inside each polygon: half its inscribed depth (to 1 %)."""
+    polys = np.asarray(polys, dtype=object)
+    out = np.zeros(len(polys))
+    ok = ~shapely.is_empty(polys) & (shapely.area(polys) > 0)
+    if ok.any():
+        b = shapely.bounds(polys[ok])
+        tol = 0.01 * np.maximum(np.minimum(b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]), 1e-6)
+        out[ok] = shapely.length(shapely.maximum_inscribed_circle(polys[ok], tol))
+    return out
 
 
 def cstart_of(C):
@@ -305,8 +318,9 @@ def paris_lots(
         Length of the contour segments (m); each becomes one perimeter lot.
     depth, deviation : float
         Mean and standard deviation (m) of the inward displacement of the
-        three sub-segments' ends (clipped to [0.2, 3] x depth, and to 0.3 of
-        the block's typical width 2 area / perimeter).
+        three sub-segments' ends (clipped to [0.2, 3] x depth, and to
+        ``REACH`` of half the block's inscribed depth, the radius of its
+        largest inscribed circle).
     seeds : array_like of uint64 (n,), optional
         One seed per block; else drawn from ``rngs``; else 0.
     rngs : sequence of numpy.random.Generator (n,), optional
@@ -359,12 +373,12 @@ def paris_lots(
         if rs.n == 0:
             break
         C = Contour(rs, segment)
-        width = 2.0 * rs.areas() / np.maximum(C.perim, 1e-12)
+        cap = REACH * inscribed_radius(rs.polygons())
         with np.errstate(over="ignore"):
             z = _normal(seeds[own][C.sp], key[C.sp] * np.uint64(1_000_003) + C.sj.astype(np.uint64))
         d = np.clip(depth + deviation * z, 0.2 * depth, 3.0 * depth)
-        d = np.minimum(d, 0.3 * width[C.sp])
-        C.smooth(np.minimum(2.0 * np.minimum(depth, 0.3 * width), C.perim / 8.0))
+        d = np.minimum(d, cap[C.sp])
+        C.smooth(np.minimum(2.0 * np.minimum(depth, cap), C.perim / 8.0))
         C.inner = C.pts + d[:, None] * C.nrm
         lots, lpoly, inner, done, nc, marks, known = _pass(rs, depth, segment, min_frontage, C)
         corners += nc
