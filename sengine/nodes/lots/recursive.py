@@ -35,8 +35,8 @@ References
    Proceedings of the 28th Annual Conference on Computer Graphics and
    Interactive Techniques (SIGGRAPH '01), pp. 301-308, 2001.
    doi:10.1145/383259.383292
-.. [2] J. Martí, A. Puig, G. Patow et al., "skylineEngine: an urban
-   procedural modelling tool", §5.5 (lots).
+.. [2] "skylineEngine: an urban procedural modelling tool" (University of
+   Girona; paper 002 of the project), §5.5 Lots.
 """
 
 from __future__ import annotations
@@ -53,6 +53,9 @@ __all__ = ["recursive_lots", "piece_axes", "check_recursive"]
 
 PARALLEL = np.cos(np.radians(30.0))  # a street edge within 30 deg of the front runs along it
 FRONT_EPS = 1e-6  # m: a piece with less marked boundary than this has no street at all
+#: m2: blocks at least this large judge whether a parameter can hold for any block
+#: (blocks.circuits drops faces under 50 m2 by default: smaller ones are slivers)
+REAL_BLOCK = 50.0
 
 
 def _normal(d: np.ndarray) -> np.ndarray:
@@ -485,9 +488,9 @@ def check_recursive(blocks, *, max_area, min_area, min_frontage, where=None, rep
     ``min_area`` above ``max_area`` holds for no block.  A block whose whole
     boundary is shorter than ``min_frontage`` cannot hold one lot with that
     frontage: it is kept as one lot and counted (``blocks_below_min_frontage``
-    in ``report``); when that is so of every (non-empty) block, the
-    parameter is wrong and a :class:`sengine.errors.ParameterError` naming it
-    is raised.
+    in ``report``); when that is so of every block of at least
+    :data:`REAL_BLOCK` m2 (there being one), the parameter is wrong and a
+    :class:`sengine.errors.ParameterError` naming it is raised.
 
     Returns
     -------
@@ -497,10 +500,12 @@ def check_recursive(blocks, *, max_area, min_area, min_frontage, where=None, rep
     if min_area > max_area:
         raise ParameterError(f"min_area={min_area:g} m2 is above max_area={max_area:g} m2", where=where)
     blocks = np.asarray(blocks, dtype=object)
-    live = ~shapely.is_empty(blocks) & (shapely.area(blocks) > 0)
+    area = shapely.area(blocks)
+    live = ~shapely.is_empty(blocks) & (area > 0)
     perimeter = shapely.length(blocks)
     short = live & (perimeter < min_frontage)
-    if live.any() and short[live].all():
+    real = live & (area >= REAL_BLOCK)  # slivers alone do not make a parameter wrong
+    if real.any() and short[real].all():
         raise ParameterError(
             f"min_frontage={min_frontage:g} m is more than the whole boundary of every block "
             f"(the longest is {perimeter[live].max():.1f} m)",
