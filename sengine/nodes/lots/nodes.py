@@ -294,11 +294,14 @@ class _Lots(SENode):
 
 
 def _manhattan(self, geoms, report, *, count, width, min_depth, row_depth, min_area):
-    lots, owner, inner = manhattan_lots(
+    lots, owner, inner, off_street = manhattan_lots(
         geoms, count=count, width=width, min_depth=min_depth, depth=row_depth, min_area=min_area, report=report
     )
     o = np.argsort(owner, kind="stable")
-    return lots[o], owner[o], np.full(len(lots), "manhattan"), inner[o], None, None
+    lots, off_street = lots[o], off_street[o]
+    # what the method knows of frontage: none on the lots inside their block; the others are measured
+    on = np.zeros(int((shapely.get_num_coordinates(lots) - 1 - shapely.get_num_interior_rings(lots)).sum()), bool)
+    return lots, owner[o], np.full(len(lots), "manhattan"), inner[o], on, off_street
 
 
 def _seeds(self, ids) -> np.ndarray:
