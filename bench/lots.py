@@ -10,14 +10,25 @@ Blocks come from
 
 Blocks are made once per case and cached (pickled ``Layer``) in the
 temporary folder.  Each lot node (``lots.manhattan``, ``lots.recursive``,
-``lots.paris``, default parameters) then runs on them in a fresh process, so
-that ``peak_rss_mb`` (the process's peak resident memory, ``resource``) is
-its own; times are the best of ``--repeat`` runs of ``node.run`` (method plus
-lot attributes).  Results go to ``bench/results/lots.json``.
+``lots.paris``, ``lots.partition``, default parameters) then runs on them in
+a fresh process, so that ``peak_rss_mb`` (the process's peak resident
+memory, ``resource``) is its own; times are the best of ``--repeat`` runs of
+``node.run`` (method plus lot attributes).  Besides time and lots per
+second, each row has the lots' shapes: ``thin_share`` (lots whose oriented
+box's short side is under a tenth of its long side), ``thin_share_street``
+(the same among street-facing lots: not inner, some frontage), and the
+median ``frontage`` and ``depth`` of street-facing lots (depth: the lot's
+extent across its longest street edge, m).
+
+``--baseline REF`` also runs the methods of a git revision (extracted with
+``git archive`` to a temporary folder) in the same session, interleaved with
+today's, so that the two can be compared on a machine whose speed varies:
+its rows have ``"code": "REF"``.  Results go to ``bench/results/lots.json``.
 
 Usage::
 
-    python bench/lots.py [--repeat 3] [--cases liege,manhattan,paris] [--out bench/results/lots.json]
+    python bench/lots.py [--repeat 3] [--cases liege,manhattan,paris] [--baseline fd7a501]
+                         [--methods lots.recursive,...] [--out bench/results/lots.json]
 """
 
 from __future__ import annotations
@@ -25,6 +36,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import os
 import pickle
 import resource
 import subprocess
@@ -38,7 +50,8 @@ import shapely
 from _results import write  # bench/ is on sys.path when run as a script
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+CODE = Path(os.environ.get("SENGINE_BENCH_CODE", ROOT))  # the sengine measured (a baseline's copy, or this one)
+sys.path.insert(0, str(CODE))
 LIEGE = next(
     (
         p
@@ -47,7 +60,7 @@ LIEGE = next(
     ),
     ROOT / "configs/data/liege_streets.osm.pbf",
 )
-METHODS = ("lots.manhattan", "lots.recursive", "lots.paris")
+METHODS = ("lots.manhattan", "lots.recursive", "lots.paris", "lots.partition")
 
 
 def _peak_mb() -> float:
@@ -114,13 +127,15 @@ def run_method(case: str, method: str, repeat: int) -> dict:
     from sengine.registry import get
 
     blocks, _ = blocks_of(case)
-    best, out, node = float("inf"), None, None
+    best, best_cpu, out, node = float("inf"), float("inf"), None, None
     for _ in range(repeat):
         node = get(method)("lots", {}, Context(seed=1))
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         out = node.run(blocks=blocks)["lots"]
         best = min(best, time.perf_counter() - t)
+        best_cpu = min(best_cpu, time.process_time() - c)
     g = out.geometry
+    shapes = lot_shapes(out)
     barea = shapely.area(blocks.geometry)
     larea = np.bincount(np.searchsorted(blocks.ids, out["block"]), weights=shapely.area(g), minlength=len(blocks))
     rel = np.abs(larea - barea) / np.maximum(barea, 1e-12)
@@ -130,13 +145,57 @@ def run_method(case: str, method: str, repeat: int) -> dict:
         "blocks": int(len(blocks)),
         "lots": int(len(out)),
         "seconds": round(best, 3),
+        "cpu_seconds": round(best_cpu, 3),  # this process's CPU time (GEOS threads included): steadier when busy
         "lots_per_s": round(len(out) / best),
         "peak_rss_mb": round(_peak_mb(), 1),
         "max_partition_error": float(rel.max()) if len(rel) else 0.0,
         "no_frontage": int(((out["frontage"] <= 0) & ~out["inner"]).sum()),
         "invalid": int((~shapely.is_valid(g)).sum()),
+        **shapes,
         "report": node.report,
     }
+
+
+def lot_shapes(lots) -> dict:
+    """Thin shares, median frontage and depth of street-facing lots (see the module notes)."""
+    g = lots.geometry
+    k = len(g)
+    if k == 0:
+        return {"thin_share": 0.0, "thin_share_street": 0.0, "median_frontage": 0.0, "median_depth": 0.0}
+    env = shapely.oriented_envelope(g)
+    c = shapely.get_coordinates(shapely.get_exterior_ring(env))
+    ok = shapely.get_num_coordinates(env) == 5
+    sides = np.zeros((k, 2))
+    xy = c.reshape(-1, 5, 2) if ok.all() else None
+    if xy is not None:
+        sides = np.stack([np.hypot(*(xy[:, 1] - xy[:, 0]).T), np.hypot(*(xy[:, 2] - xy[:, 1]).T)], axis=1)
+    thin = sides.min(axis=1) < 0.1 * sides.max(axis=1)
+    street = ~np.asarray(lots["inner"], bool) & (lots["frontage"] > 0)
+    # depth: extent across the direction of the longest street edge
+    ang = np.radians(np.nan_to_num(np.asarray(lots["front_angle"], float)))
+    nrm = np.stack([-np.sin(ang), np.cos(ang)], axis=1)
+    pts, pi = shapely.get_coordinates(g, return_index=True)
+    q = np.einsum("ij,ij->i", pts, nrm[pi])
+    start = np.r_[0, np.flatnonzero(pi[1:] != pi[:-1]) + 1]
+    depth = np.zeros(k)
+    depth[pi[start]] = np.maximum.reduceat(q, start) - np.minimum.reduceat(q, start)
+    return {
+        "thin_share": round(float(thin.mean()), 4),
+        "thin_share_street": round(float(thin[street].mean()), 4) if street.any() else 0.0,
+        "median_frontage": round(float(np.median(lots["frontage"][street])), 2) if street.any() else 0.0,
+        "median_depth": round(float(np.median(depth[street])), 2) if street.any() else 0.0,
+    }
+
+
+def baseline_code(ref: str) -> Path:
+    """A copy of the package at git revision ``ref`` (cached in the temporary folder)."""
+    sha = subprocess.run(["git", "-C", str(ROOT), "rev-parse", ref], capture_output=True, text=True, check=True)
+    dest = Path(tempfile.gettempdir()) / f"sengine_bench_code_{sha.stdout.strip()[:12]}"
+    if not (dest / "sengine").exists():
+        dest.mkdir(parents=True, exist_ok=True)
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", ref, "sengine"], capture_output=True, check=True)
+        subprocess.run(["tar", "-x", "-C", str(dest)], input=archive.stdout, check=True)
+    return dest
 
 
 def main(argv=None) -> int:
@@ -144,6 +203,8 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--cases", default="liege,manhattan,paris")
     ap.add_argument("--out", type=Path, default=ROOT / "bench/results/lots.json")
+    ap.add_argument("--methods", default=",".join(METHODS))
+    ap.add_argument("--baseline", metavar="REF", help="also run the methods of this git revision, interleaved")
     ap.add_argument("--run", nargs=2, metavar=("CASE", "METHOD"), help=argparse.SUPPRESS)
     ap.add_argument("--prepare", metavar="CASE", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -165,16 +226,25 @@ def main(argv=None) -> int:
             print(f"skip {case}: {prep.stderr.strip().splitlines()[-1:]}", file=sys.stderr)
             continue
         print(prep.stdout.strip(), file=sys.stderr)
-        for method in METHODS:
-            proc = subprocess.run(
-                [sys.executable, __file__, "--run", case, method, "--repeat", str(args.repeat)],
-                capture_output=True,
-                text=True,
-                check=True,
-            )
-            res = json.loads(proc.stdout.strip().splitlines()[-1])
-            print(json.dumps({k: v for k, v in res.items() if k != "report"}), file=sys.stderr)
-            results.append(res)
+        codes = [("today", None)] + ([(args.baseline, baseline_code(args.baseline))] if args.baseline else [])
+        for method in args.methods.split(","):
+            for label, code in codes:
+                env = dict(os.environ)
+                if code is not None:
+                    env["SENGINE_BENCH_CODE"] = str(code)
+                    env["PYTHONPATH"] = str(code)
+                proc = subprocess.run(
+                    [sys.executable, __file__, "--run", case, method, "--repeat", str(args.repeat)],
+                    capture_output=True,
+                    text=True,
+                    env=env,
+                )
+                if proc.returncode:  # e.g. a method the baseline does not have
+                    print(f"skip {case} {method} ({label}): {proc.stderr.strip().splitlines()[-1:]}", file=sys.stderr)
+                    continue
+                res = {"code": label, **json.loads(proc.stdout.strip().splitlines()[-1])}
+                print(json.dumps({k: v for k, v in res.items() if k != "report"}), file=sys.stderr)
+                results.append(res)
     write(args.out, "lots", results)
     return 0
 
