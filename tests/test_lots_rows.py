@@ -206,13 +206,17 @@ def test_partition_by_size_keeps_remainders(angle):
     assert lots["inner"].sum() == 2 and (lots["frontage"][lots["inner"]] == 0).all()
 
 
-def test_partition_merges_thin_leftovers_by_default():
-    """A 92 m x 60 m block, lots 30 m x 30 m: the 2 m x 30 m leftovers (1:15) join the lots beside them."""
+def test_partition_folds_thin_leftovers_by_default():
+    """A 92 m x 60 m block, lots 30 m x 30 m: the 2 m leftover column (1:15) joins the column before it."""
     blocks, lots, node = partition({"size": "30 30"}, [shapely.box(0, 0, 92, 60)])
     check_lots(blocks, lots, "lots.partition")
     long, short = obb_sides(lots.geometry)
     assert (short * 6.0 >= long - 1e-9).all()
-    assert len(lots) == 6 and node.report["merged_slivers"] == 2
+    assert len(lots) == 6 and np.allclose(np.sort(shapely.area(lots.geometry)), [900] * 4 + [960] * 2)
+    assert lots["remainder"].sum() == 2 and set(lots["ix"].tolist()) == {0, 1, 2}
+    # max_aspect=0 keeps the strip as its own column of remainders
+    blocks, lots, node = partition({"size": "30 30", "max_aspect": 0}, [shapely.box(0, 0, 92, 60)])
+    assert len(lots) == 8 and np.allclose(np.sort(shapely.area(lots.geometry))[:2], [60, 60])
 
 
 def test_partition_by_count_and_ratio():
@@ -278,8 +282,8 @@ def test_partition_random_blocks(polys, mode, size, cluster):
     assert (lots["cells"] <= cluster[0] * cluster[1]).all()
     assert np.array_equal(lots["inner"], lots["frontage"] <= 0)
     if mode == "size":
-        full = area >= (1 - 1e-6) * cluster[0] * cluster[1] * size[0] * size[1]
-        assert np.array_equal(lots["remainder"], ~full)
+        full = cluster[0] * cluster[1] * size[0] * size[1]
+        assert np.array_equal(lots["remainder"], np.abs(area - full) > 1e-6 * full)
     else:
         assert not lots["remainder"].any()
 

@@ -18,7 +18,7 @@ __all__ = ["merge_small"]
 TOUCH = 1e-6  # m: pieces closer than this share boundary
 
 
-def merge_small(polys, group, min_area, *, touch: float = TOUCH, cell=None, drop_below: float = 1.0, also=None):
+def merge_small(polys, group, min_area, *, touch: float = TOUCH, cell=None, drop_below: float = 1.0):
     """Merge pieces smaller than ``min_area`` into a neighbour of the same group.
 
     Parameters
@@ -36,8 +36,6 @@ def merge_small(polys, group, min_area, *, touch: float = TOUCH, cell=None, drop
         Grid column and row of each piece when the pieces are cells of a grid
         per group: neighbours are then looked up among the cells next to a
         piece's own (no spatial index), which is much faster.
-    also : array_like of bool (k,), optional
-        More pieces to merge, whatever their area (e.g. thin leftovers).
     drop_below : float
         A piece under this area (m2) that no neighbour can take (it touches
         them at points only) is dropped: a degenerate sliver, not a lot (so
@@ -66,15 +64,9 @@ def merge_small(polys, group, min_area, *, touch: float = TOUCH, cell=None, drop
     keep, grown, merged = np.arange(k), np.zeros(k, bool), 0
     if cell is not None:
         cell = (np.asarray(cell[0], np.int64), np.asarray(cell[1], np.int64))
-    also = np.zeros(k, bool) if also is None else np.asarray(also, bool)
     for _ in range(4):  # a sliver whose best neighbour was merging itself goes in the next pass
         polys, kept, took, done = _merge_pass(
-            polys,
-            group[keep],
-            min_area[keep],
-            touch,
-            None if cell is None else (cell[0][keep], cell[1][keep]),
-            also[keep],
+            polys, group[keep], min_area[keep], touch, None if cell is None else (cell[0][keep], cell[1][keep])
         )
         keep, grown, merged = keep[kept], grown[kept] | took, merged + done
         if done == 0:
@@ -114,11 +106,11 @@ def _search(sorted_keys, q, side):
     return np.searchsorted(lin, (q[:, 0] * big + q[:, 1] + 1) * big + q[:, 2] + 1, side=side)
 
 
-def _merge_pass(polys, group, min_area, touch, cell=None, also=None):
+def _merge_pass(polys, group, min_area, touch, cell=None):
     """One pass of :func:`merge_small`: each small piece into its best neighbour that is not merging away."""
     k = len(polys)
     area = shapely.area(polys)
-    small = np.flatnonzero((area < min_area) | (False if also is None else also))
+    small = np.flatnonzero(area < min_area)
     if len(small) == 0:
         return polys, np.arange(k), np.zeros(k, bool), 0
     if cell is not None:
@@ -135,7 +127,7 @@ def _merge_pass(polys, group, min_area, touch, cell=None, also=None):
     shared = shapely.length(
         shapely.intersection(shapely.boundary(polys[i]), shapely.boundary(polys[j]), grid_size=touch)
     )
-    big_j = (area[j] >= min_area[j]) & ~(False if also is None else also[j])
+    big_j = area[j] >= min_area[j]
     o = np.lexsort((-area[j], -shared, ~big_j, i))
     i, j, shared = i[o], j[o], shared[o]
     first = np.r_[True, i[1:] != i[:-1]] if len(i) else np.zeros(0, bool)

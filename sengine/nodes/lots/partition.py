@@ -6,7 +6,9 @@ and ``y``.  Three splits, as in [1]_ (Fig. 3D-F):
 
 * ``size`` -- lots of an absolute size ``size = "sx sy"`` (m) from that
   corner; the parts left at the far edges keep whatever size is left and are
-  flagged ``remainder`` (so are lots the block's outline cuts short);
+  flagged ``remainder`` (so are lots the block's outline cuts short), but a
+  leftover strip more elongated than 1:``max_aspect`` joins the column or
+  row before it (those lots are remainders too);
 * ``count`` -- ``count = "nx ny"`` equal parts;
 * ``ratio`` -- a repeating pattern of widths in the proportions ``ratio``
   (e.g. ``"1 2"``) along ``x``, one repeat about ``size[0]`` long, stretched
@@ -53,7 +55,7 @@ def _ramp(counts) -> np.ndarray:
     return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
 
 
-def grid_edges(length, *, mode, size, count=1, ratio=(1.0,), cluster=1):
+def grid_edges(length, *, mode, size, count=1, ratio=(1.0,), cluster=1, min_last=0.0):
     """Cell edges along one axis of many blocks, as one flat array.
 
     Parameters
@@ -70,6 +72,9 @@ def grid_edges(length, *, mode, size, count=1, ratio=(1.0,), cluster=1):
     ratio : sequence of float
     cluster : int
         Keep every ``cluster``-th edge (and the last): cells of clusters.
+    min_last : float
+        ``size``: a last (leftover) cell shorter than this (m) joins the
+        cell before it.
 
     Returns
     -------
@@ -82,6 +87,7 @@ def grid_edges(length, *, mode, size, count=1, ratio=(1.0,), cluster=1):
     n = len(length)
     if mode == "size":
         ncell = np.maximum(1, np.ceil(length / size - 1e-9)).astype(np.int64)
+        ncell -= (ncell >= 2) & (length - (ncell - 1) * size < min_last)  # a thin leftover joins its neighbour
     elif mode == "count":
         ncell = np.full(n, int(count), np.int64)
     else:
@@ -91,7 +97,7 @@ def grid_edges(length, *, mode, size, count=1, ratio=(1.0,), cluster=1):
     k = _ramp(ncell + 1)  # edge number within its block
     own = np.repeat(np.arange(n), ncell + 1)
     if mode == "size":
-        edges = np.minimum(k * float(size), length[own])
+        edges = np.where(k == ncell[own], length[own], np.minimum(k * float(size), length[own]))
     elif mode == "count":
         edges = k / ncell[own] * length[own]
     else:
@@ -102,21 +108,26 @@ def grid_edges(length, *, mode, size, count=1, ratio=(1.0,), cluster=1):
     return edges[keep], np.bincount(own[keep], minlength=n) - 1
 
 
-def _grid(L, W, *, mode, size, count, ratio, cluster):
-    """Cluster edges along (x) and across (y) every block: (xs, nx, ys, ny)."""
+def _grid(L, W, *, mode, size, count, ratio, cluster, max_aspect=0.0):
+    """Cluster edges along (x) and across (y) every block: (xs, nx, ys, ny).
+
+    ``size``: a leftover column (row) narrower than a lot's depth (width)
+    over ``max_aspect`` joins the one before it (``0``: none does).
+    """
     if mode == "ratio":  # rows across: about size[1] deep, stretched
         ny0 = np.maximum(1, np.floor(W / size[1] + 0.5)).astype(np.int64)
         xs, nx = grid_edges(L, mode="ratio", size=size[0], ratio=ratio, cluster=cluster[0])
         ys, ny = _count_edges(W, ny0, cluster[1])
     else:
-        xs, nx = grid_edges(L, mode=mode, size=size[0], count=count[0], cluster=cluster[0])
-        ys, ny = grid_edges(W, mode=mode, size=size[1], count=count[1], cluster=cluster[1])
+        fold = (size[1] / max_aspect, size[0] / max_aspect) if max_aspect > 0 else (0.0, 0.0)
+        xs, nx = grid_edges(L, mode=mode, size=size[0], count=count[0], cluster=cluster[0], min_last=fold[0])
+        ys, ny = grid_edges(W, mode=mode, size=size[1], count=count[1], cluster=cluster[1], min_last=fold[1])
     return xs, nx, ys, ny
 
 
-def _cells(L, W, ix, iy, owner, *, mode, size, count, ratio, cluster):
+def _cells(L, W, ix, iy, owner, *, mode, size, count, ratio, cluster, max_aspect=0.0):
     """Grid cells in each cluster ``(ix, iy)`` of block ``owner`` (fewer at the grid's far edges)."""
-    _, n0x, _, n0y = _grid(L, W, mode=mode, size=size, count=count, ratio=ratio, cluster=(1, 1))
+    _, n0x, _, n0y = _grid(L, W, mode=mode, size=size, count=count, ratio=ratio, cluster=(1, 1), max_aspect=max_aspect)
     cx, cy = (int(c) for c in cluster)
     return (np.minimum(cx, n0x[owner] - ix * cx) * np.minimum(cy, n0y[owner] - iy * cy)).astype(np.int64)
 
@@ -161,9 +172,10 @@ def partition_lots(
     min_area : float
         Pieces under this area (m2) join a neighbouring lot of their block.
     max_aspect : float
-        ``size``: leftovers whose oriented box is more elongated than this
-        (long side over short side) join a neighbouring lot too (the strip
-        a grid leaves along an edge); ``0`` keeps every leftover as it is.
+        ``size``: a leftover column (row) at the far edge narrower than the
+        lot depth (width) over this joins the column (row) before it, so
+        that the grid leaves no strip more elongated than 1:``max_aspect``
+        along an edge; ``0`` keeps every leftover as it is.
     report : dict, optional
         Receives ``remainders``, ``merged_slivers`` and ``dropped_slivers``
         (pieces under 1 m2 touching their neighbours at points only).
@@ -191,24 +203,21 @@ def partition_lots(
         return np.empty(0, object), e64, e64, e64, np.zeros(0, bool), e64, np.zeros(0, bool)
     cx, cy = (int(c) for c in cluster)
     center, axis, L, W = obb_frame(blocks)
-    xs, nx, ys, ny = _grid(L, W, mode=mode, size=size, count=count, ratio=ratio, cluster=(cx, cy))
+    grid = {"mode": mode, "size": size, "count": count, "ratio": ratio, "cluster": (cx, cy), "max_aspect": max_aspect}
+    xs, nx, ys, ny = _grid(L, W, **grid)
     # the grid in the block frame centred on the box (edges from 0 shifted by half the box)
     xs = xs - np.repeat(L / 2, nx + 1)
     ys = ys - np.repeat(W / 2, ny + 1)
     pieces, own, ix, iy, inside, whole = clip_frame_grid(blocks, center, axis, xs, nx, ys, ny)
     lots, box = _polygons(pieces)
     owner, ix, iy, inside, whole = own[box], ix[box], iy[box], inside[box], whole[box]
-    thin = np.zeros(len(lots), bool)
-    if mode == "size" and max_aspect > 0:  # leftovers more elongated than max_aspect join a neighbour
-        rest = np.flatnonzero(shapely.area(lots) < (1.0 - 1e-6) * cx * cy * size[0] * size[1])
-        _, _, long_side, short_side = obb_frame(lots[rest])
-        thin[rest] = short_side * max_aspect < long_side
-    lots, keep, grown, merged, dropped = merge_small(lots, owner, min_area, cell=(ix, iy), also=thin)
+    lots, keep, grown, merged, dropped = merge_small(lots, owner, min_area, cell=(ix, iy))
     owner, ix, iy, inside, whole = owner[keep], ix[keep], iy[keep], inside[keep] & ~grown, whole[keep] & ~grown
-    cells = _cells(L, W, ix, iy, owner, mode=mode, size=size, count=count, ratio=ratio, cluster=(cx, cy))
+    cells = _cells(L, W, ix, iy, owner, **grid)
     area = shapely.area(lots)
-    if mode == "size":  # less than a whole cluster of whole lots
-        remainder = area < (1.0 - 1e-6) * cx * cy * size[0] * size[1]
+    if mode == "size":  # not a whole cluster of whole lots: cut short, or holding a leftover
+        full = cx * cy * size[0] * size[1]
+        remainder = np.abs(area - full) > 1e-6 * full
     else:
         remainder = np.zeros(len(lots), bool)
     # a lot that is its whole box inside the block (and took no sliver) touches no street; a clipped
@@ -220,12 +229,14 @@ def partition_lots(
         inner[check] = np.bincount(si[on], minlength=len(check)) == 0
     if report is not None:
         report["remainders"] = report.get("remainders", 0) + int(remainder.sum())
-        report["merged_slivers"] = report.get("merged_slivers", 0) + merged  # thin leftovers included
+        report["merged_slivers"] = report.get("merged_slivers", 0) + merged
         report["dropped_slivers"] = report.get("dropped_slivers", 0) + dropped
     return lots, owner, ix, iy, remainder, cells, inner
 
 
-def partition_index(lots, owner, blocks, *, mode="size", size=(30.0, 40.0), count=(4, 2), ratio=(1.0,), cluster=(1, 1)):
+def partition_index(
+    lots, owner, blocks, *, mode="size", size=(30.0, 40.0), count=(4, 2), ratio=(1.0,), cluster=(1, 1), max_aspect=0.0
+):
     """Grid index ``(ix, iy)``, remainder flag and cell count of lots, from their geometry.
 
     The cluster holding each lot's centroid (inside its rectangle, which is convex),
@@ -242,7 +253,8 @@ def partition_index(lots, owner, blocks, *, mode="size", size=(30.0, 40.0), coun
     blocks = np.asarray(blocks, dtype=object)
     center, axis, L, W = obb_frame(blocks)
     cx, cy = (int(c) for c in cluster)
-    xs, nx, ys, ny = _grid(L, W, mode=mode, size=size, count=count, ratio=ratio, cluster=(cx, cy))
+    grid = {"mode": mode, "size": size, "count": count, "ratio": ratio, "cluster": (cx, cy), "max_aspect": max_aspect}
+    xs, nx, ys, ny = _grid(L, W, **grid)
     # a lot's centroid lies in its own (convex) rectangle, or near it when the lot took a sliver
     p = shapely.get_coordinates(shapely.centroid(lots)) - center[owner]
     u = np.einsum("ij,ij->i", p, axis[owner]) + L[owner] / 2
@@ -257,15 +269,16 @@ def partition_index(lots, owner, blocks, *, mode="size", size=(30.0, 40.0), coun
         return np.clip(i, 0, ncell[owner] - 1).astype(np.int64)
 
     ix, iy = cell(xs, nx, L, u), cell(ys, ny, W, v)
-    cells = _cells(L, W, ix, iy, owner, mode=mode, size=size, count=count, ratio=ratio, cluster=(cx, cy))
+    cells = _cells(L, W, ix, iy, owner, **grid)
     if mode == "size":
-        remainder = shapely.area(lots) < (1.0 - 1e-6) * cx * cy * size[0] * size[1]
+        full = cx * cy * size[0] * size[1]
+        remainder = np.abs(shapely.area(lots) - full) > 1e-6 * full
     else:
         remainder = np.zeros(k, bool)
     return ix, iy, remainder, cells
 
 
-def check_partition(blocks, *, mode, size, count, ratio, cluster, where=None, report=None) -> None:
+def check_partition(blocks, *, mode, size, count, ratio, cluster, max_aspect=0.0, where=None, report=None) -> None:
     """Parameters that cannot hold: a one-line :class:`sengine.errors.ParameterError` naming the parameter.
 
     A cluster of more than 4 lots, a ratio without a positive part, or (mode
@@ -336,7 +349,7 @@ class LotsPartition(_Lots):
             6.0,
             min=0.0,
             unit="1",
-            doc="size: leftovers longer than this times their width join a neighbouring lot (0: keep all)",
+            doc="size: a leftover column or row more elongated than 1:this joins the one beside it (0: keep all)",
         ),
     }
 
@@ -348,13 +361,14 @@ class LotsPartition(_Lots):
             "count": tuple(self.p.count),
             "ratio": ratio,
             "cluster": tuple(self.p.cluster),
+            "max_aspect": self.p.max_aspect,
         }
 
     def split(self, blocks, report):
         opts = self._options()
         check_partition(blocks.geometry, **opts, where=self.where, report=report)
         lots, owner, ix, iy, remainder, cells, inner = partition_lots(
-            blocks.geometry, **opts, min_area=self.p.min_area, max_aspect=self.p.max_aspect, report=report
+            blocks.geometry, **opts, min_area=self.p.min_area, report=report
         )
         o = np.argsort(owner, kind="stable")
         lots, inner = lots[o], inner[o]

@@ -4,23 +4,28 @@ Each piece larger than ``max_area``, or more elongated than ``max_aspect``,
 is cut in two, level by level, until its lots are small and compact
 enough.  Which cut, in order of preference:
 
-1. **rows** -- a piece deeper than twice the target ``depth``, measured
-   across its street front, is cut parallel to that front: at the middle
-   when it faces streets on both sides (the two halves then meet back to
-   back, as lots do in a real block), else at ``depth`` behind its front
-   (the part behind is an *inner* piece, without street);
+1. **rows** -- a piece deeper than twice the target ``depth`` (the node's
+   ``row_depth``), measured across its street front, is cut parallel to
+   that front: at the middle when it faces streets on both sides (the two
+   halves then meet back to back, as lots do in a real block), else
+   ``depth`` behind its front (the part behind is an *inner* piece,
+   without street);
 2. **across the front** -- perpendicular to the piece's street front, near
-   the middle of its extent along it (moved by up to ``jitter``);
-3. **across the long axis** -- perpendicular to the long side of the
-   piece's smallest enclosing rectangle (Parish and Müller's rule [1]_);
-4. the cut of 2 at the exact middle.
+   the middle of the front (moved by up to ``jitter``);
+3. **across the long axis** -- perpendicular to the principal axis of the
+   piece's area (Parish and Müller halve the long side [1]_);
+4. the cut of 2 at the exact middle;
+5. **shed** -- a street-facing piece still too elongated, or too deep and
+   too large, is halved across its long axis, the far part becoming inner.
 
 A cut is kept only if every part has at least ``min_area``, no part is
-more elongated than ``max_aspect`` (or than the piece was), and -- for
-cuts 2 to 4 of a piece that faces a street -- every part keeps at least
-``min_frontage`` of street.  A piece no cut can split stays whole.  So lots
-never become stripes: a cut that would make one is refused, and a deep
-piece is split into rows rather than into ever thinner slices.
+more elongated than ``max_aspect`` (or than the piece was; not checked for
+row cuts, whose rows are cut again), and -- for cuts 2 to 4 of a piece that
+faces a street -- every part keeps at least ``min_frontage`` of street.  A
+piece no cut can split stays whole.  So lots never become stripes: a cut
+that would make one is refused, and a deep piece is split into rows rather
+than into ever thinner slices.  Pieces cut off the street are split only
+to ``max_aspect`` (``inner="compact"``) or like the others.
 
 The pieces of all blocks are cut together, as flat vertex arrays
 (:class:`sengine.geom.ringset.RingSet`): one vectorized
