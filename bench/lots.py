@@ -26,7 +26,8 @@ block interior).
 
 Usage::
 
-    python bench/lots.py [--repeat 3] [--cases liege,manhattan,paris] [--out bench/results/lots.json]
+    python bench/lots.py [--repeat 3] [--cases liege,manhattan,paris] [--baseline fd7a501]
+                         [--methods lots.recursive,...] [--out bench/results/lots.json]
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
+import os
 import pickle
 import resource
 import subprocess
@@ -47,7 +49,8 @@ import shapely
 from _results import write  # bench/ is on sys.path when run as a script
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+CODE = Path(os.environ.get("SENGINE_BENCH_CODE", ROOT))  # the sengine measured (a baseline's copy, or this one)
+sys.path.insert(0, str(CODE))
 LIEGE = next(
     (
         p
@@ -133,12 +136,14 @@ def run_method(case: str, method: str, repeat: int) -> dict:
     blocks, _ = blocks_of(case)
     name, _, query = method.partition("?")
     params = dict(kv.split("=", 1) for kv in query.split("&") if kv)
-    best, out, node = float("inf"), None, None
+    best, best_cpu, out, node = float("inf"), float("inf"), None, None
     for _ in range(repeat):
         node = get(name)("lots", params, Context(seed=1))
-        t = time.perf_counter()
-        out = node.run(blocks=blocks)["lots"]
+        t, c = time.perf_counter(), time.process_time()
+        result = node.run(blocks=blocks)
+        out = result["lots"]
         best = min(best, time.perf_counter() - t)
+        best_cpu = min(best_cpu, time.process_time() - c)
     g = out.geometry
     from sengine.geom.polygons import obb_frame
 
@@ -155,6 +160,7 @@ def run_method(case: str, method: str, repeat: int) -> dict:
         "blocks": int(len(blocks)),
         "lots": int(len(out)),
         "seconds": round(best, 3),
+        "cpu_seconds": round(best_cpu, 3),  # this process's CPU time (GEOS threads included): steadier when busy
         "lots_per_s": round(len(out) / best),
         "peak_rss_mb": round(_peak_mb(), 1),
         "max_partition_error": float(rel.max()) if len(rel) else 0.0,
@@ -166,8 +172,50 @@ def run_method(case: str, method: str, repeat: int) -> dict:
         "median_frontage": round(float(np.median(out["frontage"][street])), 2) if street.any() else None,
         "median_depth": round(float(np.nanmedian(depth[street])), 2) if street.any() else None,
         "kinds": {k: int((out["kind"] == k).sum()) for k in ("street", "corner", "inner")} if "kind" in out else None,
-        "report": node.report,
+        "report": getattr(result, "report", None) or getattr(node, "report", None),
     }
+
+
+def lot_shapes(lots) -> dict:
+    """Thin shares, median frontage and depth of street-facing lots (see the module notes)."""
+    g = lots.geometry
+    k = len(g)
+    if k == 0:
+        return {"thin_share": 0.0, "thin_share_street": 0.0, "median_frontage": 0.0, "median_depth": 0.0}
+    env = shapely.oriented_envelope(g)
+    c = shapely.get_coordinates(shapely.get_exterior_ring(env))
+    ok = shapely.get_num_coordinates(env) == 5
+    sides = np.zeros((k, 2))
+    xy = c.reshape(-1, 5, 2) if ok.all() else None
+    if xy is not None:
+        sides = np.stack([np.hypot(*(xy[:, 1] - xy[:, 0]).T), np.hypot(*(xy[:, 2] - xy[:, 1]).T)], axis=1)
+    thin = sides.min(axis=1) < 0.1 * sides.max(axis=1)
+    street = ~np.asarray(lots["inner"], bool) & (lots["frontage"] > 0)
+    # depth: extent across the direction of the longest street edge
+    ang = np.radians(np.nan_to_num(np.asarray(lots["front_angle"], float)))
+    nrm = np.stack([-np.sin(ang), np.cos(ang)], axis=1)
+    pts, pi = shapely.get_coordinates(g, return_index=True)
+    q = np.einsum("ij,ij->i", pts, nrm[pi])
+    start = np.r_[0, np.flatnonzero(pi[1:] != pi[:-1]) + 1]
+    depth = np.zeros(k)
+    depth[pi[start]] = np.maximum.reduceat(q, start) - np.minimum.reduceat(q, start)
+    return {
+        "thin_share": round(float(thin.mean()), 4),
+        "thin_share_street": round(float(thin[street].mean()), 4) if street.any() else 0.0,
+        "median_frontage": round(float(np.median(lots["frontage"][street])), 2) if street.any() else 0.0,
+        "median_depth": round(float(np.median(depth[street])), 2) if street.any() else 0.0,
+    }
+
+
+def baseline_code(ref: str) -> Path:
+    """A copy of the package at git revision ``ref`` (cached in the temporary folder)."""
+    sha = subprocess.run(["git", "-C", str(ROOT), "rev-parse", ref], capture_output=True, text=True, check=True)
+    dest = Path(tempfile.gettempdir()) / f"sengine_bench_code_{sha.stdout.strip()[:12]}"
+    if not (dest / "sengine").exists():
+        dest.mkdir(parents=True, exist_ok=True)
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", ref, "sengine"], capture_output=True, check=True)
+        subprocess.run(["tar", "-x", "-C", str(dest)], input=archive.stdout, check=True)
+    return dest
 
 
 def main(argv=None) -> int:
@@ -175,6 +223,8 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--cases", default="liege,manhattan,paris")
     ap.add_argument("--out", type=Path, default=ROOT / "bench/results/lots.json")
+    ap.add_argument("--methods", default=",".join(METHODS))
+    ap.add_argument("--baseline", metavar="REF", help="also run the methods of this git revision, interleaved")
     ap.add_argument("--run", nargs=2, metavar=("CASE", "METHOD"), help=argparse.SUPPRESS)
     ap.add_argument("--prepare", metavar="CASE", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)

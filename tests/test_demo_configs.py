@@ -69,9 +69,24 @@ def test_manhattan_with_real_25_by_100_ft_lots():
     assert np.median(lots["frontage"][grid]) == pytest.approx(7.62, rel=0.1)
     assert np.median(width) == pytest.approx(7.62, rel=0.1)
     assert np.median(depth) == pytest.approx(30.48, rel=0.15)
+    # 60 ft streets and 100 ft avenues (sidewalks included) around 200 ft blocks: lots 28-32 m deep, back to back
+    assert ((depth >= 28.0) & (depth <= 32.0)).mean() >= 0.95, np.percentile(depth, [1, 5, 50, 95, 99])
+    grid_blocks = np.isin(blocks["district"], [2, 3])
+    _, block_depth = _obb_sides(blocks.geometry[grid_blocks])
+    assert 56.0 <= np.median(block_depth) <= 63.0
     per_block = np.bincount(lots["block"][grid]).astype(float)
     assert 45 <= np.median(per_block[per_block > 0]) <= 80
     assert stats["counts"]["blocks"] == len(blocks) and stats["counts"]["lots"] == len(lots) > 40_000
+    # no lot under 1 m2: clipped slivers joined a neighbour, and the report says how many
+    assert shapely.area(lots.geometry).min() >= 1.0
+    assert stats["report"]["lots"]["merged_slivers"] > 0
+
+
+def test_manhattan_has_no_degenerate_lots(manhattan):
+    layers, stats, _ = manhattan
+    lots = layers["lots"]["lots"]
+    assert shapely.area(lots.geometry).min() >= 1.0 and shapely.is_valid(lots.geometry).all()
+    assert stats["report"]["lots"]["no_frontage"] == 0
 
 
 def test_manhattan_has_its_park_water_and_outputs(manhattan):

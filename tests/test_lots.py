@@ -82,9 +82,10 @@ def check_lots(blocks: Layer, lots: Layer, name: str):
     ref = LOTS.lot_attributes(lots.geometry, owner, blocks.geometry)
     assert np.allclose(lots["frontage"], ref["frontage"], atol=1e-6), f"{name}: frontage differs from measured"
     assert np.array_equal(lots["street_edges"], ref["street_edges"]) and np.array_equal(lots["corner"], ref["corner"])
-    must_touch = ~lots["inner"]  # paris courtyards only
-    if name in ("lots.manhattan", "lots.recursive"):
-        assert not lots["inner"].any()
+    must_touch = ~lots["inner"]  # paris courtyards, and what lies behind the back-to-back rows of deep blocks
+    if name == "lots.recursive":  # inner: cut off the street (less than min_frontage), never a whole block
+        assert (lots["frontage"][lots["inner"]] < 4.0).all()
+        assert (np.bincount(lots["block"][~lots["inner"]], minlength=lots["block"].max() + 1)[lots["block"]] > 0).all()
     assert (lots["frontage"][must_touch] > 0).all(), f"{name}: a lot has no street frontage"
     assert (lots["street_edges"][must_touch] >= 1).all()
 
@@ -160,7 +161,7 @@ def test_district_rules_choose_method_and_params():
     plan = CityPlan(
         rules=[
             Rule("district", {"lots": "paris", "lot-depth": "12"}, "c.xml:3"),
-            Rule("district", {"lots": "recursive", "lot-area": "400"}, "c.xml:4"),
+            Rule("district", {"lots": "recursive", "lot-area": "400", "lot-row-depth": "20"}, "c.xml:4"),
             Rule("district", {"lots": "voronoi"}, "c.xml:5"),
         ]
     )
@@ -171,7 +172,7 @@ def test_district_rules_choose_method_and_params():
     check_lots(blocks, lots, "lots.district")
     by = {b: set(lots["method"][lots["block"] == b]) for b in range(3)}
     assert by == {0: {"paris"}, 1: {"recursive"}, 2: {"manhattan"}}
-    rec = shapely.area(lots.geometry[lots["block"] == 1])
+    rec = shapely.area(lots.geometry[(lots["block"] == 1) & ~lots["inner"]])
     assert (rec <= 400 + 1e-6).mean() >= 0.9
     assert node.report["over_max_area"] == (rec > 400).sum()
     bad = Layer.from_geoms([shapely.box(0, 0, 50, 50)], district=[2])
@@ -264,7 +265,8 @@ def test_recursive_degenerate_cuts():
         shapely.Polygon([(0, 0), (60, 0), (60, 60), (30, 30), (0, 60)]),
     ]
     blocks = Layer.from_geoms(polys)
-    node = get("lots.recursive")("lots", {"jitter": 0.0, "max_area": 100.0, "min_frontage": 1.0})
+    params = {"jitter": 0.0, "max_area": 100.0, "min_frontage": 1.0, "row_depth": 6.0, "inner_lots": "split"}
+    node = get("lots.recursive")("lots", params)
     lots = node.run(blocks=blocks)["lots"]
     check_lots(blocks, lots, "lots.recursive")
     assert (shapely.area(lots.geometry) <= 100 + 1e-9).mean() > 0.9

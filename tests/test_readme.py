@@ -72,4 +72,5 @@ def test_readme_python_example_runs(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(ROOT)
     exec(compile(code.replace('"out/manhattan"', repr(str(tmp_path / "m"))), "README.md", "exec"), {})
     printed = capsys.readouterr().out
-    assert "'lots': 7" in printed and (tmp_path / "m" / "stats.json").exists()
+    lots = int(re.search(r"'lots': (\d+)", printed).group(1))
+    assert 6500 <= lots <= 8000 and (tmp_path / "m" / "stats.json").exists()  # the paper's ~7,000 (7,471)

@@ -40,7 +40,7 @@ from sengine.registry import declare_rule
 
 from .manhattan import manhattan_lots
 from .paris import paris_lots
-from .recursive import recursive_lots
+from .recursive import check_recursive, recursive_lots
 from .skeleton import CORNERS, INTERIORS, skeleton_lots
 from .vocabulary import LotSplit, lot_depth, lot_kind
 
@@ -312,10 +312,15 @@ class _Lots(SENode):
         return {"lots": lay}
 
 
-def _manhattan(self, geoms, report, *, count, width, min_depth):
-    lots, owner = manhattan_lots(geoms, count=count, width=width, min_depth=min_depth)
+def _manhattan(self, geoms, report, *, count, width, min_depth, row_depth, min_area):
+    lots, owner, inner, off_street = manhattan_lots(
+        geoms, count=count, width=width, min_depth=min_depth, depth=row_depth, min_area=min_area, report=report
+    )
     o = np.argsort(owner, kind="stable")
-    return LotSplit(lots[o], owner[o], np.full(len(lots), "manhattan"), np.zeros(len(lots), bool))
+    lots, off_street = lots[o], off_street[o]
+    # what the method knows of frontage: none on the lots inside their block; the others are measured
+    on = np.zeros(int((shapely.get_num_coordinates(lots) - 1 - shapely.get_num_interior_rings(lots)).sum()), bool)
+    return LotSplit(lots, owner[o], np.full(len(lots), "manhattan"), inner[o], on, off_street)
 
 
 def _seeds(self, ids) -> np.ndarray:
@@ -324,21 +329,28 @@ def _seeds(self, ids) -> np.ndarray:
     return mix64(base, np.asarray(ids).astype(np.uint64))
 
 
-def _recursive(self, geoms, ids, report, *, max_area, min_frontage, jitter):
-    lots, owner, on = recursive_lots(
+def _recursive(
+    self, geoms, ids, report, *, max_area, min_area, min_frontage, row_depth, max_aspect, jitter, inner_lots
+):
+    check_recursive(
+        geoms, max_area=max_area, min_area=min_area, min_frontage=min_frontage, where=self.where, report=report
+    )
+    lots, owner, on, inner = recursive_lots(
         geoms,
         max_area=max_area,
+        min_area=min_area,
         min_frontage=min_frontage,
+        depth=row_depth,
+        max_aspect=max_aspect,
         jitter=jitter,
+        inner=inner_lots,
         seeds=_seeds(self, ids),
         report=report,
         street=True,
     )
-    over = int((shapely.area(lots) > max_area).sum())
+    over = int(((shapely.area(lots) > max_area) & ~inner).sum())  # inner lots stay whole by design
     report["over_max_area"] = report.get("over_max_area", 0) + over
-    return LotSplit(
-        lots, owner, np.full(len(lots), "recursive"), np.zeros(len(lots), bool), on, np.ones(len(lots), bool)
-    )
+    return LotSplit(lots, owner, np.full(len(lots), "recursive"), inner, on, np.ones(len(lots), bool))
 
 
 def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage):
@@ -395,6 +407,22 @@ def _skeleton(self, geoms, ids, report, *, where=None, **p):
     return LotSplit(lots[o], owner[o], meth, inner[o], flags.on, flags.known, park[o])
 
 
+_P_ROW_DEPTH = Param(
+    "float",
+    30.0,
+    min=1.0,
+    max=1000.0,
+    unit="m",
+    doc="target lot depth: blocks deeper than this get back-to-back rows (recursive: twice, manhattan: 4x)",
+)
+_P_MIN_AREA = Param(
+    "float",
+    50.0,
+    min=1.0,
+    max=1e6,
+    unit="m2",
+    doc="no lot smaller than this: cuts leaving one are refused, slivers merge",
+)
 _P_MANHATTAN = {
     "count": Param("int", 0, min=0, max=1000, unit="1", doc="lots per side of the main axis; 0 = from width"),
     "width": Param(
@@ -405,11 +433,29 @@ _P_MANHATTAN = {
         doc="target lot width along the main axis (65 m: ~8 lots per 80 x 270 m block, as in the paper)",
     ),
     "min_depth": Param("float", 10.0, min=0.0, unit="m", doc="blocks narrower than twice this get one row"),
+    "row_depth": _P_ROW_DEPTH,
+    "min_area": _P_MIN_AREA,
 }
 _P_RECURSIVE = {
     "max_area": Param("float", 800.0, min=1.0, unit="m2", doc="split lots until they are under this area"),
-    "min_frontage": Param("float", 4.0, min=0.0, unit="m", doc="street frontage every lot must keep"),
+    "min_area": _P_MIN_AREA,
+    "min_frontage": Param("float", 4.0, min=0.0, unit="m", doc="street frontage every street-facing lot must keep"),
+    "row_depth": _P_ROW_DEPTH,
+    "max_aspect": Param(
+        "float",
+        6.0,
+        min=1.0,
+        max=100.0,
+        unit="1",
+        doc="no cut leaves a lot longer than this times its width (1:max_aspect)",
+    ),
     "jitter": Param("float", 0.25, min=0.0, max=0.9, unit="1", doc="cut position spread, fraction of the extent"),
+    "inner_lots": Param(
+        "str",
+        "compact",
+        choices=("compact", "split"),
+        doc="land behind the rows of a deep block: inner lots split only to max_aspect (compact) or to max_area",
+    ),
 }
 _P_PARIS = {
     "segment": Param("float", 20.0, min=1.0, unit="m", doc="contour segment length (one perimeter lot each)"),
@@ -470,7 +516,14 @@ class LotsManhattan(_Lots):
 
     def split(self, blocks, report):
         return _manhattan(
-            self, blocks.geometry, report, count=self.p.count, width=self.p.width, min_depth=self.p.min_depth
+            self,
+            blocks.geometry,
+            report,
+            count=self.p.count,
+            width=self.p.width,
+            min_depth=self.p.min_depth,
+            row_depth=self.p.row_depth,
+            min_area=self.p.min_area,
         )
 
 
@@ -488,8 +541,12 @@ class LotsRecursive(_Lots):
             blocks.ids,
             report,
             max_area=self.p.max_area,
+            min_area=self.p.min_area,
             min_frontage=self.p.min_frontage,
+            row_depth=self.p.row_depth,
+            max_aspect=self.p.max_aspect,
             jitter=self.p.jitter,
+            inner_lots=self.p.inner_lots,
         )
 
 
@@ -530,6 +587,10 @@ _RULE_ATTRS = {
     "lot-width": "width",
     "lot-min-depth": "min_depth",
     "lot-area": "max_area",
+    "lot-min-area": "min_area",
+    "lot-row-depth": "row_depth",
+    "lot-aspect": "max_aspect",
+    "lot-inner": "inner_lots",
     "lot-frontage": "min_frontage",
     "lot-jitter": "jitter",
     "lot-segment": "segment",
@@ -595,7 +656,16 @@ class LotsDistrict(_Lots):
             sel = np.flatnonzero(district == dist)
             method, v, where = self._rule_params(int(dist))
             if method == "manhattan":
-                res = _manhattan(self, geoms[sel], report, count=v["count"], width=v["width"], min_depth=v["min_depth"])
+                res = _manhattan(
+                    self,
+                    geoms[sel],
+                    report,
+                    count=v["count"],
+                    width=v["width"],
+                    min_depth=v["min_depth"],
+                    row_depth=v["row_depth"],
+                    min_area=v["min_area"],
+                )
             elif method == "recursive":
                 res = _recursive(
                     self,
@@ -603,8 +673,12 @@ class LotsDistrict(_Lots):
                     blocks.ids[sel],
                     report,
                     max_area=v["max_area"],
+                    min_area=v["min_area"],
                     min_frontage=v["min_frontage"],
+                    row_depth=v["row_depth"],
+                    max_aspect=v["max_aspect"],
                     jitter=v["jitter"],
+                    inner_lots=v["inner_lots"],
                 )
             elif method == "skeleton":
                 res = _skeleton(

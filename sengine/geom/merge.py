@@ -1,0 +1,168 @@
+"""Small pieces of a partition merged into a neighbour of the same group.
+
+A polygon partition cut by clipping or splitting (lots of a block) can leave
+slivers: pieces of (nearly) zero area where a cut runs through a corner.
+:func:`merge_small` gives each piece under a threshold to the neighbour of
+its group with which it shares the longest boundary, so the partition keeps
+its area and loses the sliver.  Only the few small pieces and their
+neighbours see a GEOS overlay.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+
+__all__ = ["merge_small"]
+
+TOUCH = 1e-6  # m: pieces closer than this share boundary
+
+
+def merge_small(polys, group, min_area, *, touch: float = TOUCH, cell=None, drop_below: float = 1.0):
+    """Merge pieces smaller than ``min_area`` into a neighbour of the same group.
+
+    Parameters
+    ----------
+    polys : array_like of shapely.Polygon (k,)
+        Pieces, e.g. the lots of many blocks.
+    group : array_like of int (k,)
+        Group of each piece (e.g. its block); pieces merge only within a group.
+    min_area : float or array_like (k,)
+        Pieces under this area (m2) merge.
+    touch : float
+        Pieces within this distance (m) count as neighbours; their shared
+        boundary is measured within it.
+    cell : (ndarray, ndarray) of int, optional
+        Grid column and row of each piece when the pieces are cells of a grid
+        per group: neighbours are then looked up among the cells next to a
+        piece's own (no spatial index), which is much faster.
+    drop_below : float
+        A piece under this area (m2) that no neighbour can take (it touches
+        them at points only) is dropped: a degenerate sliver, not a lot (so
+        long as such pieces make at most 0.05 % of their group's area).
+
+    Returns
+    -------
+    polys : ndarray of shapely.Polygon
+        The pieces left, in their original order (a neighbour that took small
+        pieces is replaced by the union).
+    keep : ndarray of int64
+        Index of each piece left into the input.
+    grown : ndarray of bool
+        Pieces left that took small ones.
+    merged : int
+        Pieces merged away.  A small piece without a neighbour in its group
+        (a whole small block), or whose union with every neighbour would not
+        be one polygon, stays, unless under ``drop_below``.
+    dropped : int
+        Pieces under ``drop_below`` dropped (zero-area ones included).
+    """
+    polys = np.asarray(polys, dtype=object).ravel()
+    group = np.asarray(group, np.int64).ravel()
+    k = len(polys)
+    min_area = np.broadcast_to(np.asarray(min_area, np.float64), (k,))
+    keep, grown, merged = np.arange(k), np.zeros(k, bool), 0
+    if cell is not None:
+        cell = (np.asarray(cell[0], np.int64), np.asarray(cell[1], np.int64))
+    for _ in range(4):  # a sliver whose best neighbour was merging itself goes in the next pass
+        polys, kept, took, done = _merge_pass(
+            polys, group[keep], min_area[keep], touch, None if cell is None else (cell[0][keep], cell[1][keep])
+        )
+        keep, grown, merged = keep[kept], grown[kept] | took, merged + done
+        if done == 0:
+            break
+    # what is left under drop_below touches its neighbours at points at most: degenerate, dropped
+    area = shapely.area(polys)
+    gone = area < np.minimum(drop_below, min_area[keep])
+    if gone.any():  # only where they are a hair of their group's area (a group of slivers stays whole)
+        g = group[keep]
+        lost = np.bincount(g, weights=np.where(gone, area, 0.0), minlength=int(g.max()) + 1)
+        total = np.bincount(g, weights=area, minlength=int(g.max()) + 1)
+        gone &= lost[g] <= 5e-4 * total[g]
+        polys, keep, grown = polys[~gone], keep[~gone], grown[~gone]
+    return polys, keep, grown, merged, int(gone.sum())
+
+
+def _grid_pairs(small, group, ix, iy):
+    """(small piece, piece) pairs of the same group in the same or a 4-neighbouring grid cell."""
+    key = np.stack([group, ix, iy], axis=1)
+    order = np.lexsort((iy, ix, group))
+    sk = key[order]
+    ii, jj = [], []
+    for dx, dy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1)):
+        q = key[small] + (0, dx, dy)
+        lo = _search(sk, q, "left")
+        hi = _search(sk, q, "right")
+        cnt = hi - lo
+        ii.append(np.repeat(small, cnt))
+        jj.append(order[np.repeat(lo, cnt) + np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)])
+    return np.concatenate(ii), np.concatenate(jj)
+
+
+def _search(sorted_keys, q, side):
+    """Row positions of ``q`` in lexicographically sorted integer rows ``sorted_keys``."""
+    big = np.int64(1) << np.int64(20)  # columns and rows of a grid stay well under a million
+    lin = (sorted_keys[:, 0] * big + sorted_keys[:, 1] + 1) * big + sorted_keys[:, 2] + 1
+    return np.searchsorted(lin, (q[:, 0] * big + q[:, 1] + 1) * big + q[:, 2] + 1, side=side)
+
+
+def _merge_pass(polys, group, min_area, touch, cell=None):
+    """One pass of :func:`merge_small`: each small piece into its best neighbour that is not merging away."""
+    k = len(polys)
+    area = shapely.area(polys)
+    small = np.flatnonzero(area < min_area)
+    if len(small) == 0:
+        return polys, np.arange(k), np.zeros(k, bool), 0
+    if cell is not None:
+        i, j = _grid_pairs(small, group, *cell)
+        ok = shapely.dwithin(polys[i], polys[j], touch)
+    else:  # neighbours: pieces of the groups that have a small piece, found with a spatial index
+        cand = np.flatnonzero(np.isin(group, np.unique(group[small])))
+        si, nj = shapely.STRtree(polys[cand]).query(polys[small], predicate="dwithin", distance=touch)
+        i, j = small[si], cand[nj]
+        ok = np.ones(len(i), bool)
+    ok &= (group[i] == group[j]) & (i != j)
+    i, j = i[ok], j[ok]
+    # the neighbour sharing the longest boundary; a larger piece wins a tie, small ones come last
+    shared = shapely.length(
+        shapely.intersection(shapely.boundary(polys[i]), shapely.boundary(polys[j]), grid_size=touch)
+    )
+    big_j = area[j] >= min_area[j]
+    o = np.lexsort((-area[j], -shared, ~big_j, i))
+    i, j, shared = i[o], j[o], shared[o]
+    first = np.r_[True, i[1:] != i[:-1]] if len(i) else np.zeros(0, bool)
+    i, j, shared = i[first], j[first], shared[first]
+    # a small piece merges into a piece that is not itself merging away (no chains): a piece that a
+    # smaller one picked stays where it is and takes it; others wait for the next pass
+    sel = (shared > 0) & (area[i] > 0)
+    i, j = i[sel], j[sel]
+    stays = np.zeros(k, bool)
+    stays[j[area[i] < area[j]]] = True
+    moving = ~stays[i]
+    i, j = i[moving], j[moving]
+    sel = ~np.isin(j, i)
+    i, j = i[sel], j[sel]
+    drop = np.zeros(k, bool)
+    out = polys.copy()
+    took = np.zeros(k, bool)
+    if len(i):
+        # a target taking one piece: one vectorized union; taking several: union_all each (rare)
+        o = np.argsort(j, kind="stable")
+        i, j = i[o], j[o]
+        t, start, cnt = np.unique(j, return_index=True, return_counts=True)
+        one = cnt == 1
+        u = np.empty(len(t), dtype=object)
+        u[one] = shapely.union(polys[t[one]], polys[i[start[one]]])
+        for q in np.flatnonzero(~one):
+            u[q] = shapely.union_all(np.r_[polys[t[q] : t[q] + 1], polys[i[start[q] : start[q] + cnt[q]]]])
+        bad = shapely.get_type_id(u) != 3  # touching at a point only: snap the shared edges
+        for q in np.flatnonzero(bad):
+            u[q] = shapely.union_all(
+                np.r_[polys[t[q] : t[q] + 1], polys[i[start[q] : start[q] + cnt[q]]]], grid_size=touch
+            )
+        good = (shapely.get_type_id(u) == 3) & shapely.is_valid(u)
+        out[t[good]] = u[good]
+        took[t[good]] = True
+        drop[i[np.repeat(good, cnt)]] = True
+    keep = np.flatnonzero(~drop)
+    return out[keep], keep, took[keep], int(drop.sum())
