@@ -88,6 +88,23 @@ def test_vocabulary_on_generated_blocks(polys):
         check_vocabulary(blocks, lots, name)
 
 
+# a hypothesis block where lots.skeleton merges faces: the merged faces kept their old segment counts,
+# shifting the segment flags of every later lot (frontage 1 or 22 m where 94 m were measured)
+MERGED_BLOCK = (
+    "POLYGON ((11.297470666614931 73.28626412568394, -1.2526332120272503 23.026900341763614, -88.30704793"
+    "959758 171.60489254361687, -128.41774767443388 62.027160464305446, -112.10233725592373 10.0592024752"
+    "14043, -13.191409587882877 0.8897497404858918, -131.4226519030534 -47.736409570081925, -75.710704861"
+    "80308 -92.44905905156826, 89.54389344428381 -140.47323833373954, 53.17874502638611 -70.7026634084425"
+    ", 117.85029641646328 -82.85071216075417, 11.297470666614931 73.28626412568394))"
+)
+
+
+def test_frontage_of_skeleton_lots_after_a_merge():
+    blocks = Layer.from_geoms([shapely.from_wkt(MERGED_BLOCK)], ids=np.array([1]))
+    lots = get("lots.skeleton")("lots", {}, Context(seed=7)).run(blocks=blocks)["lots"]
+    check_vocabulary(blocks, lots, "lots.skeleton")
+
+
 def test_tags_of_skeleton_lots_on_a_rectangle():
     """150 m x 90 m, 22 m deep and 15 m wide lots: a street lot has 15 m of front, 44 m of side, 15 m of rear."""
     blocks = Layer.from_geoms([shapely.affinity.rotate(shapely.box(0, 0, 150, 90), 17)])

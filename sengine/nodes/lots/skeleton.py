@@ -113,6 +113,14 @@ class SkeletonLots:
     known: np.ndarray | None = None
 
 
+def _after_merge(marks: Marks, faces, changed) -> Marks:
+    """Marks of the faces left by a merge: a face that took in others has a new ring (another number of
+    segments), so its marks are reset to unknown, keeping the flat marks aligned with every later face."""
+    fresh = Marks.unknown(faces)
+    fresh.flat[np.repeat(~changed, fresh.counts)] = marks.flat[np.repeat(~changed, marks.counts)]
+    return fresh
+
+
 def _per_block(x, n, dtype=np.float64):
     return np.broadcast_to(np.asarray(x, dtype), (n,)).copy()
 
@@ -454,7 +462,7 @@ def skeleton_lots(
     faces, alive, nm, changed = _merge_into(faces, small, inner, fpart, strict=True, adj=adj)
     report["skeleton_merged"] += nm
     fpart, inner = fpart[alive], inner[alive]
-    marks, known = marks.take(np.flatnonzero(alive)), known[alive] & ~changed
+    marks, known = _after_merge(marks.take(np.flatnonzero(alive)), faces, changed), known[alive] & ~changed
     # 5. the interior
     if interior == "split" and inner.any():
         ii = np.flatnonzero(inner)
@@ -478,7 +486,7 @@ def skeleton_lots(
     elif interior == "merge" and inner.any():
         spacing = 0.5 * np.minimum(w_b, d_b)[own[fpart]]
         faces, fpart, inner, stay, changed = _merge_interior(faces, fpart, inner, spacing, report)
-        marks, known = marks.take(np.flatnonzero(stay)), known[stay] & ~changed
+        marks, known = _after_merge(marks.take(np.flatnonzero(stay)), faces, changed), known[stay] & ~changed
     # slivers left (inner ones, or with no street neighbour): into any neighbour
     for strict in (True, False):  # into their own kind first (an interior scrap may join a street lot)
         tiny = shapely.area(faces) < np.where(inner, amin_b[own[fpart]], SLIVER)
@@ -487,7 +495,7 @@ def skeleton_lots(
         faces, alive, nm, changed = _merge_into(faces, tiny, inner, fpart, strict=strict)
         report["skeleton_merged"] += nm
         fpart, inner = fpart[alive], inner[alive]
-        marks, known = marks.take(np.flatnonzero(alive)), known[alive] & ~changed
+        marks, known = _after_merge(marks.take(np.flatnonzero(alive)), faces, changed), known[alive] & ~changed
     report["skeleton_slivers"] = int((shapely.area(faces) < SLIVER).sum())
     park = inner.copy() if interior == "park" else np.zeros(len(faces), bool)
     o = np.lexsort((np.arange(len(faces)), own[fpart]))
