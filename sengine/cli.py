@@ -69,6 +69,12 @@ def _run_options(p: argparse.ArgumentParser) -> None:
         default="",
         help="comma list of outputs: glb,geojson,osm,png,obj,cityjson (default: the exporter's)",
     )
+    p.add_argument(
+        "--lod",
+        type=int,
+        choices=(1, 2),
+        help="buildings in glb, obj and cityjson: 1 flat-roofed boxes, 2 with roofs (sets every export.city's lod)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -155,10 +161,19 @@ def _seeds(text: str) -> list[int]:
     return seeds
 
 
+def _set_lod(net, lod: int | None) -> None:
+    """``--lod``: the ``lod`` parameter of every ``export.city`` node."""
+    if lod is not None:
+        for spec in net.specs.values():
+            if spec.type == "export.city":
+                net.set_param(spec.id, "lod", lod, where="--lod")
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     from .xmlconfig import load_config
 
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin, seed=args.seed)
+    _set_lod(net, args.lod)
     result = net.run(out=args.out, formats=_formats(args.formats), progress=_progress(args), workers=args.workers)
     if not args.quiet:
         counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
@@ -171,6 +186,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
     from .xmlconfig import load_config
 
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin)
+    _set_lod(net, args.lod)
     net.validate()
     seeds = _seeds(args.seeds)
     formats = _formats(args.formats)
@@ -207,6 +223,7 @@ def cmd_osm(args: argparse.Namespace) -> int:
             '  <network base="loadmap"/>\n</sengine>\n'
         )
         net = load_config(config, sets=args.sets, plugins=args.plugin, seed=args.seed)
+        _set_lod(net, args.lod)
         # errors about the file name the command, not the temporary config
         net.plan.maps["osm"] = MapSpec("osm", args.file.resolve(), {}, where="sengine osm")
         net.source = str(args.file)

@@ -13,8 +13,12 @@ geojson    ``<layer>.geojson`` (RFC 7946, WGS84)   :mod:`sengine.io.geojson`
 osm        ``streets.osm`` (roads, OSM XML)        :mod:`sengine.nodes.export.osmxml`
 png        ``preview.png`` (plan view)             :mod:`sengine.nodes.export.preview`
 obj        ``city.obj`` + ``city.mtl``             :mod:`sengine.nodes.export.obj`
-cityjson   ``buildings.city.json`` (LoD1)          :mod:`sengine.nodes.export.cityjson`
+cityjson   ``buildings.city.json`` (LoD1 / LoD2)   :mod:`sengine.nodes.export.cityjson`
 ========== ======================================= ========================
+
+``lod`` (``--lod``) chooses the buildings of the 3D formats (glb, obj,
+cityjson): 1 flat-roofed boxes, 2 with their roofs
+(:mod:`sengine.nodes.export.roofs`).
 
 WGS84 coordinates come from each layer's ``meta["crs"]``, or the local frame
 of the plan's geographic origin.  ``stats.json`` is the executor's.
@@ -50,6 +54,7 @@ def export_layers(
     line_width: float = 1.0,
     preview_size: int = 1600,
     workers: int = 1,
+    lod: int = 2,
 ) -> dict:
     """Write ``layers`` into folder ``out`` in each of ``formats``.
 
@@ -68,6 +73,8 @@ def export_layers(
     workers : int
         Processes writing files side by side (:func:`sengine.parallel.run_jobs`);
         the files are the same for any number.
+    lod : int
+        Buildings in glb, obj and cityjson: 1 boxes, 2 with roofs.
 
     Returns
     -------
@@ -94,10 +101,14 @@ def export_layers(
         )
     if "glb" in formats:
         jobs.append(
-            ("glb", None, partial(gltf.write_glb, out / "city.glb", layers, line_width=line_width, crs=any_crs))
+            (
+                "glb",
+                None,
+                partial(gltf.write_glb, out / "city.glb", layers, line_width=line_width, crs=any_crs, lod=lod),
+            )
         )
     if "obj" in formats:
-        jobs.append(("obj", None, partial(obj.write_obj, out / "city.obj", layers, line_width=line_width)))
+        jobs.append(("obj", None, partial(obj.write_obj, out / "city.obj", layers, line_width=line_width, lod=lod)))
     if "geojson" in formats:  # one job per layer, the largest first
         for name in sorted(layers, key=lambda k: -len(layers[k])):
             jobs.append(
@@ -119,7 +130,11 @@ def export_layers(
                 "cityjson",
                 None,
                 partial(
-                    cityjson.write_cityjson, out / "buildings.city.json", layers["buildings"], crs=crs["buildings"]
+                    cityjson.write_cityjson,
+                    out / "buildings.city.json",
+                    layers["buildings"],
+                    crs=crs["buildings"],
+                    lod=lod,
                 ),
             )
         )
@@ -188,6 +203,14 @@ class ExportCity(SENode):
             "float", 1.0, min=0.05, max=50.0, unit="m", doc="width of road centre-line ribbons in the 3D exports"
         ),
         "preview_size": Param("int", 1600, min=200, max=8000, unit="px", doc="long side of preview.png"),
+        "lod": Param(
+            "int",
+            2,
+            min=1,
+            max=2,
+            unit="1",
+            doc="buildings in glb, obj and cityjson: 1 flat-roofed boxes, 2 with their roofs (--lod)",
+        ),
     }
 
     def run(
@@ -227,6 +250,7 @@ class ExportCity(SENode):
             line_width=self.p.line_width,
             preview_size=self.p.preview_size,
             workers=self.context.workers,
+            lod=self.p.lod,
         )
         report.pop("seconds", None)  # timings would make stats.json differ between runs
         self.report = _flat_counts(report)

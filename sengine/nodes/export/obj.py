@@ -23,8 +23,11 @@ __all__ = ["write_obj"]
 log = logging.getLogger(__name__)
 
 
-def write_obj(path: str | Path, layers: Mapping[str, Layer], *, line_width: float = 1.0) -> dict:
-    """Write ``layers`` as OBJ (+ MTL beside it); return triangle counts per group."""
+def write_obj(path: str | Path, layers: Mapping[str, Layer], *, line_width: float = 1.0, lod: int = 1) -> dict:
+    """Write ``layers`` as OBJ (+ MTL beside it); return triangle counts per group.
+
+    ``lod`` 1 draws buildings as boxes, 2 with their roofs.
+    """
     path = Path(path)
     mtl = path.with_suffix(".mtl")
     names = [n for n in LAYERS if n in layers] + sorted(n for n in layers if n not in LAYERS)
@@ -36,7 +39,7 @@ def write_obj(path: str | Path, layers: Mapping[str, Layer], *, line_width: floa
         lay = layers[name]
         if lay is None:
             continue
-        v, f = layer_mesh(name, lay, line_width=line_width)
+        v, f = layer_mesh(name, lay, line_width=line_width, lod=lod)
         if len(f) == 0:
             continue
         v = to_y_up(v)

@@ -72,6 +72,7 @@ __all__ = [
     "default_roof_heights",
     "building_solids",
     "box_solids",
+    "layer_solids",
 ]
 
 #: Roof kinds of the buildings layer's ``roof`` column.
@@ -107,6 +108,9 @@ class Solids:
         Index into :data:`SURFACES` (0 ground, 1 wall, 2 roof).
     notes : dict of str to int
         Counts of roofs drawn otherwise than asked, by reason.
+    vertex_part : numpy.ndarray of int64, shape (v,), optional
+        Polygon part of each vertex (a multi-polygon's parts are separate
+        closed shells); ``None`` when every feature is one shell.
     """
 
     vertices: np.ndarray
@@ -114,6 +118,7 @@ class Solids:
     vertex_feature: np.ndarray
     face_kind: np.ndarray
     notes: dict = field(default_factory=dict)
+    vertex_part: np.ndarray | None = None
 
     def face_feature(self) -> np.ndarray:
         """Input feature of each face."""
@@ -294,7 +299,34 @@ def building_solids(geoms, height, *, roof=None, roof_height=None, roof_directio
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
     forder = np.argsort(vp[f_all[:, 0]], kind="stable")
-    return Solids(np.concatenate(vs)[order], rank[f_all[forder]], pf[vp[order]], fk_all[forder], notes)
+    return Solids(np.concatenate(vs)[order], rank[f_all[forder]], pf[vp[order]], fk_all[forder], notes, vp[order])
+
+
+def layer_solids(layer, lod: int = 2) -> Solids:
+    """The solids of a buildings layer (polygon rows; others get none) at level of detail ``lod``.
+
+    ``lod`` 1 gives flat-roofed boxes of ``height``, 2 the roofs of the
+    ``roof``, ``roof_height`` and ``roof_direction`` columns; ``base`` (m), when
+    present, is each building's ground height.
+    """
+    geoms = layer.geometry
+    n = len(geoms)
+    height = np.nan_to_num(np.asarray(layer.get("height", np.zeros(n)), np.float64))
+    base = np.asarray(layer.get("base", np.zeros(n)), np.float64)
+    polys = np.isin(shapely.get_type_id(geoms), (3, 6))
+    if not polys.all():  # lines or points in a buildings layer get no solid
+        geoms = np.where(polys, geoms, None)
+    roof = layer.get("roof") if lod >= 2 else None
+    if roof is None or not any(isinstance(v, str) and v.strip() and v.strip().lower() != "flat" for v in roof):
+        return box_solids(geoms, height, base=base)
+    return building_solids(
+        geoms,
+        height,
+        roof=roof,
+        roof_height=layer.get("roof_height"),
+        roof_direction=layer.get("roof_direction"),
+        base=base,
+    )
 
 
 def _convex(rings: Rings) -> np.ndarray:
@@ -424,7 +456,7 @@ def _terrace(parts, rings: Rings, sel: np.ndarray, kind: int, top, rh, base):
         e = np.empty(0, np.int64)
         return (np.empty((0, 3)), np.empty((0, 3), np.int64), e, np.empty(0, np.uint8)), bad
     ring_z = top[sel] if kind == PARAPET else top[sel] - rh[sel]  # the ring (parapet top or terrace)
-    ann = shapely.difference(parts[sel], inner)
+    ann = _annulus(parts[sel], inner)
     pieces = []
     # outer prism without its top: floor and walls up to the ring
     v, f, vf = mesh.extrude(parts[sel], ring_z - base[sel], base=base[sel])
@@ -453,22 +485,40 @@ def _terrace(parts, rings: Rings, sel: np.ndarray, kind: int, top, rh, base):
         vps.append(sel[vf])
         fks.append(fk)
         off += len(v)
-    v, f, vp = _weld(np.concatenate(vs), np.concatenate(fs), np.concatenate(vps))
+    v, f, vp = mesh.weld(np.concatenate(vs), np.concatenate(fs), np.concatenate(vps))
     return (v, f, vp, np.concatenate(fks)), bad
+
+
+def _annulus(outer: np.ndarray, inner: np.ndarray) -> np.ndarray:
+    """``outer`` minus ``inner`` (an inset of it) built from their own rings.
+
+    A boolean difference may drop collinear vertices that the walls keep,
+    which would crack the solid; rings reused as they are cannot.
+    """
+    simple = (shapely.get_type_id(inner) == 3) & (shapely.get_num_interior_rings(inner) == 0)
+    simple &= shapely.get_num_interior_rings(outer) == 0
+    out = np.empty(len(outer), dtype=object)
+    if simple.any():
+        shells = shapely.get_exterior_ring(outer[simple])
+        holes = shapely.get_exterior_ring(inner[simple])
+        out[simple] = shapely.polygons(shells, holes=holes[:, None])
+    for i in np.flatnonzero(~simple).tolist():
+        g = outer[i]
+        pieces = shapely.get_parts(inner[i])
+        g_holes = [shapely.Polygon(h) for h in g.interiors]
+        ring_parts, taken = [], set()
+        for p in pieces:
+            for h in p.interiors:  # a grown hole of the footprint: the ring around the holes inside it
+                hp = shapely.Polygon(h)
+                inside = [k for k, gh in enumerate(g_holes) if hp.contains(gh.representative_point())]
+                taken.update(inside)
+                ring_parts.append(shapely.Polygon(h, [g_holes[k].exterior for k in inside]))
+        rest = [gh.exterior for k, gh in enumerate(g_holes) if k not in taken]  # holes the inset opened up
+        ring_parts.insert(0, shapely.Polygon(g.exterior, [p.exterior for p in pieces] + rest))
+        out[i] = shapely.MultiPolygon(ring_parts) if len(ring_parts) > 1 else ring_parts[0]
+    return out
 
 
 def _prism_kinds_open(m: int, n_faces: int) -> np.ndarray:
     caps = n_faces - 2 * m
     return np.concatenate([np.full(caps, 2, np.uint8), np.ones(2 * m, np.uint8)])
-
-
-def _weld(vertices: np.ndarray, faces: np.ndarray, owner: np.ndarray):
-    """Merge vertices of one owner with exactly equal coordinates."""
-    order = np.lexsort((vertices[:, 2], vertices[:, 1], vertices[:, 0], owner))
-    v, o = vertices[order], owner[order]
-    new = np.ones(len(order), bool)
-    new[1:] = (o[1:] != o[:-1]) | (v[1:] != v[:-1]).any(axis=1)
-    group = np.cumsum(new) - 1
-    remap = np.empty(len(order), np.int64)
-    remap[order] = group
-    return v[new], remap[faces], o[new]

@@ -30,7 +30,7 @@ from __future__ import annotations
 import mapbox_earcut
 import numpy as np
 
-from .mesh import Rings
+from .mesh import Rings, fill_skipped
 
 __all__ = ["skeleton_solids", "available"]
 
@@ -126,37 +126,56 @@ def _one(ext, rings: Rings, p: int, eave: float, rise: float, base: float, gable
         if j is None:
             return None
         vid[i] = j
+    # CGAL may give several skeleton nodes at one point (simultaneous events): one vertex for them
     high = np.flatnonzero(~low)
+    _, first, same = np.unique(sv[high], axis=0, return_index=True, return_inverse=True)
+    canon = np.arange(len(sv))
+    canon[high] = high[first[same.ravel()]]
+    high = np.unique(high[first])
     vid[high] = n + np.arange(len(high))
-    roof = [list(face) for face in sf if z[list(face)].max() > 0.0]
+    roof = []
+    for face in sf:
+        f = [int(canon[v]) for v in face]
+        f = [v for k, v in enumerate(f) if v != f[k - 1]]  # k = 0 compares with the last
+        if len(f) >= 3 and z[f].max() > 0.0:
+            roof.append(f)
     wall_faces = []
     if gable:
-        roof, wall_faces = _gables(sv, z, roof)
-    tris = []
-    for face in roof:
-        if len(face) == 3:
-            tris.append(face)
-            continue
-        pts = sv[face, :2]
-        t = mapbox_earcut.triangulate_float64(pts, np.array([len(face)], np.uint32)).reshape(-1, 3)
-        tris += np.asarray(face)[t].tolist()
-    tri = np.asarray(tris, np.int64).reshape(-1, 3)
-    a, b, c = sv[tri[:, 0], :2], sv[tri[:, 1], :2], sv[tri[:, 2], :2]
-    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    tri[area2 < 0] = tri[area2 < 0][:, [0, 2, 1]]  # roof faces look up
-    gab = np.asarray(wall_faces, np.int64).reshape(-1, 3)
+        nxt0 = np.arange(1, n + 1)
+        for a_, b_ in zip(starts, starts[1:]):
+            nxt0[b_ - 1] = a_
+        prv0 = np.empty(n, np.int64)
+        prv0[nxt0] = np.arange(n)
+        roof, wall_faces = _gables(sv, z, roof, vid, local, nxt0, prv0)
     n_top = n + len(high)
     top = np.empty((n_top, 3))
     top[:n, :2] = xy
     top[:n, 2] = eave
     top[n:, :2] = sv[high, :2] + origin
     top[n:, 2] = eave + rise * (z[high] / zmax)
-    bottom = np.column_stack([xy, np.full(n, base)])
+    flat2 = np.empty((n_top, 2))  # local plan coordinates of the top vertices
+    flat2[:n] = local
+    flat2[n:] = sv[high, :2]
     # walls and floor
     i = np.arange(n)
     nxt = i + 1
     for a_, b_ in zip(starts, starts[1:]):
         nxt[b_ - 1] = a_
+    tris = []
+    for face in roof:
+        face = _with_dropped(vid[face].tolist(), n, nxt)
+        if len(face) == 3:
+            tris.append(face)
+            continue
+        t = mapbox_earcut.triangulate_float64(flat2[face], np.array([len(face)], np.uint32)).reshape(-1, 3)
+        tris += fill_skipped([face], np.asarray(face)[t].tolist())
+    tri = np.asarray(tris, np.int64).reshape(-1, 3)
+    a, b, c = flat2[tri[:, 0]], flat2[tri[:, 1]], flat2[tri[:, 2]]
+    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    flip = area2 < -1e-9 * (1.0 + np.abs(flat2).max())
+    tri[flip] = tri[flip][:, [0, 2, 1]]  # roof faces look up
+    gab = _fans([_with_dropped(vid[f].tolist(), n, nxt) for f in wall_faces], n)
+    bottom = np.column_stack([xy, np.full(n, base)])
     walls = np.concatenate([np.column_stack([i + n_top, nxt + n_top, nxt]), np.column_stack([i + n_top, nxt, i])])
     floor = mapbox_earcut.triangulate_float64(xy - origin, np.asarray(starts[1:], np.uint32)).astype(np.int64)
     floor = floor.reshape(-1, 3)
@@ -164,7 +183,7 @@ def _one(ext, rings: Rings, p: int, eave: float, rise: float, base: float, gable
     area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
     floor[area2 > 0] = floor[area2 > 0][:, [0, 2, 1]]  # the floor looks down
     floor = floor + n_top
-    faces = np.concatenate([floor, walls, vid[gab], vid[tri]])
+    faces = np.concatenate([floor, walls, gab, tri])
     kind = np.concatenate(
         [
             np.zeros(len(floor), np.uint8),
@@ -175,8 +194,43 @@ def _one(ext, rings: Rings, p: int, eave: float, rise: float, base: float, gable
     return np.concatenate([top, bottom]), faces, kind
 
 
-def _gables(sv: np.ndarray, z: np.ndarray, roof: list[list[int]]) -> tuple[list[list[int]], list[list[int]]]:
-    """Move the apex of each lone end triangle onto its eave's wall plane; return (roof faces, gable walls)."""
+def _with_dropped(face: list[int], n: int, nxt: np.ndarray) -> list[int]:
+    """Put back the footprint vertices CGAL drops (collinear ones) on each eave of a face.
+
+    An eave runs ``a -> b`` along the ring; the ring vertices between them go in between.
+    """
+    out = []
+    k = len(face)
+    for j in range(k):
+        a, b = face[j], face[(j + 1) % k]
+        out.append(a)
+        if a < n and b < n and nxt[a] != b:
+            c, guard = int(nxt[a]), 0
+            while c != b and guard < n:
+                out.append(c)
+                c, guard = int(nxt[c]), guard + 1
+            if guard >= n:  # b is not ahead of a on the ring: not an eave
+                del out[len(out) - guard :]
+    return out
+
+
+def _fans(faces: list[list[int]], n: int) -> np.ndarray:
+    """Fan-triangulate gable walls from their apex (the eave may hold collinear vertices)."""
+    out = []
+    for f in faces:
+        j = next((j for j, v in enumerate(f) if v >= n), 0)
+        f = f[j:] + f[:j]
+        out += [[f[0], f[k], f[k + 1]] for k in range(1, len(f) - 1)]
+    return np.asarray(out, np.int64).reshape(-1, 3)
+
+
+def _gables(sv, z, roof: list[list[int]], vid, local, nxt, prv) -> tuple[list[list[int]], list[list[int]]]:
+    """Move the apex of each lone end triangle onto its eave's wall plane; return (roof faces, gable walls).
+
+    Only the end of a wing turns into a gable: an eave whose neighbouring
+    eaves stand square to it (within 10 degrees), so that the hips beside it
+    become the wing's long roof planes.
+    """
     ends = []
     apex_count: dict[int, int] = {}
     for k, face in enumerate(roof):
@@ -196,6 +250,14 @@ def _gables(sv: np.ndarray, z: np.ndarray, roof: list[list[int]]) -> tuple[list[
         a, b = roof[k][(i + 1) % 3], roof[k][(i + 2) % 3]
         pa, pb, pc = sv[a, :2], sv[b, :2], sv[apex, :2]
         d = pb - pa
+        ra, rb = int(vid[a]), int(vid[b])
+        if nxt[ra] != rb:
+            continue
+        before = local[ra] - local[prv[ra]]
+        after = local[nxt[rb]] - local[rb]
+        unit = d / np.hypot(*d)
+        if any(abs(np.dot(e, unit)) > np.sin(np.radians(10.0)) * np.hypot(*e) for e in (before, after)):
+            continue
         t = float(np.dot(pc - pa, d) / np.dot(d, d))
         if not 0.05 < t < 0.95:
             continue
