@@ -194,10 +194,10 @@ def test_real_footprints_of_monaco_with_every_roof():
     sub = roofs.layer_solids(lay.take(pick), 2)
     for tm, i in zip(solids_ok(sub, len(pick)), pick):
         assert tm.volume <= geoms[i].area * lay["height"][i] * (1 + 1e-9)
-    # each building's roof stays over its footprint
+    # each building's roof stays over its footprint (the straight skeleton runs on a millimetre grid)
     for i in pick[:40]:
         xy = sub.vertices[sub.vertex_feature == np.searchsorted(pick, i), :2]
-        assert shapely.buffer(geoms[i], 1e-6).contains(shapely.multipoints(xy))
+        assert shapely.buffer(geoms[i], 1e-3).contains(shapely.multipoints(xy))
 
 
 def test_same_layer_same_bytes():

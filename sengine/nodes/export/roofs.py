@@ -222,7 +222,7 @@ def building_solids(geoms, height, *, roof=None, roof_height=None, roof_directio
     H, B = height[pf], base[pf]
     kind[H <= 0] = FLAT
     axis, width = np.tile([1.0, 0.0], (len(parts), 1)), np.zeros(len(parts))
-    shaped = np.flatnonzero(kind != FLAT)
+    shaped = np.flatnonzero(np.isin(kind, (SHED, GABLE, HIP, PYRAMID)))  # they need a ridge and a width
     if shaped.size:
         _, axis[shaped], _, width[shaped] = obb_frame(parts[shaped])
     bearing = _column(roof_direction, n)[pf]
@@ -349,8 +349,8 @@ def _convex(rings: Rings) -> np.ndarray:
 def _subset(rings: Rings, sel: np.ndarray) -> Rings:
     """The polygons ``sel`` of ``rings`` as their own :class:`Rings`."""
     r0, r1 = rings.poly_ring[sel], rings.poly_ring[sel + 1]
-    ring_ids = np.concatenate([np.arange(a, b) for a, b in zip(r0.tolist(), r1.tolist())]) if len(sel) else []
-    ring_ids = np.asarray(ring_ids, np.int64)
+    nr = r1 - r0
+    ring_ids = np.repeat(r0 - np.concatenate([[0], np.cumsum(nr)[:-1]]), nr) + np.arange(nr.sum())
     lens = np.diff(rings.ring_start)[ring_ids]
     starts = rings.ring_start[ring_ids]
     vid = np.repeat(starts - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(lens.sum())
