@@ -208,6 +208,7 @@ class ExportCity(SENode):
             2,
             min=1,
             max=2,
+            unit="1",
             doc="buildings in glb, obj and cityjson: 1 flat-roofed boxes, 2 with their roofs (--lod)",
         ),
     }
