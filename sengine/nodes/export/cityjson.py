@@ -133,8 +133,8 @@ def _lod2_model(buildings: Layer, solids, *, crs: str | None, scale: float) -> d
     translate = np.floor(xyz.min(axis=0)) if len(v) else np.zeros(3)
     ints = np.rint((xyz - translate) / scale).astype(np.int64)
     # a building's vertices that round to one millimetre point become one; their slivers go
-    ints, faces, vpart = weld(ints, solids.faces, solids.vertex_part)
-    faces, face_kind = drop_collapsed(faces, solids.face_kind)
+    ints, faces, vpart, merged = weld(ints, solids.faces, solids.vertex_part, return_merged=True)
+    faces, face_kind = drop_collapsed(faces, solids.face_kind, merged=merged)
     ints = ints.astype(np.int64)
     xyz = ints * scale + translate
     part_feature = np.zeros(int(vpart.max()) + 1 if len(vpart) else 0, np.int64)

@@ -269,8 +269,8 @@ def glb_bytes(
 
 def _weld32(pos: np.ndarray, faces: np.ndarray, feature: np.ndarray):
     """Merge a building's vertices with equal float32 positions; drop the triangles that collapse."""
-    v, f, feat = mesh.weld(pos.astype(np.float64), faces, feature)
-    (f,) = mesh.drop_collapsed(f)
+    v, f, feat, merged = mesh.weld(pos.astype(np.float64), faces, feature, return_merged=True)
+    (f,) = mesh.drop_collapsed(f, merged=merged)
     return np.ascontiguousarray(v, dtype=np.float32), f, feat
 
 

@@ -414,23 +414,50 @@ def merge(*meshes: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarra
     return np.concatenate(vs), np.concatenate(fs)
 
 
-def weld(vertices: np.ndarray, faces: np.ndarray, owner: np.ndarray):
-    """Merge vertices of one owner with exactly equal coordinates."""
-    order = np.lexsort((vertices[:, 2], vertices[:, 1], vertices[:, 0], owner))
-    v, o = vertices[order], owner[order]
+def weld(vertices: np.ndarray, faces: np.ndarray, owner: np.ndarray, *, return_merged: bool = False):
+    """Merge vertices of one owner with exactly equal coordinates.
+
+    One sort of a 64-bit hash of (owner, coordinate bits), then equal
+    neighbours merge: a few times faster than sorting on four keys.  Returns
+    ``(vertices, faces, owner)`` and, with ``return_merged``, a mask of the
+    welded vertices that stand for more than one input vertex.
+    """
+    v = np.ascontiguousarray(vertices, np.float64) + 0.0  # -0.0 and 0.0 alike
+    bits = v.view(np.uint64).reshape(-1, 3)
+    with np.errstate(over="ignore"):
+        h = bits[:, 0] * np.uint64(0x9E3779B97F4A7C15)
+        h ^= bits[:, 1] * np.uint64(0xBF58476D1CE4E5B9)
+        h ^= bits[:, 2] * np.uint64(0x94D049BB133111EB)
+        h ^= np.asarray(owner).astype(np.uint64) * np.uint64(0xD6E8FEB86659FD93)
+        h ^= h >> np.uint64(31)
+    order = np.argsort(h, kind="stable")
+    hs, vs, o = h[order], v[order], np.asarray(owner)[order]
     new = np.ones(len(order), bool)
-    new[1:] = (o[1:] != o[:-1]) | (v[1:] != v[:-1]).any(axis=1)
+    new[1:] = (hs[1:] != hs[:-1]) | (o[1:] != o[:-1]) | (vs[1:] != vs[:-1]).any(axis=1)
     group = np.cumsum(new) - 1
     remap = np.empty(len(order), np.int64)
     remap[order] = group
-    return v[new], remap[faces], o[new]
+    out = vertices[order][new], remap[faces], o[new]
+    if return_merged:
+        return (*out, np.bincount(group, minlength=int(new.sum())) > 1)
+    return out
 
 
-def drop_collapsed(faces: np.ndarray, *extra: np.ndarray):
+def drop_collapsed(faces: np.ndarray, *extra: np.ndarray, merged: np.ndarray | None = None):
     """Drop the triangles a weld collapsed: repeated corners, and pairs of one triangle in both windings.
 
-    Returns ``faces`` and each of ``extra`` (per-face arrays) without them.
+    ``merged`` (from :func:`weld`) limits the search to triangles touching a
+    welded vertex.  Returns ``faces`` and each of ``extra`` (per-face arrays)
+    without them.
     """
+    if merged is not None:
+        near = merged[faces].any(axis=1)
+        if not near.any():
+            return (faces, *extra)
+        sub = drop_collapsed(faces[near], np.flatnonzero(near))
+        keep = ~near
+        keep[sub[1]] = True
+        return (faces[keep], *(e[keep] for e in extra))
     ok = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
     srt = np.sort(faces, axis=1)
     # a triangle and its mirror share the sorted corners; an even rotation keeps the winding

@@ -317,7 +317,8 @@ def layer_solids(layer, lod: int = 2) -> Solids:
     if not polys.all():  # lines or points in a buildings layer get no solid
         geoms = np.where(polys, geoms, None)
     roof = layer.get("roof") if lod >= 2 else None
-    if roof is None or not any(isinstance(v, str) and v.strip() and v.strip().lower() != "flat" for v in roof):
+    kinds = set(np.asarray(roof, dtype=object).tolist()) if roof is not None else set()  # a few distinct values
+    if not any(isinstance(v, str) and v.strip() and v.strip().lower() != "flat" for v in kinds):
         return box_solids(geoms, height, base=base)
     return building_solids(
         geoms,
