@@ -85,6 +85,12 @@ def _run_options(p: argparse.ArgumentParser) -> None:
         help="3D outputs (glb, obj) around the city's origin (local, the default) or in the planar frame's "
         "own coordinates (geo: UTM for an OSM city); the origin is kept as metadata",
     )
+    p.add_argument(
+        "--lod",
+        type=int,
+        choices=(1, 2),
+        help="buildings in glb, obj and cityjson: 1 flat-roofed boxes, 2 with roofs (sets every export.city's lod)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -241,12 +247,21 @@ def _seeds(text: str) -> list[int]:
     return [s for lo, hi in spans for s in range(lo, hi + 1)]
 
 
+def _set_lod(net, lod: int | None) -> None:
+    """``--lod``: the ``lod`` parameter of every ``export.city`` node."""
+    if lod is not None:
+        for spec in net.specs.values():
+            if spec.type == "export.city":
+                net.set_param(spec.id, "lod", lod, where="--lod")
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     """``sengine run``: read a config, run it into ``--out``."""
     from .xmlconfig import load_config
 
     formats = _formats(args.formats)
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin, seed=args.seed)
+    _set_lod(net, args.lod)
     result = net.run(
         out=args.out,
         formats=formats,
@@ -282,6 +297,14 @@ def cmd_batch(args: argparse.Namespace) -> int:
             raise SEngineError(f"--map {item!r} must be KIND=PATH")
         fixed_maps.append(f"{kind}={Path(src).resolve()}")
     check_output_folder(args.out)  # before any work: a file, under a file, unwritable
+    if args.lod is not None:  # --lod: the lod of every export.city node, for every variant
+        from .xmlconfig import load_config
+
+        base = load_config(args.config, plugins=plugins)
+        fixed_sets = [
+            *fixed_sets,
+            *(f"{sp.id}.lod={args.lod}" for sp in base.specs.values() if sp.type == "export.city"),
+        ]
     spec = BatchSpec(
         config=str(args.config.resolve()),
         out=str(args.out.resolve()),
@@ -364,6 +387,7 @@ def cmd_osm(args: argparse.Namespace) -> int:
         # errors about the file name the command, not the temporary config
         osm = MapSpec("osm", args.file.resolve(), {}, where="sengine osm")
         net = load_config(config, sets=args.sets, maps=[osm], plugins=args.plugin, seed=args.seed)
+        _set_lod(net, args.lod)
         net.source = str(args.file)
         result = net.run(
             out=args.out,

@@ -70,6 +70,7 @@ def map_buildings(real: Layer, lots: Layer | None, first_id: int) -> Layer:
         "height": height,
         "floors": np.asarray(floors, np.int64),
         "roof": real.get("roof", np.full(n, "flat", dtype=object)),
+        "roof_height": real.get("roof_height", np.full(n, np.nan)),
         "lot": lot,
         "district": district,
         "source": np.full(n, "osm", dtype=object),

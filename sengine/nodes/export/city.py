@@ -13,10 +13,14 @@ geojson    ``<layer>.geojson`` (RFC 7946, WGS84)   :mod:`sengine.io.geojson`
 osm        ``streets.osm`` (roads, OSM XML)        :mod:`sengine.nodes.export.osmxml`
 png        ``preview.png`` (plan view)             :mod:`sengine.nodes.export.preview`
 obj        ``city.obj`` + ``city.mtl``             :mod:`sengine.nodes.export.obj`
-cityjson   ``buildings.city.json`` (LoD1)          :mod:`sengine.nodes.export.cityjson`
+cityjson   ``buildings.city.json`` (LoD1 / LoD2)   :mod:`sengine.nodes.export.cityjson`
 gpkg       ``city.gpkg`` (a table per layer)       :mod:`sengine.nodes.export.gpkg`
 parquet    ``<layer>.parquet`` (GeoParquet 1.1)    :mod:`sengine.nodes.export.parquet`
 ========== ======================================= ========================
+
+``lod`` (``--lod``) chooses the buildings of the 3D formats (glb, obj,
+cityjson): 1 flat-roofed boxes, 2 with their roofs
+(:mod:`sengine.nodes.export.roofs`).
 
 Every layer is first made fit to open (:mod:`sengine.nodes.export.prepare`:
 valid, non-degenerate geometry of one type per layer on a millimetre grid,
@@ -143,6 +147,7 @@ def export_layers(
     crs: str | None = None,
     origin: str = "local",
     attribution: str | None = None,
+    lod: int = 2,
 ) -> dict:
     """Write ``layers`` into folder ``out`` in each of ``formats``.
 
@@ -174,6 +179,8 @@ def export_layers(
     attribution : str, optional
         The data's licence notice; default :data:`OSM_ATTRIBUTION` when a
         layer (or the plan) comes from OpenStreetMap.
+    lod : int
+        Buildings in glb, obj and cityjson: 1 boxes, 2 with roofs.
 
     Returns
     -------
@@ -232,6 +239,7 @@ def export_layers(
                     crs=any_crs,
                     origin=None if offset is None else (offset, centre_ll),
                     copyright=attribution,
+                    lod=lod,
                 ),
             )
         )
@@ -248,6 +256,7 @@ def export_layers(
                     offset=offset,
                     crs=any_crs,
                     attribution=attribution,
+                    lod=lod,
                 ),
             )
         )
@@ -335,6 +344,7 @@ def export_layers(
                     crs=crs_of["buildings"],
                     origin=None if offset is None else (offset, any_crs),
                     attribution=attribution,
+                    lod=lod,
                 ),
             )
         )
@@ -415,6 +425,14 @@ class ExportCity(SENode):
             "float", 1.0, min=0.05, max=50.0, unit="m", doc="width of road centre-line ribbons in the 3D exports"
         ),
         "preview_size": Param("int", 1600, min=200, max=8000, unit="px", doc="long side of preview.png"),
+        "lod": Param(
+            "int",
+            2,
+            min=1,
+            max=2,
+            unit="1",
+            doc="buildings in glb, obj and cityjson: 1 flat-roofed boxes, 2 with their roofs (--lod)",
+        ),
     }
 
     def run(
@@ -463,6 +481,7 @@ class ExportCity(SENode):
             workers=self.context.workers,
             crs=options.get("crs"),
             origin=options.get("origin") or "local",
+            lod=self.p.lod,
         )
         report.pop("seconds", None)  # timings would make stats.json differ between runs
         return NodeResult({}, _flat_counts(report))

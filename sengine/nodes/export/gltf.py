@@ -17,6 +17,17 @@ centimetre precision while the scene's world coordinates stay those of the
 planar frame.  Materials are named by layer; ``asset.copyright`` holds the
 data's licence notice.
 
+Buildings are one mesh whose every vertex carries its building's row as a
+feature id (``EXT_mesh_features``), and the buildings' columns travel as a
+property table (``EXT_structural_metadata``): a viewer that knows the
+extensions (Cesium, the 3D Tiles tools) picks a building and shows its id,
+height, floors, roof, use ...; one that does not still draws the mesh.  This
+was chosen over one node per building by measurement (see the commit that
+added it): on the Manhattan demo one node per building made the glb larger
+and, at 7,000 nodes, far slower to load in three.js and Blender, while the
+feature ids cost 4 bytes a vertex.  ``lod`` 1 draws buildings as boxes, 2 with
+their roofs (:mod:`sengine.nodes.export.roofs`).
+
 The writer is a few dozen lines of ``struct`` and ``json`` (glTF 2.0 §4.4,
 GLB file format) rather than trimesh's exporter: importing trimesh (and
 scipy.spatial with it) costs about half a second per run, more than writing
@@ -37,7 +48,7 @@ import shapely
 
 from sengine.layer import Layer
 
-from . import mesh
+from . import mesh, roofs
 
 __all__ = ["LAYERS", "COLOURS", "LEVELS", "layer_mesh", "glb_bytes", "write_glb"]
 
@@ -63,18 +74,30 @@ _DEFAULT_COLOUR = (180, 180, 180)
 LEVELS = {"water": -0.5, "streets": 0.0, "sidewalks": 0.12, "blocks": 0.12, "lots": 0.15, "parks": 0.2, "roads": 0.25}
 
 
-def layer_mesh(name: str, layer: Layer, *, line_width: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def layer_mesh(name: str, layer: Layer, *, line_width: float = 1.0, lod: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (planar x, y, z up; m) and faces of one layer.
 
-    A layer with a ``height`` column and polygons is extruded (buildings);
-    line layers become ribbons ``line_width`` m wide; other polygons are flat.
+    A layer with a ``height`` column and polygons is made of building solids
+    (boxes for ``lod`` 1, roofs for 2); line layers become ribbons
+    ``line_width`` m wide; other polygons are flat.
     """
+    v, f, _ = _layer_mesh(name, layer, line_width=line_width, lod=lod)
+    return v, f
+
+
+def _layer_mesh(name: str, layer: Layer, *, line_width: float = 1.0, lod: int = 1):
+    """:func:`layer_mesh` and, for building layers, each vertex's row in the layer (else None)."""
     geoms = layer.geometry
     if len(geoms) == 0:
-        return np.empty((0, 3)), np.empty((0, 3), np.int64)
+        return np.empty((0, 3)), np.empty((0, 3), np.int64), None
     types = shapely.get_type_id(geoms)
     lines = np.isin(types, (1, 2, 5))
     polys = np.isin(types, (3, 6))
+    if polys.any() and "height" in layer.attrs and not lines.any():
+        solids = roofs.layer_solids(layer, lod)
+        if solids.notes:
+            log.info("%s: %s", name, ", ".join(f"{k}: {v:,}" for k, v in sorted(solids.notes.items())))
+        return solids.vertices, solids.faces, solids.vertex_feature
     parts = []
     if polys.any():
         if "height" in layer.attrs:
@@ -85,7 +108,8 @@ def layer_mesh(name: str, layer: Layer, *, line_width: float = 1.0) -> tuple[np.
             parts.append(mesh.flat(geoms[polys], LEVELS.get(name, 0.1))[:2])
     if lines.any():
         parts.append(mesh.ribbons(geoms[lines], line_width, LEVELS.get(name, 0.25))[:2])
-    return mesh.merge(*parts)
+    v, f = mesh.merge(*parts)
+    return v, f, None
 
 
 def _offset(vertices: list[np.ndarray]) -> np.ndarray:
@@ -107,39 +131,56 @@ def glb_bytes(
     crs: str | None = None,
     origin: tuple | None = None,
     copyright: str | None = None,
+    lod: int = 1,
 ) -> tuple[bytes, dict]:
     """The binary glTF of ``layers`` and the vertex / triangle counts of each mesh.
 
     One node, one mesh and one material (named by layer) per non-empty layer,
     in :data:`LAYERS` order; float32 positions and uint32 indices, no normals
-    (viewers shade flat).  ``origin`` is ``((x, y), (lat, lon))``, the city's
-    origin planar (m) and geographic (deg): vertices are placed relative to
-    it.  ``copyright`` goes into ``asset.copyright``.
+    (viewers shade flat).  A building layer's primitive has a
+    ``_FEATURE_ID_0`` attribute (the row of each vertex's building) and a
+    property table of the layer's columns; ``lod`` 1 draws buildings as
+    boxes, 2 with their roofs.  ``origin`` is ``((x, y), (lat, lon))``, the
+    city's origin planar (m) and geographic (deg): vertices are placed
+    relative to it.  ``copyright`` goes into ``asset.copyright``.
     """
-    meshes = {name: layer_mesh(name, lay, line_width=line_width) for name, lay in layers.items() if lay is not None}
-    meshes = {k: v for k, v in meshes.items() if len(v[1])}
+    built = {
+        name: _layer_mesh(name, lay, line_width=line_width, lod=lod) for name, lay in layers.items() if lay is not None
+    }
+    built = {k: v for k, v in built.items() if len(v[1])}
     local = origin is not None
-    off = np.asarray(origin[0], np.float64) if local else _offset([v for v, _ in meshes.values()])
-    order = [n for n in LAYERS if n in meshes] + sorted(n for n in meshes if n not in LAYERS)
+    off = np.asarray(origin[0], np.float64) if local else _offset([v for v, _, _ in built.values()])
+    order = [n for n in LAYERS if n in built] + sorted(n for n in built if n not in LAYERS)
     blobs: list[bytes] = []
     views, accessors, gl_meshes, materials, nodes = [], [], [], [], []
+    tables, classes = [], {}
     length = 0
     counts = {}
 
-    def add_view(data: bytes, target: int) -> int:
+    def add_view(data: bytes, target: int | None = None) -> int:
         nonlocal length
-        views.append({"buffer": 0, "byteOffset": length, "byteLength": len(data), "target": target})
+        pad = -length % 8  # metadata views need 8-byte alignment; vertex data 4
+        if pad:
+            blobs.append(b"\0" * pad)
+            length += pad
+        view = {"buffer": 0, "byteOffset": length, "byteLength": len(data)}
+        if target is not None:
+            view["target"] = target
+        views.append(view)
         blobs.append(data)
-        length += len(data)  # float32 / uint32 data keeps 4-byte alignment
+        length += len(data)
         return len(views) - 1
 
     translation = [float(off[0]), 0.0, float(-off[1])]
     for k, name in enumerate(order):
-        v, f = meshes[name]
+        v, f, vfeat = built[name]
         v = v.copy()
         v[:, :2] -= off
         pos = np.ascontiguousarray(mesh.to_y_up(v), dtype=np.float32)
+        if vfeat is not None:  # vertices a building's float32 positions cannot tell apart become one
+            pos, f, vfeat = _weld32(pos, f, vfeat)
         idx = np.ascontiguousarray(f, dtype=np.uint32)
+        attributes = {"POSITION": len(accessors)}
         accessors.append(
             {
                 "bufferView": add_view(pos.tobytes(), 34962),
@@ -150,6 +191,7 @@ def glb_bytes(
                 "max": [float(c.max()) for c in pos.T],
             }
         )
+        primitive = {"attributes": attributes, "indices": len(accessors), "material": k, "mode": 4}
         accessors.append(
             {
                 "bufferView": add_view(idx.tobytes(), 34963),
@@ -158,6 +200,27 @@ def glb_bytes(
                 "type": "SCALAR",
             }
         )
+        if vfeat is not None:  # pickable buildings: a feature id per vertex and a property table
+            fid = np.ascontiguousarray(vfeat, dtype=np.float32)  # exact up to 16.7 million buildings
+            attributes["_FEATURE_ID_0"] = len(accessors)
+            accessors.append(
+                {
+                    "bufferView": add_view(fid.tobytes(), 34962),
+                    "componentType": 5126,
+                    "count": len(fid),
+                    "type": "SCALAR",
+                }
+            )
+            cls, table = _property_table(name, layers[name], add_view)
+            classes[name] = cls
+            primitive["extensions"] = {
+                "EXT_mesh_features": {
+                    "featureIds": [
+                        {"featureCount": len(layers[name]), "attribute": 0, "propertyTable": len(tables), "label": name}
+                    ]
+                }
+            }
+            tables.append(table)
         rgba = [round(c / 255.0, 6) for c in COLOURS.get(name, _DEFAULT_COLOUR)] + [1.0]
         materials.append(
             {
@@ -166,12 +229,7 @@ def glb_bytes(
                 "pbrMetallicRoughness": {"baseColorFactor": rgba, "metallicFactor": 0.0, "roughnessFactor": 0.9},
             }
         )
-        gl_meshes.append(
-            {
-                "name": name,
-                "primitives": [{"attributes": {"POSITION": 2 * k}, "indices": 2 * k + 1, "material": k, "mode": 4}],
-            }
-        )
+        gl_meshes.append({"name": name, "primitives": [primitive]})
         node = {"name": name, "mesh": k}
         if off.any() and not local:
             node["translation"] = translation
@@ -189,7 +247,7 @@ def glb_bytes(
         "scenes": [
             {
                 "name": "city",
-                "extras": {"sengine": extras},
+                "extras": {"sengine": {**extras, "lod": int(lod)}},
             }
         ],
     }
@@ -202,9 +260,17 @@ def glb_bytes(
                 "materials": materials,
                 "accessors": accessors,
                 "bufferViews": views,
-                "buffers": [{"byteLength": length}],
+                "buffers": [{"byteLength": length + (-length % 4)}],
             }
         )
+    if tables:
+        doc["extensionsUsed"] = ["EXT_mesh_features", "EXT_structural_metadata"]
+        doc["extensions"] = {
+            "EXT_structural_metadata": {
+                "schema": {"id": "sengine", "classes": classes},
+                "propertyTables": tables,
+            }
+        }
     text = json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()
     text += b" " * (-len(text) % 4)
     binary = b"".join(blobs)
@@ -215,6 +281,51 @@ def glb_bytes(
     return struct.pack("<III", 0x46546C67, 2, 12 + len(chunks)) + chunks, counts
 
 
+def _weld32(pos: np.ndarray, faces: np.ndarray, feature: np.ndarray):
+    """Merge a building's vertices with equal float32 positions; drop the triangles that collapse."""
+    v, f, feat, merged = mesh.weld(pos.astype(np.float64), faces, feature, return_merged=True)
+    (f,) = mesh.drop_collapsed(f, merged=merged)
+    return np.ascontiguousarray(v, dtype=np.float32), f, feat
+
+
+def _property_table(name: str, layer: Layer, add_view) -> tuple[dict, dict]:
+    """``EXT_structural_metadata`` class and property table of a layer's ids and columns.
+
+    Integers are INT64, floats FLOAT64, booleans UINT8, everything else
+    UTF-8 strings (with UINT32 offsets).
+    """
+    columns = {"id": np.asarray(layer.ids)}
+    columns.update({k: np.asarray(v) for k, v in layer.attrs.items() if k != "id"})
+    props, values = {}, {}
+    for key in sorted(columns):
+        col = columns[key]
+        pid = "".join(c if c.isalnum() or c == "_" else "_" for c in key)
+        if not pid or not (pid[0].isalpha() or pid[0] == "_"):
+            pid = "_" + pid
+        if col.dtype.kind == "b":
+            props[pid] = {"type": "SCALAR", "componentType": "UINT8"}
+            values[pid] = {"values": add_view(col.astype(np.uint8).tobytes())}
+        elif col.dtype.kind in "iu":
+            props[pid] = {"type": "SCALAR", "componentType": "INT64"}
+            values[pid] = {"values": add_view(col.astype("<i8").tobytes())}
+        elif col.dtype.kind == "f":
+            props[pid] = {"type": "SCALAR", "componentType": "FLOAT64"}
+            values[pid] = {"values": add_view(col.astype("<f8").tobytes())}
+        else:
+            text = ["" if v is None or (isinstance(v, float) and not np.isfinite(v)) else str(v) for v in col.tolist()]
+            data = [t.encode("utf-8") for t in text]
+            offsets = np.concatenate([[0], np.cumsum([len(d) for d in data])]).astype("<u4")
+            props[pid] = {"type": "STRING"}
+            values[pid] = {
+                "values": add_view(b"".join(data)),
+                "stringOffsets": add_view(offsets.tobytes()),
+                "stringOffsetType": "UINT32",
+            }
+        if pid != key:
+            props[pid]["name"] = key
+    return {"name": name, "properties": props}, {"class": name, "count": len(layer), "properties": values}
+
+
 def write_glb(
     path: str | Path,
     layers: Mapping[str, Layer],
@@ -223,9 +334,10 @@ def write_glb(
     crs: str | None = None,
     origin: tuple | None = None,
     copyright: str | None = None,
+    lod: int = 1,
 ) -> dict:
     """Write ``layers`` to a binary glTF file; return vertex and face counts per layer (see :func:`glb_bytes`)."""
-    data, counts = glb_bytes(layers, line_width=line_width, crs=crs, origin=origin, copyright=copyright)
+    data, counts = glb_bytes(layers, line_width=line_width, crs=crs, origin=origin, copyright=copyright, lod=lod)
     Path(path).write_bytes(data)
     log.info("wrote %s: %d meshes, %d triangles", path, len(counts), sum(c["triangles"] for c in counts.values()))
     return counts

@@ -27,7 +27,18 @@ import mapbox_earcut
 import numpy as np
 import shapely
 
-__all__ = ["Rings", "ring_arrays", "triangulate", "extrude", "flat", "ribbons", "to_y_up", "merge"]
+__all__ = [
+    "Rings",
+    "ring_arrays",
+    "triangulate",
+    "fill_skipped",
+    "extrude",
+    "flat",
+    "ribbons",
+    "to_y_up",
+    "merge",
+    "weld",
+]
 
 
 @dataclass(frozen=True)
@@ -148,7 +159,8 @@ def triangulate(rings: Rings) -> np.ndarray:
     Returns
     -------
     numpy.ndarray of int64, shape (t, 3)
-        Indices into ``rings.xy``; degenerate triangles are dropped.
+        Indices into ``rings.xy``; every ring vertex is used (flat
+        triangles over collinear vertices are kept, so solids stay closed).
     """
     xy = rings.xy
     if len(xy) == 0:
@@ -192,7 +204,66 @@ def triangulate(rings: Rings) -> np.ndarray:
     area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
     flip = area2 < 0
     tri[flip] = tri[flip][:, [0, 2, 1]]
-    return tri[np.abs(area2) > 1e-12]
+    # flat triangles over collinear ring vertices stay: dropping one would open a crack beside a wall
+    tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])]
+    unused = np.bincount(tri.ravel(), minlength=len(xy)) == 0
+    if unused.any():  # collinear ring vertices skipped or in a dropped flat triangle: the walls need them
+        tri = _refill(rings, tri, np.unique(rings.vertex_poly()[unused]))
+    return tri
+
+
+def _refill(rings: Rings, tri: np.ndarray, polys: np.ndarray) -> np.ndarray:
+    """Triangles of ``polys`` redone with :func:`fill_skipped` so that every ring vertex is used."""
+    vpoly = rings.vertex_poly()
+    tpoly = vpoly[tri[:, 0]]
+    keep = ~np.isin(tpoly, polys)
+    redone = [tri[keep]]
+    for p in polys.tolist():
+        r0, r1 = rings.poly_ring[p], rings.poly_ring[p + 1]
+        ring_ids = [list(range(rings.ring_start[r], rings.ring_start[r + 1])) for r in range(r0, r1)]
+        fixed = fill_skipped(ring_ids, tri[tpoly == p].tolist())
+        redone.append(np.asarray(fixed, np.int64).reshape(-1, 3))
+    tri = np.concatenate(redone)
+    return tri[np.argsort(vpoly[tri[:, 0]], kind="stable")]
+
+
+def fill_skipped(rings: list[list[int]], tris: list[list[int]]) -> list[list[int]]:
+    """Triangles that use every vertex of ``rings``: earcut skips collinear ones, which leaves cracks.
+
+    A run of skipped vertices between used ``u`` and ``w`` along a ring splits
+    the triangle on edge ``u w`` into a fan from its third vertex (same
+    winding).  Solids stay closed where a wall or a neighbouring face has
+    those vertices.
+    """
+    used = {v for t in tris for v in t}
+    for ring in rings:
+        if all(v in used for v in ring) or not any(v in used for v in ring):
+            continue
+        j0 = next(j for j, v in enumerate(ring) if v in used)
+        walk = ring[j0:] + ring[:j0] + [ring[j0]]
+        runs, cur = [], [walk[0]]
+        for v in walk[1:]:
+            cur.append(v)
+            if v in used:
+                if len(cur) > 2:
+                    runs.append(cur)
+                cur = [v]
+        for run in runs:
+            u, w = run[0], run[-1]
+            for ti, t in enumerate(tris):
+                seq = None
+                for r in range(3):
+                    if t[r] == u and t[(r + 1) % 3] == w:
+                        seq = run
+                    elif t[r] == w and t[(r + 1) % 3] == u:
+                        seq = run[::-1]
+                    if seq is not None:
+                        c = t[(r + 2) % 3]
+                        break
+                if seq is not None:
+                    tris = tris[:ti] + [[p, q, c] for p, q in zip(seq, seq[1:])] + tris[ti + 1 :]
+                    break
+    return tris
 
 
 def extrude(
@@ -341,3 +412,62 @@ def merge(*meshes: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarra
     if not vs:
         return np.empty((0, 3)), np.empty((0, 3), np.int64)
     return np.concatenate(vs), np.concatenate(fs)
+
+
+def weld(vertices: np.ndarray, faces: np.ndarray, owner: np.ndarray, *, return_merged: bool = False):
+    """Merge vertices of one owner with exactly equal coordinates.
+
+    One sort of a 64-bit hash of (owner, coordinate bits), then equal
+    neighbours merge: a few times faster than sorting on four keys.  Returns
+    ``(vertices, faces, owner)`` and, with ``return_merged``, a mask of the
+    welded vertices that stand for more than one input vertex.
+    """
+    v = np.ascontiguousarray(vertices, np.float64) + 0.0  # -0.0 and 0.0 alike
+    bits = v.view(np.uint64).reshape(-1, 3)
+    with np.errstate(over="ignore"):
+        h = bits[:, 0] * np.uint64(0x9E3779B97F4A7C15)
+        h ^= bits[:, 1] * np.uint64(0xBF58476D1CE4E5B9)
+        h ^= bits[:, 2] * np.uint64(0x94D049BB133111EB)
+        h ^= np.asarray(owner).astype(np.uint64) * np.uint64(0xD6E8FEB86659FD93)
+        h ^= h >> np.uint64(31)
+    order = np.argsort(h, kind="stable")
+    hs, vs, o = h[order], v[order], np.asarray(owner)[order]
+    new = np.ones(len(order), bool)
+    new[1:] = (hs[1:] != hs[:-1]) | (o[1:] != o[:-1]) | (vs[1:] != vs[:-1]).any(axis=1)
+    group = np.cumsum(new) - 1
+    remap = np.empty(len(order), np.int64)
+    remap[order] = group
+    out = vertices[order][new], remap[faces], o[new]
+    if return_merged:
+        return (*out, np.bincount(group, minlength=int(new.sum())) > 1)
+    return out
+
+
+def drop_collapsed(faces: np.ndarray, *extra: np.ndarray, merged: np.ndarray | None = None):
+    """Drop the triangles a weld collapsed: repeated corners, and pairs of one triangle in both windings.
+
+    ``merged`` (from :func:`weld`) limits the search to triangles touching a
+    welded vertex.  Returns ``faces`` and each of ``extra`` (per-face arrays)
+    without them.
+    """
+    if merged is not None:
+        near = merged[faces].any(axis=1)
+        if not near.any():
+            return (faces, *extra)
+        sub = drop_collapsed(faces[near], np.flatnonzero(near))
+        keep = ~near
+        keep[sub[1]] = True
+        return (faces[keep], *(e[keep] for e in extra))
+    ok = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
+    srt = np.sort(faces, axis=1)
+    # a triangle and its mirror share the sorted corners; an even rotation keeps the winding
+    r = np.argmin(faces, axis=1)
+    rolled = np.take_along_axis(faces, (r[:, None] + np.arange(3)) % 3, axis=1)
+    sign = np.where(rolled[:, 1] < rolled[:, 2], 1, -1)
+    _, inv = np.unique(srt, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    net = np.zeros(inv.max() + 1 if len(inv) else 0, np.int64)
+    np.add.at(net, inv[ok], sign[ok])
+    count = np.bincount(inv[ok], minlength=len(net))
+    ok &= ~((count[inv] >= 2) & (net[inv] == 0))
+    return (faces[ok], *(e[ok] for e in extra))

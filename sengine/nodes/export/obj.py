@@ -36,10 +36,12 @@ def write_obj(
     offset=None,
     crs: str | None = None,
     attribution: str | None = None,
+    lod: int = 1,
 ) -> dict:
     """Write ``layers`` as OBJ (+ MTL beside it); return triangle counts per object.
 
-    ``offset`` (planar x, y in m) is subtracted from every vertex.
+    ``offset`` (planar x, y in m) is subtracted from every vertex; ``lod`` 1
+    draws buildings as boxes, 2 with their roofs.
     """
     path = Path(path)
     mtl = path.with_suffix(".mtl")
@@ -59,7 +61,7 @@ def write_obj(
         lay = layers[name]
         if lay is None:
             continue
-        v, f = layer_mesh(name, lay, line_width=line_width)
+        v, f = layer_mesh(name, lay, line_width=line_width, lod=lod)
         if len(f) == 0:
             continue
         v = v.copy()

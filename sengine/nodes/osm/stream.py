@@ -71,6 +71,26 @@ def int_tag(value: str | None) -> int:
     return int(max(-1e6, min(1e6, number)))
 
 
+#: OSM ``roof:shape`` values and the roof kinds of the buildings layer (others: flat).
+ROOF_SHAPES = {
+    "flat": "flat",
+    "skillion": "shed",
+    "lean_to": "shed",
+    "gabled": "gable",
+    "saltbox": "gable",
+    "gambrel": "gable",
+    "round": "gable",
+    "hipped": "hip",
+    "half-hipped": "hip",
+    "side_hipped": "hip",
+    "mansard": "hip",
+    "pyramidal": "pyramid",
+    "cone": "pyramid",
+    "dome": "pyramid",
+    "onion": "pyramid",
+}
+
+
 def parse_height(value: str | None) -> float:
     """A height tag in metres (``"12"``, ``"12.5 m"``, ``"40 ft"``); NaN when unreadable."""
     if not value:
@@ -353,6 +373,8 @@ def _area_callback(wkb, extras: frozenset[str], polygons: dict):
                 "name": tags.get("name", ""),
                 "height": parse_height(tags.get("height")),
                 "levels": int_tag(tags.get("building:levels")),
+                "roof": ROOF_SHAPES.get(tags.get("roof:shape", "flat").strip().lower(), "flat"),
+                "roof_height": parse_height(tags.get("roof:height")),
             }
         )
 

@@ -1,0 +1,294 @@
+"""Hip and gable roofs on any simple polygon (concave, with holes) by the straight skeleton.
+
+The straight skeleton [1]_ shrinks a polygon by moving every edge inward at
+the same speed; the roof over it rises at one pitch from every eave, so its
+faces are the skeleton's faces, each lifted to its edge's distance.  CGAL's
+``Straight_skeleton_2`` [2]_ (exact predicates, holes allowed) computes it,
+through the compiled extension that ``compas_cgal`` ships; it is called
+directly on numpy arrays so that no ``compas`` object is built.  Measured on
+an L-shaped footprint: 7,200 roofs/s, against 1,300/s for ``shapely-polyskel``
+and 1,800/s for ``py-straight-skeleton`` (pure Python, skeleton only).  Convex
+footprints, most of a city, do not come here: their hip roof is a lower
+envelope of planes (:mod:`sengine.nodes.export.envelope`).
+
+A **gable** is the hip roof with its end triangles turned into walls: a roof
+face that is a triangle over one eave, whose apex no other triangle shares,
+has its apex moved onto that eave's wall plane (the ridge runs out to the
+gable), as renderers of OpenStreetMap buildings do.
+
+References
+----------
+.. [1] Aichholzer, O., Aurenhammer, F., Alberts, D., Gärtner, B., "A novel type
+   of skeleton for polygons", Journal of Universal Computer Science 1(12),
+   752-761, 1995.
+.. [2] Cacciola, F., "A CGAL implementation of the straight skeleton of a simple
+   2D polygon with holes", 2nd CGAL User Workshop, 2004.
+"""
+
+from __future__ import annotations
+
+import mapbox_earcut
+import numpy as np
+
+from .mesh import Rings, fill_skipped
+
+__all__ = ["skeleton_solids", "available"]
+
+
+def _extension():
+    try:
+        from compas_cgal import _straight_skeleton_2  # type: ignore[attr-defined]
+    except ImportError:  # pragma: no cover - compas_cgal is a dependency
+        return None
+    return _straight_skeleton_2
+
+
+def available() -> bool:
+    """Whether the straight-skeleton extension can be imported."""
+    return _extension() is not None
+
+
+def skeleton_solids(
+    rings: Rings,
+    polys: np.ndarray,
+    eave: np.ndarray,
+    rise: np.ndarray,
+    base: np.ndarray,
+    gable: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Closed solids with a hip (or gable) roof over polygons ``polys`` of ``rings``.
+
+    Parameters
+    ----------
+    rings : Rings
+        Footprints (m).
+    polys : numpy.ndarray of int
+        Which polygons of ``rings`` to build.
+    eave, rise, base : numpy.ndarray, shape (p,)
+        Per polygon of ``rings``: wall top, roof rise and ground height (m).
+    gable : numpy.ndarray of bool, shape (p,)
+        Per polygon of ``rings``: turn the end triangles into gables.
+
+    Returns
+    -------
+    vertices, faces, vertex_poly, face_kind
+        As :func:`sengine.nodes.export.envelope.envelope_solids`.
+    failed : numpy.ndarray of int
+        Polygons the skeleton could not be computed for (not in the mesh).
+    """
+    ext = _extension()
+    vs, fs, vp, fk, failed = [], [], [], [], []
+    off = 0
+    for p in np.asarray(polys, np.int64).tolist():
+        out = None if ext is None else _one(ext, rings, p, float(eave[p]), float(rise[p]), float(base[p]), gable[p])
+        if out is None:
+            failed.append(p)
+            continue
+        v, f, k = out
+        vs.append(v)
+        fs.append(f + off)
+        fk.append(k)
+        vp.append(np.full(len(v), p, np.int64))
+        off += len(v)
+    if not vs:
+        e = np.empty(0, np.int64)
+        return np.empty((0, 3)), np.empty((0, 3), np.int64), e, np.empty(0, np.uint8), np.asarray(failed, np.int64)
+    return np.concatenate(vs), np.concatenate(fs), np.concatenate(vp), np.concatenate(fk), np.asarray(failed, np.int64)
+
+
+def _one(ext, rings: Rings, p: int, eave: float, rise: float, base: float, gable: bool):
+    r0, r1 = int(rings.poly_ring[p]), int(rings.poly_ring[p + 1])
+    v0, v1 = int(rings.ring_start[r0]), int(rings.ring_start[r1])
+    xy = rings.xy[v0:v1]
+    n = len(xy)
+    starts = (rings.ring_start[r0 : r1 + 1] - v0).tolist()
+    origin = xy[0]
+    local = xy - origin
+    snapped, keep = _snap(local, starts)
+    contours = [
+        np.ascontiguousarray(np.column_stack([snapped[a:b][keep[a:b]], np.zeros(int(keep[a:b].sum()))]))
+        for a, b in zip(starts, starts[1:])
+    ]
+    speeds = [[1.0] * len(c) for c in contours]
+    try:
+        sv, sf = ext.extrude_straight_skeleton(contours[0], contours[1:], speeds, False, -1.0)
+    except Exception:  # CGAL refuses degenerate input (collinear or self-touching rings)
+        return None
+    sv = np.asarray(sv, np.float64)
+    z = sv[:, 2]
+    zmax = z.max() if len(z) else 0.0
+    if not zmax > 0:
+        return None
+    # CGAL hands the footprint's vertices back exactly: find each among the rings
+    ring_index = {(float(a), float(b)): i for i, (a, b) in enumerate(snapped.tolist()) if keep[i]}
+    low = z <= 0.0
+    vid = np.full(len(sv), -1, np.int64)
+    for i in np.flatnonzero(low).tolist():
+        j = ring_index.get((float(sv[i, 0]), float(sv[i, 1])))
+        if j is None:
+            return None
+        vid[i] = j
+    # CGAL may give several skeleton nodes at one point (simultaneous events): one vertex for them
+    high = np.flatnonzero(~low)
+    _, first, same = np.unique(sv[high], axis=0, return_index=True, return_inverse=True)
+    canon = np.arange(len(sv))
+    canon[high] = high[first[same.ravel()]]
+    high = np.unique(high[first])
+    vid[high] = n + np.arange(len(high))
+    roof = []
+    for face in sf:
+        f = [int(canon[v]) for v in face]
+        f = [v for k, v in enumerate(f) if v != f[k - 1]]  # k = 0 compares with the last
+        if len(f) >= 3 and z[f].max() > 0.0:
+            roof.append(f)
+    wall_faces = []
+    if gable:
+        nxt0 = np.arange(1, n + 1)
+        for a_, b_ in zip(starts, starts[1:]):
+            nxt0[b_ - 1] = a_
+        prv0 = np.empty(n, np.int64)
+        prv0[nxt0] = np.arange(n)
+        roof, wall_faces = _gables(sv, z, roof, vid, local, nxt0, prv0)
+    n_top = n + len(high)
+    top = np.empty((n_top, 3))
+    top[:n, :2] = xy
+    top[:n, 2] = eave
+    top[n:, :2] = sv[high, :2] + origin
+    top[n:, 2] = eave + rise * (z[high] / zmax)
+    flat2 = np.empty((n_top, 2))  # local plan coordinates of the top vertices
+    flat2[:n] = local
+    flat2[n:] = sv[high, :2]
+    # walls and floor
+    i = np.arange(n)
+    nxt = i + 1
+    for a_, b_ in zip(starts, starts[1:]):
+        nxt[b_ - 1] = a_
+    tris = []
+    for face in roof:
+        face = _with_dropped(vid[face].tolist(), n, nxt)
+        if len(face) == 3:
+            tris.append(face)
+            continue
+        t = mapbox_earcut.triangulate_float64(flat2[face], np.array([len(face)], np.uint32)).reshape(-1, 3)
+        tris += fill_skipped([face], np.asarray(face)[t].tolist())
+    tri = np.asarray(tris, np.int64).reshape(-1, 3)
+    a, b, c = flat2[tri[:, 0]], flat2[tri[:, 1]], flat2[tri[:, 2]]
+    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    flip = area2 < -1e-9 * (1.0 + np.abs(flat2).max())
+    tri[flip] = tri[flip][:, [0, 2, 1]]  # roof faces look up
+    gab = _fans([_with_dropped(vid[f].tolist(), n, nxt) for f in wall_faces], n)
+    bottom = np.column_stack([xy, np.full(n, base)])
+    walls = np.concatenate([np.column_stack([i + n_top, nxt + n_top, nxt]), np.column_stack([i + n_top, nxt, i])])
+    floor = mapbox_earcut.triangulate_float64(xy - origin, np.asarray(starts[1:], np.uint32)).astype(np.int64)
+    floor = floor.reshape(-1, 3)
+    a, b, c = xy[floor[:, 0]], xy[floor[:, 1]], xy[floor[:, 2]]
+    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    floor[area2 > 0] = floor[area2 > 0][:, [0, 2, 1]]  # the floor looks down
+    floor = floor + n_top
+    faces = np.concatenate([floor, walls, gab, tri])
+    kind = np.concatenate(
+        [
+            np.zeros(len(floor), np.uint8),
+            np.ones(len(walls) + len(gab), np.uint8),
+            np.full(len(tri), 2, np.uint8),
+        ]
+    )
+    return np.concatenate([top, bottom]), faces, kind
+
+
+#: Grid (m) the footprint is snapped to for CGAL: on arbitrary doubles its exact
+#: constructions dominate (2.8 ms a Liège footprint); on a millimetre grid 1.1 ms.
+SNAP = 1e-3
+
+
+def _snap(local: np.ndarray, starts: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Ring coordinates on the :data:`SNAP` grid and which to keep (not repeating the next one).
+
+    Falls back to the coordinates as they are when snapping would make a ring
+    degenerate or the polygon invalid (CGAL must never see one).
+    """
+    import shapely
+
+    snapped = np.round(local / SNAP) * SNAP
+    keep = np.ones(len(local), bool)
+    rings = []
+    for a, b in zip(starts, starts[1:]):
+        ring = snapped[a:b]
+        same = (ring == np.roll(ring, -1, axis=0)).all(axis=1)
+        keep[a:b] = ~same
+        rings.append(ring[~same])
+    if min(len(r) for r in rings) >= 3 and shapely.is_valid(shapely.Polygon(rings[0], rings[1:])):
+        return snapped, keep
+    return local, np.ones(len(local), bool)
+
+
+def _with_dropped(face: list[int], n: int, nxt: np.ndarray) -> list[int]:
+    """Put back the footprint vertices CGAL drops (collinear ones) on each eave of a face.
+
+    An eave runs ``a -> b`` along the ring; the ring vertices between them go in between.
+    """
+    out = []
+    k = len(face)
+    for j in range(k):
+        a, b = face[j], face[(j + 1) % k]
+        out.append(a)
+        if a < n and b < n and nxt[a] != b:
+            c, guard = int(nxt[a]), 0
+            while c != b and guard < n:
+                out.append(c)
+                c, guard = int(nxt[c]), guard + 1
+            if guard >= n:  # b is not ahead of a on the ring: not an eave
+                del out[len(out) - guard :]
+    return out
+
+
+def _fans(faces: list[list[int]], n: int) -> np.ndarray:
+    """Fan-triangulate gable walls from their apex (the eave may hold collinear vertices)."""
+    out = []
+    for f in faces:
+        j = next((j for j, v in enumerate(f) if v >= n), 0)
+        f = f[j:] + f[:j]
+        out += [[f[0], f[k], f[k + 1]] for k in range(1, len(f) - 1)]
+    return np.asarray(out, np.int64).reshape(-1, 3)
+
+
+def _gables(sv, z, roof: list[list[int]], vid, local, nxt, prv) -> tuple[list[list[int]], list[list[int]]]:
+    """Move the apex of each lone end triangle onto its eave's wall plane; return (roof faces, gable walls).
+
+    Only the end of a wing turns into a gable: an eave whose neighbouring
+    eaves stand square to it (within 10 degrees), so that the hips beside it
+    become the wing's long roof planes.
+    """
+    ends = []
+    apex_count: dict[int, int] = {}
+    for k, face in enumerate(roof):
+        if len(face) != 3:
+            continue
+        low = [v for v in face if z[v] <= 0.0]
+        if len(low) != 2:
+            continue
+        apex = next(v for v in face if z[v] > 0.0)
+        ends.append((k, apex))
+        apex_count[apex] = apex_count.get(apex, 0) + 1
+    walls = set()
+    for k, apex in ends:
+        if apex_count[apex] != 1:
+            continue  # a pyramid top or a shared ridge end: keep the hip
+        i = roof[k].index(apex)
+        a, b = roof[k][(i + 1) % 3], roof[k][(i + 2) % 3]
+        ra, rb = int(vid[a]), int(vid[b])
+        if nxt[ra] != rb:
+            continue
+        pa, pb, pc = local[ra], local[rb], sv[apex, :2]  # the wall as it is, not as snapped
+        d = pb - pa
+        before = local[ra] - local[prv[ra]]
+        after = local[nxt[rb]] - local[rb]
+        unit = d / np.hypot(*d)
+        if any(abs(np.dot(e, unit)) > np.sin(np.radians(10.0)) * np.hypot(*e) for e in (before, after)):
+            continue
+        t = float(np.dot(pc - pa, d) / np.dot(d, d))
+        if not 0.05 < t < 0.95:
+            continue
+        sv[apex, :2] = pa + t * d
+        walls.add(k)
+    return [f for k, f in enumerate(roof) if k not in walls], [roof[k] for k in sorted(walls)]
