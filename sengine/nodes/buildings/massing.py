@@ -108,7 +108,9 @@ class _Massing(SENode):
     @classmethod
     def _params(cls, loc: int, far: float) -> dict:
         return {
-            "loc": Param("int", loc, min=0, max=1, unit="1", doc="level of control: 0 FAR indicator, 1 parameters / height map"),
+            "loc": Param(
+                "int", loc, min=0, max=1, unit="1", doc="level of control: 0 FAR indicator, 1 parameters / height map"
+            ),
             "far": Param(
                 "float", far, min=0.0, max=100.0, unit="1", doc="floor area ratio: target (loc 0) or cap (0: none)"
             ),

@@ -50,7 +50,9 @@ HEIGHT_CLASSES = {
 RULE_PARAMS = {
     "use": Param("str", None, choices=USES, doc="land use of the zone's lots (chooses typologies and roofs)"),
     "far": Param("float", None, min=0.0, max=100.0, unit="1", doc="floor area ratio: the target (loc 0) or cap"),
-    "loc": Param("int", None, min=0, max=1, unit="1", doc="level of control: 0 FAR indicator, 1 explicit parameters (000)"),
+    "loc": Param(
+        "int", None, min=0, max=1, unit="1", doc="level of control: 0 FAR indicator, 1 explicit parameters (000)"
+    ),
     "floors": Param("int", None, min=1, max=300, unit="1", doc="floors of every building (loc 1; else the map)"),
     "height-class": Param(
         "str", None, choices=tuple(HEIGHT_CLASSES), doc="Prague height class I-VIII: the highest regulated height"

@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from sengine.geom.polygons import clip_frame_boxes, frame_boxes, inset, threaded
+from sengine.geom.polygons import frame_boxes, inset, threaded
 
 from .edges import FRONT, REAR, SIDE, Lines, LotEdges
 
@@ -77,13 +77,31 @@ def polygonal(geoms) -> np.ndarray:
 
 def _clip_runs(area, owner, runs, a0, a1, b0, b1):
     """``area[owner]`` clipped to a box in each run's frame: ``a`` along the run from its origin,
-    ``b`` into the lot (GEOS's rectangle clipper)."""
+    ``b`` into the lot; each bound is first narrowed to the area's own extent plus 1 m.
+
+    An overlay, not an affine round trip through a rectangle clipper: the
+    vertices kept are the lot's own, so neighbours' party walls stay on the
+    very same line; an area inside its box is returned as it is.
+    """
+    g = area[owner]
     ax = runs["axis"]
     inward = runs["inward"]
+    o = runs["origin"]
+    nrm = np.stack([-ax[:, 1], ax[:, 0]], axis=1) * inward[:, None]
+    lo, hi = axis_extent(g, ax, o)
+    blo, bhi = axis_extent(g, nrm, o)
+    inside = (a0 <= lo) & (a1 >= hi) & (b0 <= blo) & (b1 >= bhi)
+    a0, a1 = np.maximum(a0, lo - 1.0), np.minimum(a1, hi + 1.0)
+    b0, b1 = np.maximum(b0, blo - 1.0), np.minimum(b1, bhi + 1.0)
     # in the run's own frame the lot lies at positive b when inward is +1: mirror the others
     lo_b = np.where(inward > 0, b0, -b1)
     hi_b = np.where(inward > 0, b1, -b0)
-    return clip_frame_boxes(area[owner], runs["origin"], ax, a0, a1, lo_b, hi_b)
+    out = g.copy()
+    cut = np.flatnonzero(~inside)
+    if len(cut):
+        box = frame_boxes(o[cut], ax[cut], a0[cut], a1[cut], lo_b[cut], hi_b[cut])
+        out[cut] = threaded(shapely.intersection, g[cut], box)
+    return out
 
 
 def _by_lot(parts, owner, n, combine):
@@ -118,8 +136,8 @@ def _minus(area, lines: Lines, dist, convex):
             sel = rank == k
             w = owner[sel]
             r = {key: v[sel] for key, v in runs.items()}
-            big = 1e9
-            out[w] = _clip_runs(out, w, r, np.full(len(w), -big), np.full(len(w), big), dist[w], np.full(len(w), big))
+            inf = np.full(len(w), np.inf)
+            out[w] = _clip_runs(out, w, r, -inf, inf, dist[w], inf)
     slow = np.flatnonzero(todo & ~convex)
     if len(slow):
         zone = threaded(shapely.buffer, lines.geoms(slow), dist[slow], quad_segs=QUAD_SEGS)
@@ -261,7 +279,6 @@ def limit_length(geoms, axis, fraction) -> np.ndarray:
     nrm = np.stack([-ax[:, 1], ax[:, 0]], axis=1)
     slo, shi = axis_extent(geoms[sel], nrm)
     out = geoms.copy()
-    out[sel] = polygonal(
-        clip_frame_boxes(geoms[sel], np.zeros((len(sel), 2)), ax, mid - half, mid + half, slo - 1.0, shi + 1.0)
-    )
+    box = frame_boxes(np.zeros((len(sel), 2)), ax, mid - half, mid + half, slo - 1.0, shi + 1.0)
+    out[sel] = polygonal(threaded(shapely.intersection, geoms[sel], box))
     return out
