@@ -116,7 +116,9 @@ RECESSED = 3.0  #: m: a stepped roof's recessed storey (003: at most 3.5 m, set 
 CORRIDOR = 4.0  #: m: width of a corridor linking two bars
 TOWER_SETBACK = 3.0  #: m: towers stand back from their podium's edge
 HALL_MARGIN = 8.0  #: m: width of the podium round a main hall (at most a fifth of the area's width)
-MIN_WIDTH = 4.0  #: m: building parts narrower than this (their oriented box) are not built
+MIN_WIDTH = 4.0  #: m: building parts narrower than this are not built
+COURT_MIN = 12.0  #: m: the narrowest court an O is built round
+RING_MIN = 8.0  #: m: the thinnest ring of an O (000's least building depth)
 LOW, MAIN = 0, 1  #: part roles: of fixed height (podium, corridor) or taking the floors
 
 
@@ -205,8 +207,9 @@ def _generate(code: str, site: Site, rows, d, frac, *, podium_depth: float):
     if code == "U":
         g = _union(band(A, site.front_lines[rows], fs + d), band(A, site.left_lines[rows], ss + d))
         return main(_union(g, band(A, site.right_lines[rows], ss + d)))
-    if code == "O":
-        return main(ring(A, d))
+    if code == "O":  # the ring thins to keep a court of COURT_MIN; an area too narrow for both has none
+        d = np.minimum(d, np.maximum((rectangle_width(A) - COURT_MIN) / 2.0, 0.0))
+        return main(np.where(d >= RING_MIN, ring(A, np.maximum(d, RING_MIN)), A))
     if code == "tower":
         g, r = centred_boxes(A, ax, d, d)
         return limit_length(g, ax[r], frac[r]), np.asarray(rows)[r], np.full(len(r), MAIN)
