@@ -92,7 +92,7 @@ def far_to_building(
     max_floors=None,
     first=None,
     tolerance: float = TOLERANCE,
-    max_iter: int = 12,
+    max_iter: int = 24,
 ):
     """The FAR-to-building loop of 000 §5.3.3, vectorized over lots.
 
@@ -120,7 +120,8 @@ def far_to_building(
     dict of ndarray (n,)
         ``build`` (bool), ``depth`` (m), ``fraction`` (1), ``floors`` (int),
         ``area`` (m2 per main storey), ``floor_area`` (m2, all storeys),
-        ``iterations`` (int) and ``converged`` (bool: within tolerance).
+        ``iterations`` (int), ``converged`` (bool: within tolerance) and
+        ``short`` (bool: under the target at the height limit).
     """
     target = np.asarray(target, np.float64)
     n = len(target)
@@ -136,6 +137,8 @@ def far_to_building(
     its = np.zeros(n, np.int64)
     done = ~build
     converged = np.zeros(n, bool)
+    short = np.zeros(n, bool)
+    d_prev = d.copy()
     for it in range(max_iter):
         rows = np.flatnonzero(~done)
         if len(rows) == 0:
@@ -148,14 +151,19 @@ def far_to_building(
         fixed = np.asarray(fixed, np.float64)
         f = floors_for(target[rows] - fixed, main, max_floors=None if maxf is None else maxf[rows])
         g = f * main + fixed
+        # a depth cut that left the area as it was (the bands of a U on a narrow lot): cut the length next
+        stalled = (its[rows] > 0) & (main >= 0.995 * area[rows]) & (d[rows] < d_prev[rows])
+        dmin[rows[stalled]] = d[rows[stalled]]
         floors[rows], area[rows], gfa[rows] = f, main, g
+        d_prev[rows] = d[rows]
         its[rows] += 1
         t = target[rows]
-        ok = np.abs(g - t) <= tolerance * t
-        over = g > t * (1.0 + tolerance)
+        ok = np.abs(g - t) <= (tolerance + 1e-9) * t
+        over = ~ok & (g > t)
         empty = main <= 0
         capped = ~ok & ~over  # short of the target at the height limit: keep it
         converged[rows[ok]] = True
+        short[rows[capped & ~empty]] = True
         done[rows[ok | capped | empty]] = True
         shrink = rows[over & ~empty]
         if it == max_iter - 1:  # the last evaluation stands: floors and areas match (depth, fraction)
@@ -180,4 +188,5 @@ def far_to_building(
         "floor_area": gfa,
         "iterations": its,
         "converged": converged & build,
+        "short": short & build,
     }

@@ -312,7 +312,7 @@ class _Massing(SENode):
             build[rows0] &= res["build"]
             report["far_iterated"] += len(rows0)
             report["far_converged"] += int(res["converged"].sum())
-            report["far_capped_by_height"] += int((res["build"] & ~res["converged"]).sum())
+            report["far_capped_by_height"] += int(res["short"].sum())
         g, row, role = parts.final(build)
         out = self._layer(L, g, row, role, typ, use, loc, floors, r, edges, lot_area, siting)
         if custom_lot.any():

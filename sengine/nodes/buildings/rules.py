@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from sengine import Param
-from sengine.errors import ConfigError
+from sengine.errors import ConfigError, ParameterError
 from sengine.registry import declare_rule
 
 from .typology import ROOF_KINDS, TYPOLOGIES, USES, parse_choices
@@ -105,7 +105,7 @@ def _coerce_choices(value: str, names, what: str, where: str) -> str:
     try:
         parse_choices(value, names, what=what)
     except ValueError as exc:
-        raise ConfigError(str(exc), where=where or None) from None
+        raise ParameterError(str(exc), where=where or None) from None
     return value
 
 

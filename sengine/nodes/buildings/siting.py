@@ -140,7 +140,9 @@ def _minus(area, lines: Lines, dist, convex):
             out[w] = _clip_runs(out, w, r, -inf, inf, dist[w], inf)
     slow = np.flatnonzero(todo & ~convex)
     if len(slow):
-        zone = threaded(shapely.buffer, lines.geoms(slow), dist[slow], quad_segs=QUAD_SEGS)
+        # the buffer's arcs are chords: widen it so they stay outside the true circle
+        grow = 1.0 / np.cos(np.pi / (4 * QUAD_SEGS))
+        zone = threaded(shapely.buffer, lines.geoms(slow), dist[slow] * grow, quad_segs=QUAD_SEGS)
         out[slow] = threaded(shapely.difference, area[slow], zone)
     return out
 
