@@ -355,7 +355,6 @@ def test_real_monaco_lots():
     np.testing.assert_allclose(lot_gfa[rows] / shapely.area(lots.geometry[rows]), b["far"], rtol=1e-9)
 
 
-@pytest.mark.slow
 def test_monaco_and_helsinki_perimeter_blocks(tmp_path):
     """Real extracts, generated buildings only: party walls and street walls as real perimeter blocks have."""
     import sengine

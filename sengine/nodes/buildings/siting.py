@@ -75,33 +75,132 @@ def polygonal(geoms) -> np.ndarray:
     return out
 
 
-def _clip_runs(area, owner, runs, a0, a1, b0, b1):
-    """``area[owner]`` clipped to a box in each run's frame: ``a`` along the run from its origin,
-    ``b`` into the lot; each bound is first narrowed to the area's own extent plus 1 m.
+def _convex_rings(geoms):
+    """Which geometries are convex polygons without holes, and their shells' coordinates (no closing point).
 
-    An overlay, not an affine round trip through a rectangle clipper: the
-    vertices kept are the lot's own, so neighbours' party walls stay on the
-    very same line; an area inside its box is returned as it is.
+    Returns ``(ok, xy, owner)``: ``xy`` and ``owner`` list the vertices of
+    the ``ok`` geometries only, ring after ring.
     """
-    g = area[owner]
-    ax = runs["axis"]
-    inward = runs["inward"]
-    o = runs["origin"]
-    nrm = np.stack([-ax[:, 1], ax[:, 0]], axis=1) * inward[:, None]
-    lo, hi = axis_extent(g, ax, o)
-    blo, bhi = axis_extent(g, nrm, o)
+    geoms = np.asarray(geoms, dtype=object)
+    ok = (shapely.get_type_id(geoms) == 3) & (shapely.get_num_interior_rings(geoms) == 0)
+    ok &= ~shapely.is_empty(geoms)
+    idx = np.flatnonzero(ok)
+    xy, owner = shapely.get_coordinates(geoms[idx], return_index=True)
+    if len(owner) == 0:
+        return ok, xy, owner.astype(np.int64)
+    last = np.r_[owner[1:] != owner[:-1], True]
+    xy, owner = xy[~last], idx[owner[~last]]  # drop each ring's closing point
+    if len(owner):
+        start = np.r_[True, owner[1:] != owner[:-1]]
+        first = np.maximum.accumulate(np.where(start, np.arange(len(owner)), 0))
+        end = np.r_[start[1:], True]
+        nxt = np.arange(len(owner)) + 1
+        nxt[end] = first[end]
+        e = xy[nxt] - xy
+        turn = e[:, 0] * e[nxt][:, 1] - e[:, 1] * e[nxt][:, 0]
+        scale = np.maximum(np.abs(e).sum(axis=1) * np.abs(e[nxt]).sum(axis=1), 1e-300)
+        pos = np.bincount(owner, weights=(turn > 1e-12 * scale).astype(float), minlength=len(geoms)) > 0
+        neg = np.bincount(owner, weights=(turn < -1e-12 * scale).astype(float), minlength=len(geoms)) > 0
+        ok &= ~(pos & neg)
+        keep = ok[owner]
+        xy, owner = xy[keep], owner[keep]
+    return ok, xy, owner
+
+
+def _halfplane(xy, owner, normal, offset):
+    """Sutherland-Hodgman: convex rings (vertex lists ``xy`` by ``owner``, increasing) cut to
+    ``dot(normal, p) >= offset`` (both per owner).  Kept vertices are the input's own floats."""
+    if len(owner) == 0:
+        return xy, owner
+    s = np.einsum("ij,ij->i", xy, normal[owner]) - offset[owner]
+    start = np.r_[True, owner[1:] != owner[:-1]]
+    first = np.maximum.accumulate(np.where(start, np.arange(len(owner)), 0))
+    end = np.r_[start[1:], True]
+    nxt = np.arange(len(owner)) + 1
+    nxt[end] = first[end]
+    inside = s >= 0
+    cross = (inside != inside[nxt]) & (s != 0) & (s[nxt] != 0)
+    with np.errstate(invalid="ignore"):  # an infinite offset (no cut) gives inf - inf where nothing crosses
+        t = np.where(cross, s / np.where(cross, s - s[nxt], 1.0), 0.0)
+    hit = xy + t[:, None] * (xy[nxt] - xy)
+    count = inside.astype(np.int64) + cross
+    out_owner = np.repeat(owner, count)
+    out = np.empty((int(count.sum()), 2))
+    at = np.cumsum(count) - count
+    out[at[inside]] = xy[inside]
+    out[(at + inside)[cross]] = hit[cross]
+    return out, out_owner
+
+
+def clip_box(geoms, origin, axis, a0, a1, b0, b1) -> np.ndarray:
+    """Each geometry cut to the box ``a0 <= a <= a1``, ``b0 <= b <= b1`` of its own frame (m).
+
+    ``a`` runs along ``axis`` from ``origin``, ``b`` along its left normal;
+    infinite bounds cut nothing.  Convex polygons (most lots and their
+    building areas) are cut in numpy, half-plane by half-plane, keeping
+    their own vertices; the others by a GEOS overlay with the box.  A
+    geometry inside its box comes back as it is.
+    """
+    geoms = np.asarray(geoms, dtype=object)
+    n = len(geoms)
+    origin = np.asarray(origin, np.float64).reshape(n, 2)
+    axis = np.asarray(axis, np.float64).reshape(n, 2)
+    a0, a1, b0, b1 = (np.broadcast_to(np.asarray(v, np.float64), (n,)) for v in (a0, a1, b0, b1))
+    nrm = np.stack([-axis[:, 1], axis[:, 0]], axis=1)
+    lo, hi = axis_extent(geoms, axis, origin)
+    blo, bhi = axis_extent(geoms, nrm, origin)
     inside = (a0 <= lo) & (a1 >= hi) & (b0 <= blo) & (b1 >= bhi)
-    a0, a1 = np.maximum(a0, lo - 1.0), np.minimum(a1, hi + 1.0)
-    b0, b1 = np.maximum(b0, blo - 1.0), np.minimum(b1, bhi + 1.0)
+    out = geoms.copy()
+    cut = np.flatnonzero(~inside & ~shapely.is_empty(geoms))
+    if len(cut) == 0:
+        return out
+    ok, xy, owner = _convex_rings(geoms[cut])
+    fast = cut[ok]
+    if len(fast):
+        pos = np.full(n, -1, np.int64)
+        pos[fast] = np.arange(len(fast))
+        own = pos[cut[owner]]
+        o = origin[fast]
+        for normal, bound, sign in ((axis, a0, 1.0), (axis, a1, -1.0), (nrm, b0, 1.0), (nrm, b1, -1.0)):
+            if not np.isfinite(bound[fast]).any():
+                continue
+            nv = normal[fast] * sign
+            off = np.einsum("ij,ij->i", nv, o) + sign * bound[fast]
+            off = np.where(np.isfinite(off), off, -np.inf)
+            xy, own = _halfplane(xy, own, nv, off)
+        cnt = np.bincount(own, minlength=len(fast))
+        res = np.full(len(fast), shapely.Polygon(), dtype=object)
+        full = np.flatnonzero(cnt >= 3)
+        if len(full):
+            keep = np.isin(own, full)
+            remap = np.full(len(fast), -1, np.int64)
+            remap[full] = np.arange(len(full))
+            rings = shapely.linearrings(xy[keep], indices=remap[own[keep]])
+            res[full] = shapely.polygons(rings)
+        out[fast] = res
+    slow = cut[~ok]
+    if len(slow):
+        box = frame_boxes(
+            origin[slow],
+            axis[slow],
+            np.maximum(a0[slow], lo[slow] - 1.0),
+            np.minimum(a1[slow], hi[slow] + 1.0),
+            np.maximum(b0[slow], blo[slow] - 1.0),
+            np.minimum(b1[slow], bhi[slow] + 1.0),
+        )
+        out[slow] = threaded(shapely.intersection, geoms[slow], box)
+    return out
+
+
+def _clip_runs(area, owner, runs, a0, a1, b0, b1):
+    """``area[owner]`` cut to a box in each run's frame: ``a`` along the run from its origin,
+    ``b`` into the lot (:func:`clip_box`: the lot's own vertices are kept, so
+    neighbours' party walls stay on the very same line)."""
+    inward = runs["inward"]
     # in the run's own frame the lot lies at positive b when inward is +1: mirror the others
     lo_b = np.where(inward > 0, b0, -b1)
     hi_b = np.where(inward > 0, b1, -b0)
-    out = g.copy()
-    cut = np.flatnonzero(~inside)
-    if len(cut):
-        box = frame_boxes(o[cut], ax[cut], a0[cut], a1[cut], lo_b[cut], hi_b[cut])
-        out[cut] = threaded(shapely.intersection, g[cut], box)
-    return out
+    return clip_box(area[owner], runs["origin"], runs["axis"], a0, a1, lo_b, hi_b)
 
 
 def _by_lot(parts, owner, n, combine):
@@ -263,8 +362,7 @@ def centred_boxes(area, axis, width, depth, *, count=1) -> tuple[np.ndarray, np.
     s = np.einsum("ij,ij->i", xy, nrm)[row]
     centre = t[:, None] * axis[row] + s[:, None] * nrm[row]
     w, d = width[row], depth[row]
-    boxes = frame_boxes(centre, axis[row], -w / 2, w / 2, -d / 2, d / 2)
-    return polygonal(threaded(shapely.intersection, boxes, area[row])), row
+    return polygonal(clip_box(area[row], centre, axis[row], -w / 2, w / 2, -d / 2, d / 2)), row
 
 
 def limit_length(geoms, axis, fraction) -> np.ndarray:
@@ -278,9 +376,6 @@ def limit_length(geoms, axis, fraction) -> np.ndarray:
     ax = np.asarray(axis, np.float64).reshape(n, 2)[sel]
     lo, hi = axis_extent(geoms[sel], ax)
     mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo) * fraction[sel]
-    nrm = np.stack([-ax[:, 1], ax[:, 0]], axis=1)
-    slo, shi = axis_extent(geoms[sel], nrm)
     out = geoms.copy()
-    box = frame_boxes(np.zeros((len(sel), 2)), ax, mid - half, mid + half, slo - 1.0, shi + 1.0)
-    out[sel] = polygonal(threaded(shapely.intersection, geoms[sel], box))
+    out[sel] = polygonal(clip_box(geoms[sel], np.zeros((len(sel), 2)), ax, mid - half, mid + half, -np.inf, np.inf))
     return out

@@ -215,9 +215,10 @@ def _generate(code: str, site: Site, rows, d, frac, *, podium_depth: float):
         return limit_length(g, ax[r], frac[r]), np.asarray(rows)[r], np.full(len(r), MAIN)
     if code == "towers":
         podium = band(A, site.front_lines[rows], fs + max(podium_depth, 0.0))
-        _, _, length, _ = obb_frame(podium)
-        count = np.where(length >= 2.6 * d, 2, 1)
-        towers, r = centred_boxes(polygonal(inset(podium, TOWER_SETBACK)), ax, d, d, count=count)
+        base = polygonal(inset(podium, TOWER_SETBACK))
+        lo_, hi_ = _axis_extent(base, ax)
+        count = np.where(hi_ - lo_ >= 2.6 * d, 2, 1)  # two towers stand apart along the street
+        towers, r = centred_boxes(base, ax, d, d, count=count)
         towers = limit_length(towers, ax[r], frac[r])
         low = _minus_parts(podium, towers, r)
         return _concat((towers, np.asarray(rows)[r], MAIN), (low, np.asarray(rows), LOW))
