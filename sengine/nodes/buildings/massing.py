@@ -272,8 +272,9 @@ class _Massing(SENode):
         # falls back to a slab, then to the whole area
         rows = np.arange(n)
         main, low = parts.draw(rows, depth, np.ones(n))
+        room = ~shapely.is_empty(area)
         for fallback in ("I", "box"):
-            bad = np.flatnonzero(main <= 0)
+            bad = np.flatnonzero((main <= 0) & room)
             if not len(bad):
                 break
             typ[bad] = TYPOLOGIES.index(fallback)

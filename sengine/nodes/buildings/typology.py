@@ -57,7 +57,7 @@ from sengine.geom.polygons import inset, obb_frame, threaded
 from sengine.random import uniform
 
 from .edges import FRONT, REAR, LotEdges
-from .siting import axis_extent, band, centred_boxes, limit_length, polygonal, ring, side_lines
+from .siting import _convex_rings, axis_extent, band, centred_boxes, limit_length, polygonal, ring, side_lines
 
 __all__ = [
     "TYPOLOGIES",
@@ -329,6 +329,9 @@ def _slivers(parts) -> np.ndarray:
     width = rectangle_width(parts)
     out = width < MIN_WIDTH
     odd = np.flatnonzero(~out & (width < 2.0 * MIN_WIDTH))
+    if len(odd):  # a convex part has no thin arm: its rectangle width says it all
+        convex, _, _ = _convex_rings(parts[odd])
+        odd = odd[~convex]
     if len(odd):
         r = MIN_WIDTH / 2.0
         opened = shapely.buffer(shapely.buffer(parts[odd], -r, join_style="mitre"), r, join_style="mitre")
