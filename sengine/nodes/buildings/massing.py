@@ -375,6 +375,9 @@ class _Massing(SENode):
                 "use": use[row].astype(str) if m else np.empty(0, "<U1"),
                 "siting": siting[row].astype(str) if m else np.empty(0, "<U1"),
                 "loc": loc[row],
+                "height_class": np.where(r["height_class"] == None, "", r["height_class"]).astype(str)[row]  # noqa: E711
+                if m
+                else np.empty(0, "<U1"),
                 "gfa": gfa,
                 "far": lot_far[row],
                 "lot": lot_ids.astype(np.int64),
@@ -444,6 +447,7 @@ class _Massing(SENode):
                 "use": np.asarray(c.get("use", np.full(m, self.p.use))).astype(str),
                 "siting": np.full(m, "custom"),
                 "loc": np.full(m, 2, np.int64),
+                "height_class": np.full(m, ""),
                 "gfa": gfa,
                 "far": np.where(lot_area > 0, lot_gfa / np.where(lot_area > 0, lot_area, 1.0), 0.0),
                 "lot": lot.copy(),
