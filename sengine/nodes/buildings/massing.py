@@ -90,6 +90,11 @@ class _Massing(SENode):
     inputs = {
         "lots": Port("lots", "lots to build on (with 'block' and 'district'; optional rule columns)"),
         "blocks": Port("blocks", "the blocks of the lots: their edges are the street fronts", required=False),
+        "zones": Port(
+            "polygons",
+            "land-use zones with a 'use' column (e.g. osm.read's landuse): the lots' land use",
+            required=False,
+        ),
         "custom": Port(
             "buildings",
             "level of control 2: footprints with a 'lot' column and 'height' or 'floors', taken as they are",
@@ -169,7 +174,7 @@ class _Massing(SENode):
         }
 
     # -- the steps ---------------------------------------------------------------------
-    def _rules(self, lots: Layer) -> dict:
+    def _rules(self, lots: Layer, zones: Layer | None = None) -> dict:
         p = self.p
         defaults = {
             "use": p.use,
@@ -185,7 +190,7 @@ class _Massing(SENode):
             "depth": p.depth,
             "roof": p.roof,
         }
-        return per_lot(lots, self.context.plan, defaults, self.where)
+        return per_lot(lots, self.context.plan, defaults, self.where, zones)
 
     def _typologies(self, r: dict, ids) -> np.ndarray:
         use = r["use"].astype(str)
@@ -222,7 +227,14 @@ class _Massing(SENode):
             raw = np.clip(raw, lo, hi)
         return np.maximum(1, np.rint(raw / p.floor_height)).astype(np.int64)
 
-    def run(self, *, lots: Layer, blocks: Layer | None = None, custom: Layer | None = None) -> dict[str, Layer]:
+    def run(
+        self,
+        *,
+        lots: Layer,
+        blocks: Layer | None = None,
+        zones: Layer | None = None,
+        custom: Layer | None = None,
+    ) -> dict[str, Layer]:
         p = self.p
         fh = p.floor_height
         n_all = len(lots)
@@ -238,7 +250,7 @@ class _Massing(SENode):
         L = lots.take(work)
         n = len(L)
         ids = L.ids
-        r = self._rules(L)
+        r = self._rules(L, zones)
         use = r["use"].astype(str)
         loc = np.asarray([int(v) for v in r["loc"]], np.int64)
         siting = r["siting"].astype(str)

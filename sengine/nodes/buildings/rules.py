@@ -109,8 +109,45 @@ def _coerce_choices(value: str, names, what: str, where: str) -> str:
     return value
 
 
-def per_lot(lots, plan, defaults: dict, where: str) -> dict[str, np.ndarray]:
+def _apply(out: dict, rule, sel, where: str, *, skip=()) -> None:
+    """Set the attributes ``rule`` gives on the lots ``sel``."""
+    for attr, decl in RULE_PARAMS.items():
+        raw = rule.get(attr)
+        if raw is None or attr in skip:
+            continue
+        value = decl.coerce(raw, rule.where or where, attr)
+        if attr == "typology":
+            value = _coerce_choices(value, TYPOLOGIES, "typology", rule.where)
+        elif attr == "roof":
+            value = _coerce_choices(value, ROOF_KINDS, "roof kind", rule.where)
+        out[attr.replace("-", "_")][sel] = value
+
+
+def zone_use(lots, zones) -> np.ndarray:
+    """The ``use`` of the zone (polygons with a ``use`` column) under each lot's inner point; ``None`` outside."""
+    import shapely
+
+    from sengine.geom.polygons import containing
+
+    n = len(lots)
+    out = np.full(n, None, dtype=object)
+    if zones is None or not len(zones) or "use" not in zones or n == 0:
+        return out
+    inside = containing(shapely.point_on_surface(lots.geometry), zones.geometry)
+    has = inside >= 0
+    out[has] = np.asarray(zones["use"], dtype=object)[inside[has]]
+    return out
+
+
+def per_lot(lots, plan, defaults: dict, where: str, zones=None) -> dict[str, np.ndarray]:
     """Each rule value for each lot: lot column, land-use rule, district rule, node default.
+
+    The land use of a lot is its ``use`` column, else the class of the
+    land-use map under it (a class of :data:`~.typology.USES`), else the
+    ``use`` of the ``zones`` polygon under it (OSM ``landuse``), else its
+    district's ``use``, else the default.  The ``<landuse>`` rule of a lot
+    is the one whose colour the map shows under it, or, without a map, the
+    one whose ``class`` is the lot's land use.
 
     Parameters
     ----------
@@ -122,6 +159,8 @@ def per_lot(lots, plan, defaults: dict, where: str) -> dict[str, np.ndarray]:
         ``None`` where the node sets none.
     where : str
         The node, for messages.
+    zones : Layer, optional
+        Land-use polygons with a ``use`` column.
 
     Returns
     -------
@@ -134,32 +173,34 @@ def per_lot(lots, plan, defaults: dict, where: str) -> dict[str, np.ndarray]:
     out = {k.replace("-", "_"): np.full(n, defaults.get(k.replace("-", "_")), dtype=object) for k in RULE_PARAMS}
     if n == 0:
         return out
-    for tag, idx in (("district", None), ("landuse", None)):
-        rules = plan.rules_of(tag) if plan is not None else []
-        if not rules:
-            continue
-        if tag == "district":
-            idx = np.asarray(lots.get("district", np.full(n, -1)), np.int64)
-        else:
-            pts = shapely.point_on_surface(lots.geometry)
-            idx = landuse_rule_at(plan, shapely.get_x(pts), shapely.get_y(pts))
-        for i, rule in enumerate(rules):
-            sel = idx == i
-            if not sel.any():
-                continue
-            if tag == "landuse" and (rule.get("class") or "").strip().lower() in USES:
-                out["use"][sel] = (rule.get("class") or "").strip().lower()
-            for attr, decl in RULE_PARAMS.items():
-                raw = rule.get(attr)
-                if raw is None or (tag == "landuse" and attr == "use"):
-                    continue
-                value = decl.coerce(raw, rule.where or where, attr)
-                if attr == "typology":
-                    value = _coerce_choices(value, TYPOLOGIES, "typology", rule.where)
-                elif attr == "roof":
-                    value = _coerce_choices(value, ROOF_KINDS, "roof kind", rule.where)
-                out[attr.replace("-", "_")][sel] = value
-    for col in ("use", "far", "loc", "floors", "typology", "height_class"):
+    districts = plan.rules_of("district") if plan is not None else []
+    landuses = plan.rules_of("landuse") if plan is not None else []
+    idx = np.asarray(lots.get("district", np.full(n, -1)), np.int64)
+    for i, rule in enumerate(districts):
+        sel = idx == i
+        if sel.any():
+            _apply(out, rule, sel, where)
+    zoned = zone_use(lots, zones)
+    has = np.array([u in USES for u in zoned], bool)
+    out["use"][has] = zoned[has]
+    mapped = np.full(n, -1, np.int64)
+    if landuses and getattr(plan, "maps", {}).get("landuse") is not None:
+        pts = shapely.point_on_surface(lots.geometry)
+        mapped = landuse_rule_at(plan, shapely.get_x(pts), shapely.get_y(pts))
+        for i, rule in enumerate(landuses):
+            cls = (rule.get("class") or "").strip().lower()
+            if cls in USES:
+                out["use"][mapped == i] = cls
+    if "use" in lots:
+        vals = np.asarray(lots["use"], dtype=object)
+        known = np.array([v in USES for v in vals], bool)
+        out["use"][known] = vals[known]
+    for i, rule in enumerate(landuses):
+        cls = (rule.get("class") or "").strip().lower()
+        sel = mapped == i if (mapped >= 0).any() else out["use"].astype(str) == cls
+        if sel.any():
+            _apply(out, rule, sel, where, skip=("use",))
+    for col in ("far", "loc", "floors", "typology", "height_class"):
         if col in lots:
             vals = np.asarray(lots[col], dtype=object)
             known = np.array([v is not None and v == v and str(v) != "" for v in vals], bool)

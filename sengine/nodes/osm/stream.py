@@ -36,6 +36,20 @@ __all__ = ["OsmExtract", "read_osm", "decode_lines", "parse_height", "int_tag", 
 
 _WATER = {("natural", "water"), ("waterway", "riverbank"), ("landuse", "reservoir"), ("landuse", "basin")}
 _PARKS = {("leisure", "park"), ("leisure", "garden")}
+#: OSM ``landuse`` (and school ``amenity``) areas -> the buildings' land use (``extras=landuse``).
+LANDUSE = {
+    ("landuse", "residential"): "residential",
+    ("landuse", "commercial"): "commercial",
+    ("landuse", "retail"): "commercial",
+    ("landuse", "civil"): "office",
+    ("landuse", "industrial"): "industrial",
+    ("landuse", "education"): "educational",
+    ("amenity", "school"): "educational",
+    ("amenity", "university"): "educational",
+    ("amenity", "college"): "educational",
+    ("amenity", "kindergarten"): "educational",
+}
+POLYGON_KINDS = ("water", "parks", "buildings", "landuse")
 _NUM = re.compile(r"^\s*([0-9]+(?:[.,][0-9]+)?)\s*(m|ft|')?\s*$")
 #: The tags kept per way besides ``highway`` (``tunnel`` holds ``covered`` when untagged).
 TAG_KEYS = ("name", "layer", "bridge", "tunnel", "oneway")
@@ -89,7 +103,7 @@ class OsmExtract:
     node_ids : ndarray (n,) of int64 or None
         OSM node id of each point (only when asked for).
     polygons : dict of str to (list of str, list of dict)
-        ``"water"``, ``"parks"``, ``"buildings"``: hex WKB multipolygons and their attributes.
+        ``"water"``, ``"parks"``, ``"buildings"``, ``"landuse"``: hex WKB multipolygons and their attributes.
     clipped : int
         Ways whose nodes are partly missing from the file (cut by the extract's bounding box).
     """
@@ -101,7 +115,7 @@ class OsmExtract:
     codes: dict = field(default_factory=dict)
     tags: dict = field(default_factory=dict)
     node_ids: np.ndarray | None = None
-    polygons: dict = field(default_factory=lambda: {k: ([], []) for k in ("water", "parks", "buildings")})
+    polygons: dict = field(default_factory=lambda: {k: ([], []) for k in POLYGON_KINDS})
     clipped: int = 0
 
 
@@ -247,7 +261,7 @@ def _read_pass(path: Path, select: frozenset[str] | None, *, extras, node_ids: b
     callbacks = {"way": way}
     polygons: dict = {}
     if extras:
-        polygons = {k: ([], []) for k in ("water", "parks", "buildings")}
+        polygons = {k: ([], []) for k in POLYGON_KINDS}
         callbacks["area"] = _area_callback(wkb, extras, polygons)
     if select is None:
         ways_filter = osmium.filter.KeyFilter("highway")
@@ -288,6 +302,9 @@ def _area_callback(wkb, extras: frozenset[str], polygons: dict):
             kind = "water"
         elif ("leisure", tags.get("leisure")) in _PARKS:
             kind = "parks"
+        use = LANDUSE.get(("landuse", tags.get("landuse"))) or LANDUSE.get(("amenity", tags.get("amenity")))
+        if kind is None and use is not None:
+            kind = "landuse"
         if kind is None or kind not in extras:
             return
         try:
@@ -302,6 +319,7 @@ def _area_callback(wkb, extras: frozenset[str], polygons: dict):
                 "name": tags.get("name", ""),
                 "height": parse_height(tags.get("height")),
                 "levels": int_tag(tags.get("building:levels")),
+                "use": use or "",
             }
         )
 
