@@ -24,8 +24,11 @@ For each lot, as CityEngine's rule file does with a lot's attributes:
 
 The buildings layer has one feature per building part (a podium and its
 towers are separate parts) with ``height`` (m, ground to the highest point),
-``floors``, ``roof``, ``roof_height`` (m), ``roof_direction`` (deg, along the
-street), ``typology``, ``part`` (``main``, ``podium`` or ``custom``),
+``floors``, ``roof``, ``roof_height`` (m; ``height`` minus it is the top of
+the last full storey), ``roof_direction`` (deg counter-clockwise from east,
+in [0, 180): the direction of the lot's main street front; gable and hip
+ridges and a shed roof's eaves run along it, a shed slopes across it),
+``typology``, ``part`` (``main``, ``podium`` or ``custom``),
 ``use``, ``loc``, ``gfa`` (m2), ``far`` (of the lot, all its parts),
 ``lot`` and ``district``.  Part ids are ``lot id x 16 + k``: the same
 whatever the batch.
