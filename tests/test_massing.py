@@ -375,3 +375,37 @@ def test_monaco_and_helsinki_perimeter_blocks(tmp_path):
         assert city["floor_area_m2"] == pytest.approx(float(planned["floor_area"].sum()), abs=0.1)
         assert city["floor_area_m2"] == pytest.approx(float(b["gfa"].sum()), abs=0.1)
         assert city["footprint_m2"] == pytest.approx(float(planned["footprint"].sum()), abs=0.1)
+
+
+def test_zones_give_the_land_use_and_landuse_rules_follow_it():
+    lots, blocks = row_block(20.0, depth=30.0, count=4, rows=1)
+    zones = Layer.from_geoms([shapely.box(-1, -1, 41, 31)], use=np.array(["educational"], dtype=object))
+    plan = CityPlan(rules=[Rule("landuse", {"class": "educational", "far": "0.8", "loc": "0"}, "x.xml:4")])
+    n = Massing("buildings", {}, Context(seed=7, plan=plan))
+    b = n.run(lots=lots, blocks=blocks, zones=zones)["buildings"]
+    school = np.isin(b["lot"], lots.ids[:2])
+    assert (b["use"][school] == "educational").all() and (b["use"][~school] == "residential").all()
+    assert np.all(np.abs(b["far"][school] - 0.8) <= 0.04 + 1e-9) and (b["loc"][school] == 0).all()
+    assert set(b["typology"][school]) <= {"linked", "I", "box"}
+
+
+def test_osm_landuse_zones():
+    from sengine import Context as Ctx
+
+    read = get("osm.read")(
+        "osm", {"path": str(ROOT / "configs/data/helsinki_centre.osm.pbf"), "extras": "landuse"}, Ctx()
+    )
+    zones = read.run()["landuse"]
+    uses = set(zones["use"])
+    assert (
+        {"residential", "commercial", "educational"}
+        <= uses
+        <= {
+            "residential",
+            "commercial",
+            "office",
+            "industrial",
+            "educational",
+        }
+    )
+    assert read.report["landuse"] == len(zones) > 50 and shapely.is_valid(zones.geometry).mean() > 0.95
