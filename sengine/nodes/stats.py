@@ -233,7 +233,9 @@ class StatsPlanning(SENode):
             doc="gross floor area per resident (residential floor area; all of it when buildings carry no use)",
         ),
         "walls": Param(
-            "bool", False, doc="report party-wall and street-wall shares of the buildings (some seconds on a whole city)"
+            "bool",
+            False,
+            doc="report party-wall and street-wall shares of the buildings (some seconds on a whole city)",
         ),
     }
 
