@@ -18,7 +18,6 @@ import json
 import logging
 import os
 import shutil
-import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -31,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import __version__, registry
+from . import progress as _progress
 from .errors import NetworkError, SEngineError
 from .layer import Layer
 from .node import Context, SENode
@@ -104,7 +104,7 @@ class _Bound:
     order: list[str]
 
 
-ProgressFn = Callable[[int, int, str, str, int, float], None]
+ProgressFn = Callable[[int, int, str, str, int, float], None]  # or a sengine.progress.Progress
 
 
 class Network:
@@ -343,8 +343,13 @@ class Network:
             ``stats.json`` last.
         formats : iterable of str
             Output formats for exporter nodes (empty: their defaults).
-        progress : callable, optional
-            Called after each node as ``progress(i, n, node_id, type, count, seconds)``.
+        progress : callable or sengine.progress.Progress, optional
+            A callable is called after each node as ``progress(i, n, node_id,
+            type, count, seconds)``; an object with ``start``, ``advance``,
+            ``finish`` and ``close`` methods hears when each node starts, how
+            far a node that counts its work (chunks of features, exporters'
+            writers) has got, and when it finishes (:mod:`sengine.progress`;
+            :class:`~sengine.progress.TerminalProgress` draws bars).
         workers : int
             Worker processes: nodes that map features one by one get their
             first input cut into chunks, exporters write their files side by
@@ -361,16 +366,19 @@ class Network:
         formats = registry.check_formats(formats)
         out_dir = Path(out) if out is not None else None
         tmp = None
+        events = _progress.as_progress(progress)
         if out_dir is not None:
             out_dir.parent.mkdir(parents=True, exist_ok=True)
             tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".tmp", dir=out_dir.parent))
         try:
-            result = self._run(seed, tmp, formats, progress, max(1, int(workers)), options)
+            result = self._run(seed, tmp, formats, events, max(1, int(workers)), options)
             if tmp is not None:
                 _write_json(tmp / "stats.json", result.stats)
                 _move_into(tmp, out_dir)
             return result
         finally:
+            if events is not None:
+                events.close()
             if tmp is not None and tmp.exists():
                 shutil.rmtree(tmp, ignore_errors=True)
 
@@ -379,7 +387,7 @@ class Network:
         seed: int,
         tmp: Path | None,
         formats: Iterable[str],
-        progress: ProgressFn | None,
+        events: _progress.Progress | None,
         workers: int,
         options: Mapping[str, Any] | None = None,
     ) -> Result:
@@ -401,7 +409,8 @@ class Network:
             for s, sp, dp in incoming[node_id]:
                 kwargs[dp] = layers[s][sp]
             t0 = time.perf_counter()
-            outputs = _run_node(node, kwargs, workers)
+            with _progress.step(events, i, n, node_id, node.name):
+                outputs = _run_node(node, kwargs, workers)
             dt = time.perf_counter() - t0
             missing = [p for p in node.outputs if p not in outputs]
             extra = [p for p in outputs if p not in node.outputs]
@@ -422,8 +431,8 @@ class Network:
             if getattr(node, "report", None):
                 report[node_id] = node.report
             log.info("%s (%s): %d features in %.3f s", node_id, node.name, count, dt)
-            if progress is not None:
-                progress(i, n, node_id, node.name, count, dt)
+            if events is not None:
+                events.finish(i, n, node_id, node.name, count, dt)
         seconds["total"] = round(time.perf_counter() - t_start, 4)
         stats = {
             "sengine": __version__,
@@ -499,15 +508,16 @@ def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> di
     if workers <= 1 or not node.maps_features or layer is None or len(layer) < 2 * MIN_CHUNK:
         return node.run(**kwargs) or {}
     t = time.perf_counter()
-    parts = [_call_run(node, {**kwargs, first: layer.take(np.arange(MIN_CHUNK))})]
+    _progress.expect(len(layer), "features")
+    parts = [_call_run(node, {**kwargs, first: layer.take(np.arange(MIN_CHUNK))}, MIN_CHUNK)]
     rest = len(layer) - MIN_CHUNK
     if (time.perf_counter() - t) * rest / MIN_CHUNK < FORK_AFTER:
-        parts.append(_call_run(node, {**kwargs, first: layer.take(np.arange(MIN_CHUNK, len(layer)))}))
+        parts.append(_call_run(node, {**kwargs, first: layer.take(np.arange(MIN_CHUNK, len(layer)))}, rest))
     else:
         n_chunks = max(1, min(workers * 4, rest // MIN_CHUNK))
         bounds = np.linspace(MIN_CHUNK, len(layer), n_chunks + 1).astype(int)
         jobs = [
-            partial(_call_run, node, {**kwargs, first: layer.take(np.arange(a, b))})
+            partial(_call_run, node, {**kwargs, first: layer.take(np.arange(a, b))}, b - a)
             for a, b in zip(bounds[:-1], bounds[1:])
         ]
         parts += run_jobs(jobs, workers)  # forked workers inherit the registry and plugins
@@ -522,8 +532,10 @@ def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> di
     return merged
 
 
-def _call_run(node: SENode, kwargs: dict[str, Layer | None]) -> tuple[dict[str, Layer], dict | None]:
+def _call_run(node: SENode, kwargs: dict[str, Layer | None], count: int = 0) -> tuple[dict[str, Layer], dict | None]:
+    """Run a chunk of ``count`` features; count them as done (:func:`sengine.progress.advance`)."""
     outputs = node.run(**kwargs) or {}
+    _progress.advance(count)
     return outputs, getattr(node, "report", None)
 
 
@@ -556,10 +568,3 @@ def _move_into(tmp: Path, out_dir: Path) -> None:
         if target.is_dir() and not target.is_symlink():
             shutil.rmtree(target)
         os.replace(tmp / name, target)
-
-
-def _stderr_progress(i: int, n: int, node_id: str, type_: str, count: int, seconds: float) -> None:
-    sys.stderr.write(f"\r[{i}/{n}] {node_id} ({type_}): {count:,} features, {seconds:.2f} s\033[K")
-    if i == n:
-        sys.stderr.write("\n")
-    sys.stderr.flush()

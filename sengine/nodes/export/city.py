@@ -16,6 +16,7 @@ obj        ``city.obj`` + ``city.mtl``             :mod:`sengine.nodes.export.ob
 cityjson   ``buildings.city.json`` (LoD1)          :mod:`sengine.nodes.export.cityjson`
 gpkg       ``city.gpkg`` (a table per layer)       :mod:`sengine.nodes.export.gpkg`
 parquet    ``<layer>.parquet`` (GeoParquet 1.1)    :mod:`sengine.nodes.export.parquet`
+html       ``index.html`` + ``city.view.js`` (3D)  :mod:`sengine.nodes.export.html`
 ========== ======================================= ========================
 
 Every layer is first made fit to open (:mod:`sengine.nodes.export.prepare`:
@@ -74,7 +75,7 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-FORMATS = ("glb", "geojson", "osm", "png", "obj", "cityjson", "gpkg", "parquet")
+FORMATS = ("glb", "geojson", "osm", "png", "obj", "cityjson", "gpkg", "parquet", "html")
 DEFAULT_FORMATS = frozenset({"glb", "geojson", "osm", "png"})
 #: What to suggest for a format sengine does not write.
 FORMAT_HINTS = {
@@ -94,6 +95,9 @@ FORMAT_HINTS = {
     "xml": "osm",
     "jpg": "png",
     "jpeg": "png",
+    "htm": "html",
+    "web": "html",
+    "viewer": "html",
 }
 ORIGINS = ("local", "geo")
 
@@ -183,7 +187,7 @@ def export_layers(
     """
     from sengine.io import geojson
 
-    from . import cityjson, gltf, gpkg, obj, osmxml, parquet, preview
+    from . import cityjson, gltf, gpkg, html, obj, osmxml, parquet, preview
 
     out = Path(out)
     formats = set(check_formats(formats)) or set(DEFAULT_FORMATS)
@@ -232,6 +236,24 @@ def export_layers(
                     crs=any_crs,
                     origin=None if offset is None else (offset, centre_ll),
                     copyright=attribution,
+                ),
+            )
+        )
+    if "html" in formats:  # the page is always around the city's origin, as a browser wants it
+        jobs.append(
+            (
+                "html",
+                None,
+                partial(
+                    html.write_html,
+                    out,
+                    layers,
+                    offset=centre,
+                    line_width=line_width,
+                    name=getattr(plan, "name", "") or "",
+                    attribution=attribution,
+                    crs=any_crs,
+                    origin={"lat": centre_ll[0], "lon": centre_ll[1], "planar": [float(c) for c in centre]},
                 ),
             )
         )

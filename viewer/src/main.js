@@ -1,0 +1,369 @@
+// The sengine city viewer: the city of city.view.js in 3D (three.js), layers on and off, features coloured by
+// height, use or FAR, a click shows a feature's attributes.  Works from file:// (the data comes in a <script>).
+import * as THREE from "three";
+import { MapControls } from "three/examples/jsm/controls/MapControls.js";
+import { featureColours, MODES, rampCss } from "./colour.js";
+import { readView } from "./data.js";
+import { createPicker } from "./pick.js";
+
+const $ = (sel) => document.querySelector(sel);
+
+function el(tag, attrs = {}, ...children) {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) {
+    if (k === "class") e.className = v;
+    else if (k.startsWith("on")) e.addEventListener(k.slice(2), v);
+    else e.setAttribute(k, v);
+  }
+  for (const c of children) e.append(c);
+  return e;
+}
+
+function fmt(v) {
+  if (v === null || v === undefined) return "–";
+  if (typeof v === "number") {
+    if (Number.isInteger(v)) return v.toLocaleString("en");
+    return String(Number(v.toPrecision(7)));
+  }
+  return String(v);
+}
+
+function start() {
+  const view = readView(window.SENGINE_VIEW);
+  const host = $("#view");
+  const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
+  renderer.setClearColor(0xf4f3ef);
+  host.append(renderer.domElement);
+
+  const scene = new THREE.Scene();
+  scene.add(new THREE.HemisphereLight(0xffffff, 0x8a8478, 1.6));
+  const sun = new THREE.DirectionalLight(0xffffff, 1.9);
+  sun.position.set(-0.55, 1.0, 0.35);
+  scene.add(sun);
+
+  const [x0, y0, z0, x1, y1, z1] = view.bounds;
+  const span = Math.max(x1 - x0, z1 - z0, y1 - y0, 1);
+  const centre = new THREE.Vector3((x0 + x1) / 2, 0, (z0 + z1) / 2);
+
+  const camera = new THREE.PerspectiveCamera(45, 1, 1, 10 * span);
+  const controls = new MapControls(camera, renderer.domElement);
+  controls.enableDamping = false;
+  controls.maxPolarAngle = Math.PI * 0.495;
+  controls.minDistance = 2;
+  controls.maxDistance = 6 * span;
+  controls.zoomToCursor = true;
+  controls.listenToKeyEvents(window);
+
+  // the whole city in view, seen from the south-south-west at 50 degrees
+  function home() {
+    const radius = 0.5 * Math.hypot(x1 - x0, z1 - z0, 0.5 * (y1 - y0));
+    const fov = THREE.MathUtils.degToRad(camera.fov);
+    const fit = Math.min(fov, 2 * Math.atan(Math.tan(fov / 2) * camera.aspect));
+    const d = (0.8 * radius) / Math.sin(fit / 2);
+    const up = THREE.MathUtils.degToRad(50);
+    const turn = THREE.MathUtils.degToRad(-20);
+    controls.target.copy(centre);
+    camera.position.set(
+      centre.x + d * Math.cos(up) * Math.sin(turn),
+      d * Math.sin(up),
+      centre.z + d * Math.cos(up) * Math.cos(turn),
+    );
+    controls.update();
+    redraw();
+  }
+
+  // one mesh per layer, in drawing order; flat layers drawn later are pulled forward so they do not z-fight
+  const meshes = new Map();
+  view.layers.forEach((layer, k) => {
+    const geometry = new THREE.BufferGeometry();
+    geometry.setAttribute("position", new THREE.BufferAttribute(layer.position, 3));
+    geometry.setAttribute("fid", new THREE.BufferAttribute(layer.feature, 1));
+    geometry.setIndex(new THREE.BufferAttribute(layer.index, 1));
+    geometry.computeBoundingSphere();
+    const solid = layer.kind === "solid";
+    const colour = new THREE.Color().setRGB(...layer.colour.map((c) => c / 255), THREE.SRGBColorSpace);
+    const material = new THREE.MeshLambertMaterial({
+      color: colour,
+      flatShading: true,
+      side: solid ? THREE.FrontSide : THREE.DoubleSide,
+      polygonOffset: !solid,
+      polygonOffsetFactor: solid ? 0 : -(k + 1),
+      polygonOffsetUnits: solid ? 0 : -4 * (k + 1),
+    });
+    const mesh = new THREE.Mesh(geometry, material);
+    mesh.name = layer.name;
+    mesh.userData.layer = layer;
+    mesh.userData.colour = colour;
+    mesh.userData.index = k + 1; // 0 is nothing in the pick buffer
+    mesh.frustumCulled = false;
+    scene.add(mesh);
+    meshes.set(layer.name, mesh);
+  });
+
+  const picker = createPicker(renderer, scene, camera, [...meshes.values()]);
+  let highlight = null;
+  let selected = null;
+
+  let needsRender = true;
+  function redraw() {
+    needsRender = true;
+  }
+  function render() {
+    const d = camera.position.distanceTo(controls.target);
+    camera.near = Math.max(0.2, d / 400);
+    camera.far = Math.max(4 * d, 3 * span) + d;
+    camera.updateProjectionMatrix();
+    renderer.render(scene, camera);
+  }
+  controls.addEventListener("change", redraw);
+
+  function resize() {
+    const w = host.clientWidth;
+    const h = host.clientHeight;
+    renderer.setSize(w, h);
+    camera.aspect = w / Math.max(h, 1);
+    camera.updateProjectionMatrix();
+    redraw();
+  }
+  window.addEventListener("resize", resize);
+
+  // -- panel: layers, colours, legend, selection ---------------------------------------------------------------
+  $("#title").textContent = view.name || "sengine city";
+  document.title = `${view.name || "city"} · sengine`;
+  const counts = view.layers.map((l) => `${l.features.toLocaleString("en")} ${l.name}`).join(" · ");
+  $("#subtitle").textContent = counts;
+  const list = $("#layers");
+  for (const layer of view.layers) {
+    const box = el("input", { type: "checkbox", "data-layer": layer.name });
+    box.checked = true;
+    box.addEventListener("change", () => setLayerVisible(layer.name, box.checked));
+    const swatch = el("span", { class: "swatch", style: `background: rgb(${layer.colour.join(",")})` });
+    list.append(el("label", {}, box, swatch, ` ${layer.name} `, el("small", {}, layer.features.toLocaleString("en"))));
+  }
+  const select = $("#colour");
+  select.append(el("option", { value: "layer" }, "layer colours"));
+  for (const [key, spec] of Object.entries(MODES)) {
+    if (view.layers.some((l) => spec.columns.some((c) => l.columns[c])))
+      select.append(el("option", { value: key }, spec.label));
+  }
+  select.addEventListener("change", () => setColourMode(select.value));
+
+  function setLayerVisible(name, on) {
+    const mesh = meshes.get(name);
+    if (!mesh) throw new Error(`no layer ${name}`);
+    mesh.visible = on;
+    const box = list.querySelector(`input[data-layer="${name}"]`);
+    if (box) box.checked = on;
+    if (highlight && highlight.userData.layer === name) highlight.visible = on;
+    redraw();
+  }
+
+  function setColourMode(mode) {
+    const legend = $("#legend");
+    legend.replaceChildren();
+    let shown = null;
+    // buildings decide the legend; other layers with the column are coloured alike
+    const order = [...meshes.values()].sort((a, b) => (b.userData.layer.kind === "solid") - (a.userData.layer.kind === "solid"));
+    for (const mesh of order) {
+      const layer = mesh.userData.layer;
+      const geometry = mesh.geometry;
+      const result = mode === "layer" ? null : featureColours(layer, mode);
+      if (!result) {
+        mesh.material.vertexColors = false;
+        mesh.material.color.copy(mesh.userData.colour);
+      } else {
+        const colours = result.colours;
+        const n = layer.vertices;
+        const v = new Uint8Array(3 * n);
+        const f = layer.feature;
+        for (let i = 0; i < n; i++) {
+          const j = 3 * f[i];
+          v[3 * i] = colours[j];
+          v[3 * i + 1] = colours[j + 1];
+          v[3 * i + 2] = colours[j + 2];
+        }
+        const attr = new THREE.BufferAttribute(v, 3, true);
+        attr.colorSpace = THREE.SRGBColorSpace;
+        geometry.setAttribute("color", attr);
+        mesh.material.vertexColors = true;
+        mesh.material.color.set(0xffffff);
+        if (!shown) shown = { layer: layer.name, ...result.legend };
+      }
+      mesh.material.needsUpdate = true;
+    }
+    if (shown && shown.kind === "ramp") {
+      legend.append(
+        el("div", {}, `${shown.layer}: ${shown.column}`),
+        el("div", { class: "ramp", style: `background: ${rampCss()}` }),
+        el("div", { class: "ends" }, el("span", {}, fmt(shown.lo) + (shown.unit ? ` ${shown.unit}` : "")), el("span", {}, fmt(shown.hi) + (shown.unit ? ` ${shown.unit}` : ""))),
+      );
+    } else if (shown) {
+      legend.append(el("div", {}, `${shown.layer}: ${shown.column}`));
+      for (const item of shown.items)
+        legend.append(el("div", { class: "item" }, el("span", { class: "swatch", style: `background: rgb(${item.colour.join(",")})` }), ` ${item.label}`));
+    }
+    select.value = mode;
+    redraw();
+  }
+
+  function rowsOf(layer, row) {
+    const rows = [];
+    for (const [name, col] of Object.entries(layer.columns)) rows.push([name, col.get(row)]);
+    return rows;
+  }
+
+  function select_(hit) {
+    if (highlight) {
+      scene.remove(highlight);
+      highlight.geometry.dispose();
+      highlight = null;
+    }
+    selected = hit;
+    const info = $("#info");
+    info.replaceChildren();
+    if (!hit) {
+      info.append(el("p", { class: "hint" }, "Click a building or a lot to see its attributes."));
+      redraw();
+      return;
+    }
+    const layer = view.layers.find((l) => l.name === hit.layer);
+    const idCol = layer.columns.id;
+    const id = idCol ? idCol.get(hit.row) : hit.row;
+    info.append(el("h3", { id: "picked", "data-layer": hit.layer, "data-id": String(id) }, `${hit.layer} ${fmt(id)}`));
+    const table = el("table");
+    for (const [k, v] of rowsOf(layer, hit.row)) table.append(el("tr", {}, el("th", {}, k), el("td", {}, fmt(v))));
+    info.append(table);
+    highlight = picker.highlightMesh(meshes.get(hit.layer), hit.row);
+    highlight.userData.layer = hit.layer;
+    scene.add(highlight);
+    redraw();
+  }
+
+  function pickAt(x, y) {
+    const hit = picker.pick(x, y, renderer.domElement.clientWidth, renderer.domElement.clientHeight);
+    select_(hit);
+    return hit ? { layer: hit.layer, row: hit.row, id: view.layers.find((l) => l.name === hit.layer).columns.id?.get(hit.row) ?? hit.row } : null;
+  }
+
+  let down = null;
+  renderer.domElement.addEventListener("pointerdown", (e) => {
+    down = e.button === 0 ? [e.clientX, e.clientY] : null;
+  });
+  renderer.domElement.addEventListener("pointerup", (e) => {
+    if (!down || Math.hypot(e.clientX - down[0], e.clientY - down[1]) > 4) return;
+    const r = renderer.domElement.getBoundingClientRect();
+    pickAt(e.clientX - r.left, e.clientY - r.top);
+  });
+
+  // -- a feature's place, for focusing on it ---------------------------------------------------------------------
+  function featureBox(name, row) {
+    const layer = view.layers.find((l) => l.name === name);
+    const box = new THREE.Box3();
+    const p = layer.position;
+    const f = layer.feature;
+    const v = new THREE.Vector3();
+    for (let i = 0; i < layer.vertices; i++) if (f[i] === row) box.expandByPoint(v.set(p[3 * i], p[3 * i + 1], p[3 * i + 2]));
+    return box;
+  }
+
+  function rowOf(name, id) {
+    const layer = view.layers.find((l) => l.name === name);
+    const col = layer.columns.id;
+    if (!col) return id;
+    for (let i = 0; i < layer.features; i++) if (col.get(i) === id) return i;
+    return -1;
+  }
+
+  // Look straight down on a feature from `distance` m above its top; return where it is on the screen.
+  function focus(name, id, distance = 120) {
+    const row = rowOf(name, id);
+    if (row < 0) throw new Error(`no ${name} ${id}`);
+    const box = featureBox(name, row);
+    const c = box.getCenter(new THREE.Vector3());
+    controls.target.set(c.x, box.max.y, c.z);
+    camera.position.set(c.x, box.max.y + distance, c.z + distance * 0.001);
+    controls.update();
+    render();
+    needsRender = false;
+    return { x: renderer.domElement.clientWidth / 2, y: renderer.domElement.clientHeight / 2 };
+  }
+
+  // Frames per second while orbiting: the camera circles the city and every frame is drawn.
+  function measureFps(seconds = 5) {
+    return new Promise((resolve) => {
+      let frames = 0;
+      const t0 = performance.now();
+      const radius = Math.hypot(camera.position.x - controls.target.x, camera.position.z - controls.target.z);
+      const height = camera.position.y;
+      measuring = true;
+      function tick(now) {
+        const t = (now - t0) / 1000;
+        const a = t * 0.6;
+        camera.position.set(controls.target.x + radius * Math.sin(a), height, controls.target.z + radius * Math.cos(a));
+        camera.lookAt(controls.target);
+        render();
+        frames++;
+        if (t < seconds) requestAnimationFrame(tick);
+        else {
+          measuring = false;
+          controls.update();
+          resolve({ frames, seconds: t, fps: frames / t });
+        }
+      }
+      requestAnimationFrame(tick);
+    });
+  }
+
+  let measuring = false;
+  function loop() {
+    if (needsRender && !measuring) {
+      render();
+      needsRender = false;
+    }
+    requestAnimationFrame(loop);
+  }
+
+  $("#home").addEventListener("click", home);
+  if (view.attribution) $("#attribution").textContent = view.attribution;
+  if (view.plan) {
+    const img = $("#plan img");
+    img.addEventListener("load", () => ($("#plan").hidden = false));
+    img.src = view.plan;
+  }
+
+  resize();
+  home();
+  setColourMode(select.querySelector('option[value="height"]') ? "height" : "layer");
+  select_(null);
+  render();
+  needsRender = false;
+  loop();
+
+  window.sengineViewer = {
+    ready: true,
+    layers: view.layers.map((l) => l.name),
+    setLayerVisible,
+    setColourMode,
+    pickAt,
+    focus,
+    home,
+    measureFps,
+    render: () => render(),
+    selected: () => selected,
+    triangles: view.layers.reduce((s, l) => s + l.triangles, 0),
+  };
+  document.body.dataset.ready = "1";
+}
+
+try {
+  start();
+} catch (err) {
+  const box = document.querySelector("#error");
+  if (box) {
+    box.hidden = false;
+    box.textContent = `The viewer could not start: ${err.message}`;
+  }
+  document.body.dataset.ready = "error";
+  throw err;
+}
