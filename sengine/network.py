@@ -508,7 +508,7 @@ def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> di
     if workers <= 1 or not node.maps_features or layer is None or len(layer) < 2 * MIN_CHUNK:
         return node.run(**kwargs) or {}
     t = time.perf_counter()
-    _progress.expect(len(layer), "features")
+    _progress.expect(len(layer), first)  # counted in the input's features: "blocks", "lots" ...
     parts = [_call_run(node, {**kwargs, first: layer.take(np.arange(MIN_CHUNK))}, MIN_CHUNK)]
     rest = len(layer) - MIN_CHUNK
     if (time.perf_counter() - t) * rest / MIN_CHUNK < FORK_AFTER:

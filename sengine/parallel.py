@@ -105,8 +105,8 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
         if done is None:  # interrupted here: the workers stop after their current job
             with taken.get_lock():
                 taken.value = len(jobs)
-        for pid, pipe in children:
-            data = pipe.read()
+        received = _receive([pipe for _, pipe in children])
+        for (pid, pipe), data in zip(children, received):
             pipe.close()
             _, status = os.waitpid(pid, 0)
             if done is not None and status == 0 and data:
@@ -120,6 +120,30 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
     if not all(finished):
         raise RuntimeError(f"a worker process died before finishing job {finished.index(False)}")
     return results
+
+
+def _receive(pipes: list) -> list[bytes]:
+    """Everything each worker sends, read side by side; while waiting, the running step's count is reported
+    (:func:`sengine.progress.poll`: what the workers have done so far)."""
+    import selectors
+
+    from .progress import poll
+
+    data = [bytearray() for _ in pipes]
+    with selectors.DefaultSelector() as sel:
+        for k, pipe in enumerate(pipes):
+            sel.register(pipe.fileno(), selectors.EVENT_READ, k)
+        open_ = len(pipes)
+        while open_:
+            for key, _ in sel.select(timeout=0.2):
+                chunk = os.read(key.fd, 1 << 20)
+                if chunk:
+                    data[key.data] += chunk
+                else:  # the worker is done
+                    sel.unregister(key.fd)
+                    open_ -= 1
+            poll()
+    return [bytes(d) for d in data]
 
 
 def _take_jobs(jobs: Sequence[Callable[[], Any]], taken, first: int | None = None) -> list[tuple[int, bool, Any]]:

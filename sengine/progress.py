@@ -26,6 +26,7 @@ the run's own process reports them, at most every :data:`INTERVAL` seconds
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -230,14 +231,19 @@ class TerminalProgress(Progress):
         from tqdm import tqdm
 
         self._close_bar()
+        sized = min(self._size()) > 0
         self._bar = tqdm(
             total=None,
             desc=f"[{i}/{n}] {node_id} ({type_})",
             file=self.file,
             leave=False,
-            dynamic_ncols=True,
+            # a terminal that tells no size (a bare pty, some CI consoles) is taken as 100 x 24
+            dynamic_ncols=sized,
+            ncols=None if sized else 100,
+            nrows=None if sized else 24,
             unit_scale=True,
-            mininterval=INTERVAL,
+            mininterval=0,  # counts come at most every INTERVAL s already: show each
+            miniters=0,
             bar_format="{desc}: running {elapsed}",
         )
 
@@ -254,17 +260,23 @@ class TerminalProgress(Progress):
                 else "{desc}: {n_fmt}{unit} [{elapsed}, {rate_fmt}]"
             )
         bar.update(done - bar.n)
-        bar.refresh()
 
     def finish(self, i: int, n: int, node_id: str, type_: str, count: int, seconds: float) -> None:
         from tqdm import tqdm
 
         self._close_bar()
-        tqdm.write(f"[{i}/{n}] {node_id} ({type_}): {count:,} features, {seconds:.2f} s", file=self.file)
+        what = f"{count:,} features" if count else "done"
+        tqdm.write(f"[{i}/{n}] {node_id} ({type_}): {what}, {seconds:.2f} s", file=self.file)
 
     def close(self) -> None:
         self._close_bar()
         self.file.flush()
+
+    def _size(self) -> tuple[int, int]:
+        try:
+            return tuple(os.get_terminal_size(self.file.fileno()))
+        except (AttributeError, OSError, ValueError):
+            return (0, 0)
 
     def _close_bar(self) -> None:
         if self._bar is not None:

@@ -40,7 +40,7 @@ export function rampCss(steps = 8) {
 export const MODES = {
   height: { label: "height", columns: ["height"], numeric: true, unit: "m" },
   use: { label: "use", columns: ["use", "landuse", "district_name", "district"], numeric: false },
-  far: { label: "FAR", columns: ["far"], numeric: true, unit: "" },
+  far: { label: "FAR", columns: ["far", "lot_far"], numeric: true, unit: "" },
 };
 
 function quantile(sorted, q) {

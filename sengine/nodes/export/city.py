@@ -54,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from sengine import CityPlan, Layer, Param, Port, SENode, register
+from sengine import CityPlan, Layer, Param, Port, SENode, progress, register
 from sengine.errors import ParameterError
 from sengine.geom.crs import from_lonlat, is_geographic, layer_crs, output_crs, reproject, to_lonlat
 from sengine.parallel import run_jobs
@@ -360,7 +360,12 @@ def export_layers(
                 ),
             )
         )
-    done = run_jobs([partial(_timed, write) for _, _, write in jobs], workers)
+    # progress: every job counts the features it writes, the chunked writers chunk by chunk
+    weights = [_weight(layers, fmt, name) for fmt, name, _ in jobs]
+    progress.expect(sum(weights), "features")
+    done = run_jobs(
+        [partial(_timed, write, 0 if fmt in _CHUNKED else w) for (fmt, _, write), w in zip(jobs, weights)], workers
+    )
     report: dict = {fmt: {} for fmt in FORMATS if any(f == fmt for f, _, _ in jobs)}
     seconds = dict.fromkeys(report, 0.0)
     for (fmt, name, _), (result, dt) in zip(jobs, done, strict=True):
@@ -390,9 +395,25 @@ def _from_osm(layers: dict[str, Layer], plan) -> bool:
     return "osm" in getattr(plan, "maps", {})
 
 
-def _timed(write: Callable[[], Any]) -> tuple[Any, float]:
+#: Writers that count their features chunk by chunk (:func:`sengine.progress.advance`); the others when done.
+_CHUNKED = frozenset({"geojson", "gpkg", "parquet"})
+
+
+def _weight(layers: dict[str, Layer], fmt: str, name: str | None) -> int:
+    """The features a job writes: its layer's, the roads' (OSM), the buildings' (CityJSON), else every layer's."""
+    if name is not None:
+        return len(layers[name])
+    if fmt in ("osm", "cityjson"):
+        return len(layers["roads" if fmt == "osm" else "buildings"])
+    return sum(len(v) for v in layers.values())
+
+
+def _timed(write: Callable[[], Any], count: int = 0) -> tuple[Any, float]:
+    """Run a writer; return its result and seconds; count ``count`` features done."""
     t = time.perf_counter()
-    return write(), time.perf_counter() - t
+    result = write()
+    progress.advance(count)
+    return result, time.perf_counter() - t
 
 
 def _outside(layers: dict[str, Layer], extent) -> bool:
