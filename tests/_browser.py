@@ -75,7 +75,7 @@ def open_page(ctx, url: str, timeout: float = 180.0):
     page = ctx.new_page()
     page.errors = []
     page.on("pageerror", lambda e: page.errors.append(str(e)))
-    page.goto(url)
+    page.goto(url, wait_until="commit", timeout=timeout * 1000)
     page.wait_for_function("document.body.dataset.ready", timeout=timeout * 1000)
     state = page.evaluate("document.body.dataset.ready")
     if state != "1":

@@ -100,6 +100,18 @@ def test_view_data_holds_every_feature(city, request):
         assert np.isfinite(lay["position_"]).all()
         if lay["kind"] != "line":  # a line feature shorter than a ribbon's segment may have none
             assert len(np.unique(tri_rows[:, 0])) == n, f"{lay['name']}: a feature without triangles"
+        # tiles: contiguous runs of the triangles, upward faces first, each inside its bounds
+        tiles = np.array(lay["tiles"], float)
+        assert tiles[0, 0] == 0 and (tiles[1:, 0] == tiles[:-1, 0] + tiles[:-1, 2]).all()
+        assert tiles[:, 2].sum() == lay["triangles"] and (tiles[:, 1] <= tiles[:, 2]).all()
+        pos = lay["position_"].astype(float)
+        for first, up, count, *b in tiles.tolist():
+            tri = pos[lay["index_"][int(first) : int(first + count)]]
+            assert (tri.min(axis=(0, 1)) >= np.array(b[:3]) - 0.01).all()
+            assert (tri.max(axis=(0, 1)) <= np.array(b[3:]) + 0.01).all()
+            n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            upward = np.abs(n[:, 1]) >= 0.5 * np.linalg.norm(n, axis=1)
+            assert upward[: int(up)].all() and not upward[int(up) :].any()
         ids = lay["columns_"]["id"]
         assert [f["id"] for f in feats] == ids.tolist()
     b = next(lay for lay in doc["layers"] if lay["name"] == "buildings")

@@ -16,8 +16,9 @@ the page around an existing ``city.view.js`` and serves the folder.
 The view format (version 1) is a JSON object whose ``bin`` member is the
 base64 of every array, each at an 8-byte aligned offset named in the
 object: per layer float32 positions (x east, y up, z south, metres around the
-city's origin, as in the glb), uint32 triangle indices and a float32 row per
-vertex (exact up to 16.7 million features), and its columns: ``float``
+city's origin, as in the glb), uint32 triangle indices in tiles
+(:func:`tiles`) and a float32 row per vertex (exact up to 16.7 million
+features), a typical feature's size (``scale``, m), and its columns: ``float``
 (float64, NaN for null), ``int`` (int32), ``bool`` (uint8, 2 for null) or
 ``text`` (codes of 1, 2 or 4 bytes into a list of values).
 """
@@ -39,7 +40,7 @@ import numpy as np
 
 from ..errors import ParameterError
 
-__all__ = ["ASSETS", "DATA_FILE", "PAGE_FILES", "ViewLayer", "view_text", "write_view", "write_page", "serve"]
+__all__ = ["ASSETS", "DATA_FILE", "PAGE_FILES", "ViewLayer", "tiles", "view_text", "write_view", "write_page", "serve"]
 
 log = logging.getLogger(__name__)
 
@@ -74,6 +75,10 @@ class ViewLayer:
         Attribute columns, one value per feature (``id`` first by custom).
     features : int
         Number of features (rows of the columns).
+    scale : float, optional
+        A typical feature's size (m) that decides when the page leaves its
+        detail out (:func:`tiles`); None: the median height of a solid's
+        features, the square root of a surface's median feature area.
     """
 
     name: str
@@ -84,6 +89,7 @@ class ViewLayer:
     feature: np.ndarray
     columns: dict[str, np.ndarray] = field(default_factory=dict)
     features: int = 0
+    scale: float | None = None
 
 
 class _Blob:
@@ -103,6 +109,76 @@ class _Blob:
 
     def base64(self) -> str:
         return base64.b64encode(b"".join(self.parts)).decode("ascii")
+
+
+#: Triangles per tile the page aims at: tiles out of view are not drawn, far ones lose their detail.
+TILE_TRIANGLES = 20_000
+
+
+def tiles(position: np.ndarray, index: np.ndarray, feature: np.ndarray, *, per_tile: int = TILE_TRIANGLES):
+    """Order triangles by tile for the page: ``(index, tiles)``.
+
+    Features go to the cell of a square grid (about ``per_tile`` triangles a
+    cell) that holds the centre of their vertices; a tile's triangles are
+    its features', the upward-facing ones (roofs, caps, surfaces) first and
+    the walls after, so that the page draws a far tile's roofs alone with one
+    shorter draw range.  ``tiles`` rows are ``[first triangle, upward
+    triangles, triangles, xmin, ymin, zmin, xmax, ymax, zmax]``.
+    """
+    t = len(index)
+    if t == 0:
+        return index, []
+    pos = np.asarray(position, np.float64)
+    feat = np.asarray(feature, np.int64)
+    n = int(feat.max()) + 1
+    counts = np.maximum(np.bincount(feat, minlength=n), 1)
+    cx = np.bincount(feat, pos[:, 0], minlength=n) / counts
+    cz = np.bincount(feat, pos[:, 2], minlength=n) / counts
+    k = int(np.clip(np.ceil(np.sqrt(t / per_tile)), 1, 32))
+    x0, x1, z0, z1 = pos[:, 0].min(), pos[:, 0].max(), pos[:, 2].min(), pos[:, 2].max()
+    gx = np.clip(((cx - x0) / max(x1 - x0, 1e-9) * k).astype(np.int64), 0, k - 1)
+    gz = np.clip(((cz - z0) / max(z1 - z0, 1e-9) * k).astype(np.int64), 0, k - 1)
+    tri_tile = (gz * k + gx)[feat[index[:, 0]]]
+    a, b, c = pos[index[:, 0]], pos[index[:, 1]], pos[index[:, 2]]
+    normal = np.cross(b - a, c - a)
+    length = np.linalg.norm(normal, axis=1)
+    wall = np.abs(normal[:, 1]) < 0.5 * np.maximum(length, 1e-12)
+    order = np.lexsort((wall, tri_tile))
+    index = index[order]
+    tri_tile, wall = tri_tile[order], wall[order]
+    starts = np.flatnonzero(np.r_[True, tri_tile[1:] != tri_tile[:-1]])
+    ends = np.r_[starts[1:], t]
+    corners = pos[index.reshape(-1)].reshape(-1, 3, 3)
+    lo = np.minimum.reduceat(corners.min(axis=1), starts)
+    hi = np.maximum.reduceat(corners.max(axis=1), starts)
+    up = np.add.reduceat(~wall, starts)
+    rows = [
+        [int(s), int(u), int(e - s), *(round(float(v), 2) for v in (*lo_, *hi_))]
+        for s, e, u, lo_, hi_ in zip(starts, ends, up, lo, hi)
+    ]
+    return index, rows
+
+
+def _scale(lay: ViewLayer, pos: np.ndarray, idx: np.ndarray, feat: np.ndarray) -> float:
+    """A typical feature's size (m): see :class:`ViewLayer`."""
+    if lay.scale is not None:
+        return float(lay.scale)
+    if len(idx) == 0:
+        return 0.0
+    rows = feat.astype(np.int64)
+    if lay.kind == "solid":
+        n = int(rows.max()) + 1
+        top = np.full(n, -np.inf)
+        bottom = np.full(n, np.inf)
+        np.maximum.at(top, rows, pos[:, 1])
+        np.minimum.at(bottom, rows, pos[:, 1])
+        ok = np.isfinite(top)
+        return float(np.median(top[ok] - bottom[ok]))
+    p = pos.astype(np.float64)
+    a, b, c = p[idx[:, 0]], p[idx[:, 1]], p[idx[:, 2]]
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    per = np.bincount(rows[idx[:, 0]], area)
+    return float(np.sqrt(np.median(per[per > 0]))) if (per > 0).any() else 0.0
 
 
 def _column(blob: _Blob, name: str, values: np.ndarray) -> dict:
@@ -176,6 +252,7 @@ def view_text(
             raise ValueError(f"layer {lay.name}: {len(pos)} vertices but {len(feat)} feature rows")
         if len(pos):
             lo, hi = np.minimum(lo, pos.min(axis=0)), np.maximum(hi, pos.max(axis=0))
+        idx, tile_rows = tiles(pos, idx, feat)
         entry = {
             "name": lay.name,
             "colour": [int(c) for c in lay.colour],
@@ -184,8 +261,10 @@ def view_text(
             "triangles": len(idx),
             "features": int(lay.features),
             "position": blob.add(pos.astype("<f4")),
-            "index": blob.add(idx),
+            "index": blob.add(np.ascontiguousarray(idx, "<u4")),
             "feature": blob.add(feat),
+            "tiles": tile_rows,
+            "scale": round(_scale(lay, pos, idx, feat), 3),
             "columns": [],
         }
         for key, values in lay.columns.items():

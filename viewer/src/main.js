@@ -7,6 +7,11 @@ import { readView } from "./data.js";
 import { createPicker } from "./pick.js";
 
 const $ = (sel) => document.querySelector(sel);
+// sRGB 0-255 to linear 0-255 (the sRGB transfer function)
+const LINEAR = Uint8Array.from({ length: 256 }, (_, c) => {
+  const x = c / 255;
+  return Math.round(255 * (x <= 0.04045 ? x / 12.92 : ((x + 0.055) / 1.055) ** 2.4));
+});
 
 function el(tag, attrs = {}, ...children) {
   const e = document.createElement(tag);
@@ -28,10 +33,24 @@ function fmt(v) {
   return String(v);
 }
 
+function isSoftware() {
+  try {
+    const gl = document.createElement("canvas").getContext("webgl2");
+    const ext = gl && gl.getExtension("WEBGL_debug_renderer_info");
+    const name = gl ? String(gl.getParameter(ext ? ext.UNMASKED_RENDERER_WEBGL : gl.RENDERER)) : "";
+    gl?.getExtension("WEBGL_lose_context")?.loseContext();
+    return /swiftshader|llvmpipe|softpipe|software/i.test(name);
+  } catch {
+    return false;
+  }
+}
+
 function start() {
   const view = readView(window.SENGINE_VIEW);
   const host = $("#view");
-  const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+  // a software rasteriser draws without multisampling (it costs it 2.5 times the time of a frame)
+  const software = isSoftware();
+  const renderer = new THREE.WebGLRenderer({ antialias: !software, preserveDrawingBuffer: true });
   renderer.setPixelRatio(Math.min(window.devicePixelRatio || 1, 2));
   renderer.setClearColor(0xf4f3ef);
   host.append(renderer.domElement);
@@ -73,14 +92,14 @@ function start() {
     redraw();
   }
 
-  // one mesh per layer, in drawing order; flat layers drawn later are pulled forward so they do not z-fight
+  // each layer: one material, its arrays uploaded once, and a mesh per tile (a draw range of its triangles) so that
+  // tiles out of view are skipped and far ones lose their detail; flat layers drawn later are pulled forward
   const meshes = new Map();
+  const tileMeshes = [];
   view.layers.forEach((layer, k) => {
-    const geometry = new THREE.BufferGeometry();
-    geometry.setAttribute("position", new THREE.BufferAttribute(layer.position, 3));
-    geometry.setAttribute("fid", new THREE.BufferAttribute(layer.feature, 1));
-    geometry.setIndex(new THREE.BufferAttribute(layer.index, 1));
-    geometry.computeBoundingSphere();
+    const position = new THREE.BufferAttribute(layer.position, 3);
+    const fid = new THREE.BufferAttribute(layer.feature, 1);
+    const index = new THREE.BufferAttribute(layer.index, 1);
     const solid = layer.kind === "solid";
     const colour = new THREE.Color().setRGB(...layer.colour.map((c) => c / 255), THREE.SRGBColorSpace);
     const material = new THREE.MeshLambertMaterial({
@@ -91,17 +110,48 @@ function start() {
       polygonOffsetFactor: solid ? 0 : -(k + 1),
       polygonOffsetUnits: solid ? 0 : -4 * (k + 1),
     });
-    const mesh = new THREE.Mesh(geometry, material);
-    mesh.name = layer.name;
-    mesh.userData.layer = layer;
-    mesh.userData.colour = colour;
-    mesh.userData.index = k + 1; // 0 is nothing in the pick buffer
-    mesh.frustumCulled = false;
-    scene.add(mesh);
-    meshes.set(layer.name, mesh);
+    const group = new THREE.Group();
+    group.name = layer.name;
+    const entry = { layer, group, material, colour, position, index, tiles: [], pickIndex: k + 1 };
+    for (const [first, up, count, tx0, ty0, tz0, tx1, ty1, tz1] of layer.tiles) {
+      const geometry = new THREE.BufferGeometry();
+      geometry.setAttribute("position", position);
+      geometry.setAttribute("fid", fid);
+      geometry.setIndex(index);
+      geometry.setDrawRange(3 * first, 3 * count);
+      geometry.boundingBox = new THREE.Box3(new THREE.Vector3(tx0, ty0, tz0), new THREE.Vector3(tx1, ty1, tz1));
+      geometry.boundingSphere = geometry.boundingBox.getBoundingSphere(new THREE.Sphere());
+      const mesh = new THREE.Mesh(geometry, material);
+      mesh.name = layer.name;
+      mesh.userData = { first, up, count, index: k + 1, entry };
+      mesh.matrixAutoUpdate = false;
+      group.add(mesh);
+      entry.tiles.push(mesh);
+      tileMeshes.push(mesh);
+    }
+    scene.add(group);
+    meshes.set(layer.name, entry);
   });
 
-  const picker = createPicker(renderer, scene, camera, [...meshes.values()]);
+  // Detail by distance: a tile whose layer's typical feature would be under a few pixels is not drawn (lots, ribbons
+  // seen from afar) or keeps only its upward faces (buildings' roofs without walls).
+  function levelOfDetail() {
+    const h = renderer.domElement.clientHeight || 1;
+    const k = h / (2 * Math.tan(THREE.MathUtils.degToRad(camera.fov) / 2));
+    for (const mesh of tileMeshes) {
+      const { first, up, count, entry } = mesh.userData;
+      const d = Math.max(mesh.geometry.boundingBox.distanceToPoint(camera.position), 1);
+      const px = (entry.layer.scale * k) / d;
+      if (entry.layer.kind === "solid") {
+        mesh.visible = true;
+        mesh.geometry.setDrawRange(3 * first, 3 * (px >= 3 ? count : up));
+      } else {
+        mesh.visible = !(entry.layer.scale > 0) || px >= 2;
+      }
+    }
+  }
+
+  const picker = createPicker(renderer, scene, camera, tileMeshes);
   let highlight = null;
   let selected = null;
 
@@ -109,14 +159,34 @@ function start() {
   function redraw() {
     needsRender = true;
   }
+  // On a software rasteriser (SwiftShader, llvmpipe) or when a frame takes long, frames drawn while the camera moves
+  // are drawn at half resolution; the frame once it rests at full resolution.
+  const fullRatio = renderer.getPixelRatio();
+  let slow = software;
+  let moving = false;
+  let restTimer = 0;
   function render() {
     const d = camera.position.distanceTo(controls.target);
     camera.near = Math.max(0.2, d / 400);
     camera.far = Math.max(4 * d, 3 * span) + d;
     camera.updateProjectionMatrix();
+    const ratio = moving && slow ? fullRatio / 2 : fullRatio;
+    if (renderer.getPixelRatio() !== ratio) renderer.setPixelRatio(ratio);
+    levelOfDetail();
+    const t = performance.now();
     renderer.render(scene, camera);
+    if (!moving) slow = software || performance.now() - t > 40;
   }
-  controls.addEventListener("change", redraw);
+  function moved() {
+    moving = true;
+    clearTimeout(restTimer);
+    restTimer = setTimeout(() => {
+      moving = false;
+      redraw();
+    }, 250);
+    redraw();
+  }
+  controls.addEventListener("change", moved);
 
   function resize() {
     const w = host.clientWidth;
@@ -150,9 +220,9 @@ function start() {
   select.addEventListener("change", () => setColourMode(select.value));
 
   function setLayerVisible(name, on) {
-    const mesh = meshes.get(name);
-    if (!mesh) throw new Error(`no layer ${name}`);
-    mesh.visible = on;
+    const entry = meshes.get(name);
+    if (!entry) throw new Error(`no layer ${name}`);
+    entry.group.visible = on;
     const box = list.querySelector(`input[data-layer="${name}"]`);
     if (box) box.checked = on;
     if (highlight && highlight.userData.layer === name) highlight.visible = on;
@@ -164,16 +234,15 @@ function start() {
     legend.replaceChildren();
     let shown = null;
     // buildings decide the legend; other layers with the column are coloured alike
-    const order = [...meshes.values()].sort((a, b) => (b.userData.layer.kind === "solid") - (a.userData.layer.kind === "solid"));
-    for (const mesh of order) {
-      const layer = mesh.userData.layer;
-      const geometry = mesh.geometry;
+    const order = [...meshes.values()].sort((a, b) => (b.layer.kind === "solid") - (a.layer.kind === "solid"));
+    for (const entry of order) {
+      const layer = entry.layer;
       const result = mode === "layer" ? null : featureColours(layer, mode);
       if (!result) {
-        mesh.material.vertexColors = false;
-        mesh.material.color.copy(mesh.userData.colour);
+        entry.material.vertexColors = false;
+        entry.material.color.copy(entry.colour);
       } else {
-        const colours = result.colours;
+        const colours = result.colours.map((c) => LINEAR[c]); // vertex colours are linear in three.js
         const n = layer.vertices;
         const v = new Uint8Array(3 * n);
         const f = layer.feature;
@@ -184,13 +253,12 @@ function start() {
           v[3 * i + 2] = colours[j + 2];
         }
         const attr = new THREE.BufferAttribute(v, 3, true);
-        attr.colorSpace = THREE.SRGBColorSpace;
-        geometry.setAttribute("color", attr);
-        mesh.material.vertexColors = true;
-        mesh.material.color.set(0xffffff);
+        for (const mesh of entry.tiles) mesh.geometry.setAttribute("color", attr);
+        entry.material.vertexColors = true;
+        entry.material.color.set(0xffffff);
         if (!shown) shown = { layer: layer.name, ...result.legend };
       }
-      mesh.material.needsUpdate = true;
+      entry.material.needsUpdate = true;
     }
     if (shown && shown.kind === "ramp") {
       legend.append(
@@ -235,6 +303,7 @@ function start() {
     for (const [k, v] of rowsOf(layer, hit.row)) table.append(el("tr", {}, el("th", {}, k), el("td", {}, fmt(v))));
     info.append(table);
     highlight = picker.highlightMesh(meshes.get(hit.layer), hit.row);
+    highlight.visible = meshes.get(hit.layer).group.visible;
     highlight.userData.layer = hit.layer;
     scene.add(highlight);
     redraw();
@@ -302,6 +371,7 @@ function start() {
         const a = t * 0.6;
         camera.position.set(controls.target.x + radius * Math.sin(a), height, controls.target.z + radius * Math.cos(a));
         camera.lookAt(controls.target);
+        moving = t < seconds;
         render();
         frames++;
         if (t < seconds) requestAnimationFrame(tick);

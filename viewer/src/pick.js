@@ -23,20 +23,24 @@ export function createPicker(renderer, scene, camera, meshes) {
   const target = new THREE.WebGLRenderTarget(1, 1);
   const pixel = new Uint8Array(4);
   const pickMaterials = new Map();
+  const byLayer = new Map();
   for (const mesh of meshes) {
     const m = mesh.material;
-    pickMaterials.set(
-      mesh,
-      new THREE.ShaderMaterial({
-        vertexShader,
-        fragmentShader,
-        uniforms: { layerIndex: { value: mesh.userData.index } },
-        side: m.side,
-        polygonOffset: m.polygonOffset,
-        polygonOffsetFactor: m.polygonOffsetFactor,
-        polygonOffsetUnits: m.polygonOffsetUnits,
-      }),
-    );
+    if (!byLayer.has(m)) {
+      byLayer.set(
+        m,
+        new THREE.ShaderMaterial({
+          vertexShader,
+          fragmentShader,
+          uniforms: { layerIndex: { value: mesh.userData.index } },
+          side: m.side,
+          polygonOffset: m.polygonOffset,
+          polygonOffsetFactor: m.polygonOffsetFactor,
+          polygonOffsetUnits: m.polygonOffsetUnits,
+        }),
+      );
+    }
+    pickMaterials.set(mesh, byLayer.get(m));
   }
 
   // The feature under CSS pixel (x, y) of a w x h canvas: {layer, row}, or null.
@@ -72,16 +76,16 @@ export function createPicker(renderer, scene, camera, meshes) {
     return { layer: mesh.name, row: pixel[0] + 256 * pixel[1] + 65536 * pixel[2] };
   }
 
-  // A mesh over the triangles of one feature, drawn in the selection colour.
-  function highlightMesh(mesh, row) {
-    const index = mesh.geometry.index.array;
-    const feature = mesh.userData.layer.feature;
+  // A mesh over the triangles of one feature of a layer ({layer, position, material}), in the selection colour.
+  function highlightMesh(entry, row) {
+    const index = entry.layer.index;
+    const feature = entry.layer.feature;
     const picked = [];
     for (let t = 0; t < index.length; t += 3) {
       if (feature[index[t]] === row) picked.push(index[t], index[t + 1], index[t + 2]);
     }
     const geometry = new THREE.BufferGeometry();
-    geometry.setAttribute("position", mesh.geometry.getAttribute("position"));
+    geometry.setAttribute("position", entry.position);
     geometry.setIndex(picked);
     const material = new THREE.MeshBasicMaterial({
       color: 0x0099ff,
@@ -89,8 +93,8 @@ export function createPicker(renderer, scene, camera, meshes) {
       opacity: 0.6,
       side: THREE.DoubleSide,
       polygonOffset: true,
-      polygonOffsetFactor: (mesh.material.polygonOffsetFactor || 0) - 1,
-      polygonOffsetUnits: (mesh.material.polygonOffsetUnits || 0) - 4,
+      polygonOffsetFactor: (entry.material.polygonOffsetFactor || 0) - 1,
+      polygonOffsetUnits: (entry.material.polygonOffsetUnits || 0) - 4,
     });
     const h = new THREE.Mesh(geometry, material);
     h.frustumCulled = false;

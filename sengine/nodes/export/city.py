@@ -68,6 +68,7 @@ __all__ = [
     "FORMAT_HINTS",
     "ORIGINS",
     "check_formats",
+    "north_angle",
     "city_origin",
     "export_layers",
     "ExportCity",
@@ -220,6 +221,8 @@ def export_layers(
                     size=preview_size,
                     extent=extent,
                     attribution=attribution,
+                    title=preview.city_title(getattr(plan, "name", "") or ""),
+                    north=north_angle(any_crs, centre_ll),
                 ),
             )
         )
@@ -386,6 +389,19 @@ def export_layers(
     seconds["clean"] = t_clean
     report["seconds"] = seconds
     return report
+
+
+def north_angle(crs: str, lat_lon: tuple[float, float]) -> float:
+    """Where true north points at ``lat_lon`` in the planar frame ``crs``: degrees clockwise from grid north.
+
+    Zero on a frame's central meridian; in UTM the meridian convergence
+    (about 1.9 degrees at Liège, 2.5 degrees east of its zone's meridian).
+    """
+    lat, lon = lat_lon
+    lat = min(max(float(lat), -89.0), 89.0)
+    xy = from_lonlat(crs)(np.array([[lon, lat], [lon, lat + 1e-3]], float))
+    dx, dy = xy[1] - xy[0]
+    return float(np.degrees(np.arctan2(dx, dy))) if np.isfinite([dx, dy]).all() and (dx or dy) else 0.0
 
 
 def _from_osm(layers: dict[str, Layer], plan) -> bool:

@@ -16,7 +16,6 @@ module is where city layers meet it.
 from __future__ import annotations
 
 import logging
-import re
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -28,8 +27,9 @@ from sengine.viewer import ViewLayer, write_view
 
 from . import mesh
 from .gltf import _DEFAULT_COLOUR, COLOURS, LAYERS, LEVELS
+from .preview import city_title
 
-__all__ = ["view_layer", "view_layers", "write_html", "city_title"]
+__all__ = ["view_layer", "view_layers", "write_html"]
 
 log = logging.getLogger(__name__)
 
@@ -74,6 +74,7 @@ def view_layer(name: str, layer: Layer, *, offset=(0.0, 0.0), line_width: float 
         feature=feature,
         columns=columns,
         features=len(layer),
+        scale=line_width if kind == "line" else None,
     )
 
 
@@ -108,11 +109,6 @@ def view_layers(layers: Mapping[str, Layer], *, offset=(0.0, 0.0), line_width: f
         if len(view.index):
             out.append(view)
     return out
-
-
-def city_title(name: str) -> str:
-    """A city's name for a title: a file name loses its extensions (``liege_streets.osm.pbf`` -> ``liege_streets``)."""
-    return re.sub(r"(\.(osm|pbf|bz2|gz|xml|o5m))+$", "", str(name or "").strip(), flags=re.IGNORECASE) or "city"
 
 
 def write_html(
