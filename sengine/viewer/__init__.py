@@ -128,34 +128,45 @@ def tiles(position: np.ndarray, index: np.ndarray, feature: np.ndarray, *, per_t
     t = len(index)
     if t == 0:
         return index, []
-    pos = np.asarray(position, np.float64)
+    pos = np.asarray(position, np.float32)
     feat = np.asarray(feature, np.int64)
     n = int(feat.max()) + 1
     counts = np.maximum(np.bincount(feat, minlength=n), 1)
     cx = np.bincount(feat, pos[:, 0], minlength=n) / counts
     cz = np.bincount(feat, pos[:, 2], minlength=n) / counts
     k = int(np.clip(np.ceil(np.sqrt(t / per_tile)), 1, 32))
-    x0, x1, z0, z1 = pos[:, 0].min(), pos[:, 0].max(), pos[:, 2].min(), pos[:, 2].max()
+    x0, x1, z0, z1 = float(pos[:, 0].min()), float(pos[:, 0].max()), float(pos[:, 2].min()), float(pos[:, 2].max())
     gx = np.clip(((cx - x0) / max(x1 - x0, 1e-9) * k).astype(np.int64), 0, k - 1)
     gz = np.clip(((cz - z0) / max(z1 - z0, 1e-9) * k).astype(np.int64), 0, k - 1)
-    tri_tile = (gz * k + gx)[feat[index[:, 0]]]
-    a, b, c = pos[index[:, 0]], pos[index[:, 1]], pos[index[:, 2]]
-    normal = np.cross(b - a, c - a)
-    length = np.linalg.norm(normal, axis=1)
-    wall = np.abs(normal[:, 1]) < 0.5 * np.maximum(length, 1e-12)
-    order = np.lexsort((wall, tri_tile))
-    index = index[order]
-    tri_tile, wall = tri_tile[order], wall[order]
+    feature_tile = gz * k + gx
+    # a wall: a triangle whose normal is less than 60 degrees from horizontal
+    a = pos[index[:, 0]]
+    u = pos[index[:, 1]] - a
+    v = pos[index[:, 2]] - a
+    ny = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
+    nx = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
+    nz = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+    wall = ny * ny < 0.25 * (nx * nx + ny * ny + nz * nz)
+    key = feature_tile[feat[index[:, 0]]] * 2 + wall
+    order = np.argsort(key, kind="stable")
+    index, key = index[order], key[order]
+    tri_tile = key >> 1
     starts = np.flatnonzero(np.r_[True, tri_tile[1:] != tri_tile[:-1]])
     ends = np.r_[starts[1:], t]
-    corners = pos[index.reshape(-1)].reshape(-1, 3, 3)
-    lo = np.minimum.reduceat(corners.min(axis=1), starts)
-    hi = np.maximum.reduceat(corners.max(axis=1), starts)
-    up = np.add.reduceat(~wall, starts)
-    rows = [
-        [int(s), int(u), int(e - s), *(round(float(v), 2) for v in (*lo_, *hi_))]
-        for s, e, u, lo_, hi_ in zip(starts, ends, up, lo, hi)
-    ]
+    up = np.add.reduceat((key & 1) == 0, starts)
+    # bounds of each tile: of its features' vertices
+    vtile = feature_tile[feat]
+    vorder = np.argsort(vtile, kind="stable")
+    vt = vtile[vorder]
+    vstarts = np.flatnonzero(np.r_[True, vt[1:] != vt[:-1]])
+    p = pos[vorder]
+    lo = np.minimum.reduceat(p, vstarts, axis=0)
+    hi = np.maximum.reduceat(p, vstarts, axis=0)
+    where = {int(tile): j for j, tile in enumerate(vt[vstarts])}
+    rows = []
+    for s, e, u_, tile in zip(starts.tolist(), ends.tolist(), up.tolist(), tri_tile[starts].tolist()):
+        j = where[tile]
+        rows.append([s, u_, e - s, *(round(float(x), 2) for x in (*lo[j], *hi[j]))])
     return index, rows
 
 

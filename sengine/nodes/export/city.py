@@ -394,8 +394,9 @@ def export_layers(
 def north_angle(crs: str, lat_lon: tuple[float, float]) -> float:
     """Where true north points at ``lat_lon`` in the planar frame ``crs``: degrees clockwise from grid north.
 
-    Zero on a frame's central meridian; in UTM the meridian convergence
-    (about 1.9 degrees at Liège, 2.5 degrees east of its zone's meridian).
+    Zero on a frame's central meridian; in UTM the meridian convergence:
+    -2.0 degrees at Liège, 2.6 degrees east of its zone's meridian (true
+    north leans west there), +1.1 at Monaco, west of its own.
     """
     lat, lon = lat_lon
     lat = min(max(float(lat), -89.0), 89.0)
