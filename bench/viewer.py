@@ -62,11 +62,47 @@ def measure(out: Path, seconds: float) -> dict:
     }
 
 
+def screenshot(out: Path, path: Path, colour: str = "height", distance: float = 900.0) -> None:
+    """The page's 3D view on the city's tallest building, clicked, as a small palette PNG (for docs/)."""
+    import io
+
+    from PIL import Image
+
+    with browser(viewport=(1200, 820)) as ctx:
+        page = ctx.new_page()
+        page.goto((out / "index.html").resolve().as_uri(), wait_until="commit", timeout=600_000)
+        page.wait_for_function("document.body.dataset.ready", timeout=600_000)
+        page.select_option("#colour", colour)
+        if "buildings" in page.evaluate("window.sengineViewer.layers"):  # click the tallest building
+            at = page.evaluate(
+                """(d) => { const s = window.sengineViewer;
+                           const b = s.view.layers.find((l) => l.name === "buildings");
+                           let best = 0;
+                           for (let i = 1; i < b.features; i++)
+                             if (b.columns.height.get(i) > b.columns.height.get(best)) best = i;
+                           return s.focus("buildings", b.columns.id.get(best), d, 35); }""",
+                distance,
+            )
+            if at:
+                page.mouse.click(at["x"], at["y"])
+        page.wait_for_timeout(300)
+        png = page.locator("#stage").screenshot()
+    image = Image.open(io.BytesIO(png)).convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    image.save(path, optimize=True)
+    print(f"wrote {path} ({path.stat().st_size / 1e3:.0f} kB)", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("folders", nargs="+", type=Path)
     ap.add_argument("--seconds", type=float, default=8.0)
+    ap.add_argument("--screenshots", type=Path, help="also write DIR/viewer-<folder name>.png of each page")
     args = ap.parse_args()
+    if args.screenshots:
+        for out in args.folders:
+            screenshot(out, args.screenshots / f"viewer-{out.name}.png")
+        return
     rows = []
     for out in args.folders:
         row = measure(out, args.seconds)

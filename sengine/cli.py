@@ -68,7 +68,8 @@ def _run_options(p: argparse.ArgumentParser) -> None:
         "--format",
         dest="formats",
         default="",
-        help="comma list of outputs: glb,geojson,osm,png,obj,cityjson,gpkg,parquet,html (default: the exporter's)",
+        help="comma list of outputs: glb,geojson,osm,png,obj,cityjson,gpkg,parquet,html "
+        "(default: the exporter's, glb,geojson,osm,png,html for export.city)",
     )
     p.add_argument(
         "--crs",
@@ -131,7 +132,7 @@ def build_parser() -> argparse.ArgumentParser:
     _common(p)
 
     p = sub.add_parser("view", help="write OUT/index.html, the city in 3D in a browser (--serve: on localhost)")
-    p.add_argument("out", type=Path, help="an output folder of a run with --format html")
+    p.add_argument("out", type=Path, help="an output folder of a run that wrote html (a default format)")
     p.add_argument("--serve", action="store_true", help="serve the folder on 127.0.0.1 until Ctrl-C")
     p.add_argument("--port", type=_port, default=0, help="port for --serve (default: a free one)")
     _common(p)

@@ -39,7 +39,7 @@ export function rampCss(steps = 8) {
 // The colour modes: which column each names, in order of preference.
 export const MODES = {
   height: { label: "height", columns: ["height"], numeric: true, unit: "m" },
-  use: { label: "use", columns: ["use", "landuse", "district_name", "district"], numeric: false },
+  use: { label: "use", columns: ["use", "landuse", "building", "district_name", "district", "source"], numeric: false },
   far: { label: "FAR", columns: ["far", "lot_far"], numeric: true, unit: "" },
 };
 
@@ -49,12 +49,23 @@ function quantile(sorted, q) {
   return sorted[i];
 }
 
+function varies(col, n) {
+  const first = n ? col.get(0) : null;
+  for (let i = 1; i < n; i++) {
+    const v = col.get(i);
+    if (v !== first && !(Number.isNaN(v) && Number.isNaN(first))) return true;
+  }
+  return false;
+}
+
 // Per-feature colours (Uint8Array, 3 a feature) of `layer` in `mode`, and the legend; null if the layer lacks the column.
 export function featureColours(layer, mode) {
   const spec = MODES[mode];
   if (!spec) return null;
-  const col = spec.columns.map((c) => layer.columns[c]).find((c) => c);
-  if (!col) return null;
+  // the first of the mode's columns that tells features apart (two values or more), else the first there is
+  const present = spec.columns.map((c) => layer.columns[c]).filter((c) => c);
+  if (!present.length) return null;
+  const col = present.find((c) => varies(c, layer.features)) || present[0];
   const n = layer.features;
   const out = new Uint8Array(3 * n);
   if (spec.numeric && col.type !== "text") {

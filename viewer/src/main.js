@@ -344,18 +344,35 @@ function start() {
     return -1;
   }
 
-  // Look straight down on a feature from `distance` m above its top; return where it is on the screen.
-  function focus(name, id, distance = 120) {
+  // Look at a feature's top from `distance` m away, `elevation` degrees above the horizon (90: straight down, from
+  // the south-south-west otherwise); return where it is on the screen.
+  function focus(name, id, distance = 120, elevation = 90) {
     const row = rowOf(name, id);
     if (row < 0) throw new Error(`no ${name} ${id}`);
     const box = featureBox(name, row);
     const c = box.getCenter(new THREE.Vector3());
+    const up = THREE.MathUtils.degToRad(Math.min(elevation, 89.94));
+    const turn = THREE.MathUtils.degToRad(-20);
     controls.target.set(c.x, box.max.y, c.z);
-    camera.position.set(c.x, box.max.y + distance, c.z + distance * 0.001);
+    camera.position.set(
+      c.x + distance * Math.cos(up) * Math.sin(turn),
+      box.max.y + distance * Math.sin(up),
+      c.z + distance * Math.cos(up) * Math.cos(turn),
+    );
     controls.update();
     render();
     needsRender = false;
     return { x: renderer.domElement.clientWidth / 2, y: renderer.domElement.clientHeight / 2 };
+  }
+
+  // Where the top centre of a feature is on the canvas (CSS pixels), or null when off screen.
+  function screenOf(name, id) {
+    const row = rowOf(name, id);
+    if (row < 0) return null;
+    const b = featureBox(name, row);
+    const p = new THREE.Vector3((b.min.x + b.max.x) / 2, b.max.y, (b.min.z + b.max.z) / 2).project(camera);
+    if (Math.abs(p.x) > 1 || Math.abs(p.y) > 1 || p.z > 1) return null;
+    return { x: ((p.x + 1) / 2) * renderer.domElement.clientWidth, y: ((1 - p.y) / 2) * renderer.domElement.clientHeight };
   }
 
   // Frames per second while orbiting: the camera circles the city and every frame is drawn.
@@ -417,6 +434,8 @@ function start() {
     setColourMode,
     pickAt,
     focus,
+    screenOf,
+    view,
     home,
     measureFps,
     render: () => render(),

@@ -77,7 +77,8 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 FORMATS = ("glb", "geojson", "osm", "png", "obj", "cityjson", "gpkg", "parquet", "html")
-DEFAULT_FORMATS = frozenset({"glb", "geojson", "osm", "png"})
+# html: a city to look at in a browser with no other program (the page and its data, a few MB a city district)
+DEFAULT_FORMATS = frozenset({"glb", "geojson", "osm", "png", "html"})
 #: What to suggest for a format sengine does not write.
 FORMAT_HINTS = {
     "shp": "gpkg",
@@ -449,10 +450,10 @@ def _outside(layers: dict[str, Layer], extent) -> bool:
 
 @register
 class ExportCity(SENode):
-    """Write the city's layers: city.glb, <layer>.geojson, streets.osm, preview.png (and OBJ, CityJSON, GPKG, GeoParquet).
+    """Write the city's layers: city.glb, <layer>.geojson, streets.osm, preview.png, index.html (and OBJ, CityJSON, GPKG, GeoParquet).
 
     Formats come from ``--format`` (the run context); with none given the
-    defaults are glb, geojson, osm and png.  ``--crs`` and ``--origin``
+    defaults are glb, geojson, osm, png and html.  ``--crs`` and ``--origin``
     come as the context's ``options``.
     """
 

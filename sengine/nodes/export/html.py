@@ -64,6 +64,10 @@ def view_layer(name: str, layer: Layer, *, offset=(0.0, 0.0), line_width: float 
     v[:, :2] -= np.asarray(offset, np.float64)
     columns = {"id": np.asarray(layer.ids)}
     columns.update({k: np.asarray(c) for k, c in layer.attrs.items() if k != "id"})
+    for key in layer.meta.get("null_negative", ()):  # integer references where negative means none, as in GeoJSON
+        if key in columns and columns[key].dtype.kind in "iu":
+            col = columns[key]
+            columns[key] = np.where(col < 0, None, col.astype(object))
     kind = "solid" if solid else "line" if lines.any() and not polys.any() else "surface"
     return ViewLayer(
         name=name,
