@@ -28,12 +28,11 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import IO, Any
-
-from .parallel import in_worker
 
 __all__ = ["Progress", "TerminalProgress", "as_progress", "step", "expect", "advance", "poll", "INTERVAL"]
 
@@ -100,6 +99,7 @@ class _Step:
     def __init__(self, events: Progress, shared):
         self.events = events
         self.shared = shared
+        self.pid = os.getpid()  # the run's own process: the one that reports
         self.total: int | None = None
         self.unit = "features"
         self.reported = -1
@@ -109,8 +109,8 @@ class _Step:
         return int(self.shared.value)
 
     def report(self, force: bool = False) -> None:
-        """Send the count to the events (this process only), at most every :data:`INTERVAL` s."""
-        if in_worker():
+        """Send the count to the events (the run's own process only), at most every :data:`INTERVAL` s."""
+        if os.getpid() != self.pid:
             return
         done = self.done()
         now = time.perf_counter()
@@ -185,7 +185,7 @@ def expect(total: int | None, unit: str = "features") -> None:
         return
     cur.total = None if total is None else int(total)
     cur.unit = unit
-    if not in_worker():
+    if os.getpid() == cur.pid:
         with cur.shared.get_lock():
             cur.shared.value = 0
         cur.reported = -1
@@ -213,7 +213,7 @@ class TerminalProgress(Progress):
     """A progress display on a terminal, with `tqdm <https://tqdm.github.io>`_.
 
     The running step is a line that names it (``[7/12] lots (lots.paris)``)
-    with its elapsed time; once it counts its work the line becomes a bar
+    with its clock, redrawn every ``tick`` seconds; once it counts its work the line becomes a bar
     with the count, rate and time left.  Each finished step leaves one line:
     its count and seconds.
 
@@ -221,16 +221,36 @@ class TerminalProgress(Progress):
     ----------
     file : file-like, optional
         Where to write (default ``sys.stderr``).
+    tick : float
+        Seconds between two redraws of the running step's clock (0: only on counts).
     """
 
-    def __init__(self, file: IO[str] | None = None):
+    def __init__(self, file: IO[str] | None = None, tick: float = 0.5):
         self.file = file if file is not None else sys.stderr
+        self.tick = tick
         self._bar = None
+        self._clock = None
+        self._stop = threading.Event()
+
+    def _run_clock(self) -> None:
+        """Redraw the running step's line every ``tick`` seconds, so that its clock runs between counts.
+
+        A thread of this process: the workers that :func:`sengine.parallel.run_jobs`
+        forks never draw (they only add to the shared count).
+        """
+        while not self._stop.wait(self.tick):
+            bar = self._bar
+            if bar is not None:
+                bar.refresh()
 
     def start(self, i: int, n: int, node_id: str, type_: str) -> None:
         from tqdm import tqdm
 
         self._close_bar()
+        if self._clock is None and self.tick > 0:
+            self._stop.clear()
+            self._clock = threading.Thread(target=self._run_clock, name="sengine-progress", daemon=True)
+            self._clock.start()
         sized = min(self._size()) > 0
         self._bar = tqdm(
             total=None,
@@ -269,6 +289,10 @@ class TerminalProgress(Progress):
         tqdm.write(f"[{i}/{n}] {node_id} ({type_}): {what}, {seconds:.2f} s", file=self.file)
 
     def close(self) -> None:
+        if self._clock is not None:
+            self._stop.set()
+            self._clock.join()
+            self._clock = None
         self._close_bar()
         self.file.flush()
 

@@ -203,11 +203,26 @@ def test_quiet_and_off_a_terminal_say_nothing_on_stderr(tmp_path):
     assert r.stdout.startswith(f"{tmp_path / 'p'}: majorRoads")
 
 
+def test_terminal_clock_runs_between_counts(tmp_path):
+    """A step that counts nothing still shows its clock running."""
+    path = tmp_path / "out.txt"
+    with open(path, "w") as f:
+        p = TerminalProgress(f, tick=0.2)
+        p.start(1, 1, "majorRoads", "osm.read")
+        time.sleep(1.3)
+        p.finish(1, 1, "majorRoads", "osm.read", 10, 1.3)
+        p.close()
+    lines = _screens(path.read_text())
+    assert "[1/1] majorRoads (osm.read): running 00:01" in lines
+    assert lines.count("[1/1] majorRoads (osm.read): running 00:00") >= 3
+    assert lines[-1] == "[1/1] majorRoads (osm.read): 10 features, 1.30 s"
+
+
 def test_terminal_progress_draws_a_bar(tmp_path):
     """The display alone, on a file: the running step's line, then its bar with count and rate, then its line."""
     path = tmp_path / "out.txt"
     with open(path, "w") as f:
-        p = TerminalProgress(f)
+        p = TerminalProgress(f, tick=0)
         p.start(2, 5, "lots", "lots.paris")
         p.advance(500, 2000, "blocks")
         p.advance(2000, 2000, "blocks")

@@ -192,6 +192,21 @@ def _scale(lay: ViewLayer, pos: np.ndarray, idx: np.ndarray, feat: np.ndarray) -
     return float(np.sqrt(np.median(per[per > 0]))) if (per > 0).any() else 0.0
 
 
+def _home(layers: Sequence[ViewLayer]) -> list[float] | None:
+    """The bounds the page first shows: the city without its outliers (0.5 and 99.5 percentiles of the vertices,
+    a road that runs out of town left out)."""
+    pos = [np.asarray(lay.position, np.float32).reshape(-1, 3) for lay in layers if len(lay.position)]
+    if not pos:
+        return None
+    p = np.concatenate(pos)
+    if len(p) > 1_000_000:  # a regular sample is as good for percentiles
+        p = p[:: len(p) // 1_000_000]
+    lo = np.percentile(p, 0.5, axis=0)
+    hi = np.percentile(p, 99.5, axis=0)
+    lo[1], hi[1] = min(float(p[:, 1].min()), 0.0), float(p[:, 1].max())
+    return [round(float(v), 2) for v in (*lo, *hi)]
+
+
 def _column(blob: _Blob, name: str, values: np.ndarray) -> dict:
     """A column of the view format (see the module notes)."""
     col = np.asarray(values)
@@ -284,6 +299,7 @@ def view_text(
             entry["columns"].append(_column(blob, key, values))
         entries.append(entry)
     bounds = [float(v) for v in np.concatenate([lo, hi])] if np.isfinite(lo).all() else [0.0] * 6
+    home = _home(layers) or bounds
     doc = {
         "format": "sengine-view",
         "version": 1,
@@ -292,6 +308,7 @@ def view_text(
         "crs": crs,
         "origin": dict(origin or {}),
         "bounds": bounds,
+        "home": home,
         "plan": plan,
         "layers": entries,
     }

@@ -61,7 +61,7 @@ function start() {
   sun.position.set(-0.55, 1.0, 0.35);
   scene.add(sun);
 
-  const [x0, y0, z0, x1, y1, z1] = view.bounds;
+  const [x0, y0, z0, x1, y1, z1] = view.home || view.bounds; // the city without its outliers (a long road out)
   const span = Math.max(x1 - x0, z1 - z0, y1 - y0, 1);
   const centre = new THREE.Vector3((x0 + x1) / 2, 0, (z0 + z1) / 2);
 
@@ -74,20 +74,31 @@ function start() {
   controls.zoomToCursor = true;
   controls.listenToKeyEvents(window);
 
-  // the whole city in view, seen from the south-south-west at 50 degrees
+  // the whole city in view, seen from the south-south-west at 50 degrees: the camera backs off until the corners of
+  // the city's bounds fill 90 % of the view
   function home() {
-    const radius = 0.5 * Math.hypot(x1 - x0, z1 - z0, 0.5 * (y1 - y0));
-    const fov = THREE.MathUtils.degToRad(camera.fov);
-    const fit = Math.min(fov, 2 * Math.atan(Math.tan(fov / 2) * camera.aspect));
-    const d = (0.8 * radius) / Math.sin(fit / 2);
     const up = THREE.MathUtils.degToRad(50);
     const turn = THREE.MathUtils.degToRad(-20);
+    const dir = new THREE.Vector3(Math.cos(up) * Math.sin(turn), Math.sin(up), Math.cos(up) * Math.cos(turn));
+    const corners = [];
+    for (const x of [x0, x1]) for (const y of [0, y1]) for (const z of [z0, z1]) corners.push(new THREE.Vector3(x, y, z));
     controls.target.copy(centre);
-    camera.position.set(
-      centre.x + d * Math.cos(up) * Math.sin(turn),
-      d * Math.sin(up),
-      centre.z + d * Math.cos(up) * Math.cos(turn),
-    );
+    let d = span;
+    for (let i = 0; i < 4; i++) {
+      camera.position.copy(centre).addScaledVector(dir, d);
+      camera.lookAt(centre);
+      camera.near = d / 100;
+      camera.far = 10 * d;
+      camera.updateProjectionMatrix();
+      camera.updateMatrixWorld();
+      let m = 0;
+      for (const c of corners) {
+        const p = c.clone().project(camera);
+        m = Math.max(m, Math.abs(p.x), Math.abs(p.y));
+      }
+      d *= m / 0.9;
+    }
+    camera.position.copy(centre).addScaledVector(dir, d);
     controls.update();
     redraw();
   }
@@ -102,17 +113,17 @@ function start() {
     const index = new THREE.BufferAttribute(layer.index, 1);
     const solid = layer.kind === "solid";
     const colour = new THREE.Color().setRGB(...layer.colour.map((c) => c / 255), THREE.SRGBColorSpace);
+    // the ground (flat layers, a few centimetres apart) is painted layer over layer without a depth test, before
+    // the solids, which are then tested against it: no depth fighting however far the camera is
     const material = new THREE.MeshLambertMaterial({
       color: colour,
       flatShading: true,
       side: solid ? THREE.FrontSide : THREE.DoubleSide,
-      polygonOffset: !solid,
-      polygonOffsetFactor: solid ? 0 : -(k + 1),
-      polygonOffsetUnits: solid ? 0 : -4 * (k + 1),
+      depthTest: solid,
     });
     const group = new THREE.Group();
     group.name = layer.name;
-    const entry = { layer, group, material, colour, position, index, tiles: [], pickIndex: k + 1 };
+    const entry = { layer, group, material, colour, position, index, tiles: [], pickIndex: k + 1, order: solid ? 1000 + k : k };
     for (const [first, up, count, tx0, ty0, tz0, tx1, ty1, tz1] of layer.tiles) {
       const geometry = new THREE.BufferGeometry();
       geometry.setAttribute("position", position);
@@ -125,6 +136,7 @@ function start() {
       mesh.name = layer.name;
       mesh.userData = { first, up, count, index: k + 1, entry };
       mesh.matrixAutoUpdate = false;
+      mesh.renderOrder = solid ? 1000 + k : k;
       group.add(mesh);
       entry.tiles.push(mesh);
       tileMeshes.push(mesh);
@@ -133,20 +145,25 @@ function start() {
     meshes.set(layer.name, entry);
   });
 
-  // Detail by distance: a tile whose layer's typical feature would be under a few pixels is not drawn (lots, ribbons
-  // seen from afar) or keeps only its upward faces (buildings' roofs without walls).
+  // Detail by distance, where it cannot be seen: a solid tile keeps only its upward faces (roofs) when its typical
+  // feature's height is under 3 pixels, a surface tile is left out when it has more triangles than the pixels it
+  // covers (lots seen from afar; blocks and streets stay), ribbons when they are under a pixel wide.
   function levelOfDetail() {
     const h = renderer.domElement.clientHeight || 1;
     const k = h / (2 * Math.tan(THREE.MathUtils.degToRad(camera.fov) / 2));
     for (const mesh of tileMeshes) {
       const { first, up, count, entry } = mesh.userData;
-      const d = Math.max(mesh.geometry.boundingBox.distanceToPoint(camera.position), 1);
-      const px = (entry.layer.scale * k) / d;
-      if (entry.layer.kind === "solid") {
+      const b = mesh.geometry.boundingBox;
+      const d = Math.max(b.distanceToPoint(camera.position), 1);
+      const px = k / d; // pixels a metre
+      const kind = entry.layer.kind;
+      if (kind === "solid") {
         mesh.visible = true;
-        mesh.geometry.setDrawRange(3 * first, 3 * (px >= 3 ? count : up));
+        mesh.geometry.setDrawRange(3 * first, 3 * (entry.layer.scale * px >= 3 ? count : up));
+      } else if (kind === "line") {
+        mesh.visible = !(entry.layer.scale > 0) || entry.layer.scale * px >= 1;
       } else {
-        mesh.visible = !(entry.layer.scale > 0) || px >= 2;
+        mesh.visible = count <= (b.max.x - b.min.x) * (b.max.z - b.min.z) * px * px;
       }
     }
   }
@@ -439,6 +456,7 @@ function start() {
     home,
     measureFps,
     render: () => render(),
+    drawn: () => ({ ...renderer.info.render }), // the last frame's draw calls and triangles
     selected: () => selected,
     triangles: view.layers.reduce((s, l) => s + l.triangles, 0),
   };

@@ -34,9 +34,7 @@ export function createPicker(renderer, scene, camera, meshes) {
           fragmentShader,
           uniforms: { layerIndex: { value: mesh.userData.index } },
           side: m.side,
-          polygonOffset: m.polygonOffset,
-          polygonOffsetFactor: m.polygonOffsetFactor,
-          polygonOffsetUnits: m.polygonOffsetUnits,
+          depthTest: m.depthTest,
         }),
       );
     }
@@ -89,16 +87,15 @@ export function createPicker(renderer, scene, camera, meshes) {
     geometry.setIndex(picked);
     const material = new THREE.MeshBasicMaterial({
       color: 0x0099ff,
-      transparent: true,
-      opacity: 0.6,
       side: THREE.DoubleSide,
+      depthTest: entry.material.depthTest,
       polygonOffset: true,
-      polygonOffsetFactor: (entry.material.polygonOffsetFactor || 0) - 1,
-      polygonOffsetUnits: (entry.material.polygonOffsetUnits || 0) - 4,
+      polygonOffsetFactor: -1,
+      polygonOffsetUnits: -4,
     });
     const h = new THREE.Mesh(geometry, material);
     h.frustumCulled = false;
-    h.renderOrder = 10;
+    h.renderOrder = entry.order + 0.5; // over its layer, under the solids when it is ground
     return h;
   }
 
