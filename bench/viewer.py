@@ -87,7 +87,7 @@ def screenshot(out: Path, path: Path, colour: str = "height", distance: float = 
                 page.mouse.click(at["x"], at["y"])
         page.wait_for_timeout(300)
         png = page.locator("#stage").screenshot()
-    image = Image.open(io.BytesIO(png)).convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT)
+    image = Image.open(io.BytesIO(png)).convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE)
     path.parent.mkdir(parents=True, exist_ok=True)
     image.save(path, optimize=True)
     print(f"wrote {path} ({path.stat().st_size / 1e3:.0f} kB)", flush=True)

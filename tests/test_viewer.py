@@ -105,13 +105,27 @@ def test_view_data_holds_every_feature(city, request):
         assert tiles[0, 0] == 0 and (tiles[1:, 0] == tiles[:-1, 0] + tiles[:-1, 2]).all()
         assert tiles[:, 2].sum() == lay["triangles"] and (tiles[:, 1] <= tiles[:, 2]).all()
         pos = lay["position_"].astype(float)
-        for first, up, count, *b in tiles.tolist():
-            tri = pos[lay["index_"][int(first) : int(first + count)]]
+        top_area = np.zeros(n)  # the area each feature shows from above
+        a_, b_, c_ = (pos[lay["index_"][:, i]] for i in range(3))
+        ny = (b_ - a_)[:, 2] * (c_ - a_)[:, 0] - (b_ - a_)[:, 0] * (c_ - a_)[:, 2]
+        norm = np.linalg.norm(np.cross(b_ - a_, c_ - a_), axis=1)
+        upward_all = np.abs(ny) >= 0.5 * norm
+        tri_feat = rows[lay["index_"][:, 0]].astype(int)
+        np.add.at(top_area, tri_feat[upward_all], 0.5 * np.abs(ny[upward_all]))
+        size = np.sqrt(top_area)
+        for first, up, count, *rest in tiles.tolist():
+            b, by_size = rest[:6], rest[6:]
+            first, up, count = int(first), int(up), int(count)
+            tri = pos[lay["index_"][first : first + count]]
             assert (tri.min(axis=(0, 1)) >= np.array(b[:3]) - 0.01).all()
             assert (tri.max(axis=(0, 1)) <= np.array(b[3:]) + 0.01).all()
-            n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-            upward = np.abs(n[:, 1]) >= 0.5 * np.linalg.norm(n, axis=1)
-            assert upward[: int(up)].all() and not upward[int(up) :].any()
+            upward = upward_all[first : first + count]
+            assert upward[:up].all() and not upward[up:].any()
+            # the roofs of the features at least 8, 16, 32, 64 m across come first, largest first
+            s = size[tri_feat[first : first + up]]
+            assert (np.diff(s) <= 1e-3 * s.max() + 1e-9).all()  # (float32 areas there, float64 here)
+            for limit, m in zip((8, 16, 32, 64), by_size):  # (float32 areas: a triangle either side of the limit)
+                assert abs(m - (s >= limit).sum()) <= 3
         ids = lay["columns_"]["id"]
         assert [f["id"] for f in feats] == ids.tolist()
     b = next(lay for lay in doc["layers"] if lay["name"] == "buildings")

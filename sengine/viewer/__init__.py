@@ -112,18 +112,24 @@ class _Blob:
 
 
 #: Triangles per tile the page aims at: tiles out of view are not drawn, far ones lose their detail.
-TILE_TRIANGLES = 20_000
+TILE_TRIANGLES = 5_000
+#: Feature sizes (m) whose upward triangles each tile counts (:func:`tiles`).
+SIZES = (8.0, 16.0, 32.0, 64.0)
 
 
 def tiles(position: np.ndarray, index: np.ndarray, feature: np.ndarray, *, per_tile: int = TILE_TRIANGLES):
     """Order triangles by tile for the page: ``(index, tiles)``.
 
     Features go to the cell of a square grid (about ``per_tile`` triangles a
-    cell) that holds the centre of their vertices; a tile's triangles are
-    its features', the upward-facing ones (roofs, caps, surfaces) first and
-    the walls after, so that the page draws a far tile's roofs alone with one
-    shorter draw range.  ``tiles`` rows are ``[first triangle, upward
-    triangles, triangles, xmin, ymin, zmin, xmax, ymax, zmax]``.
+    cell, at most 64 x 64 cells over the 1st to 99th percentiles of the
+    features' centres) that holds the centre of their vertices; a tile's triangles are
+    its features', the upward-facing ones (roofs, caps, surfaces) first,
+    the largest features' first, and the walls after, so that the page draws
+    a far tile's roofs alone, or the roofs of its features that would cover a
+    pixel, with one shorter draw range.  ``tiles`` rows are ``[first
+    triangle, upward triangles, triangles, xmin, ymin, zmin, xmax, ymax, zmax,
+    upward triangles of the features at least 8, 16, 32 and 64 m across]``
+    (a feature's size: the square root of its area seen from above).
     """
     t = len(index)
     if t == 0:
@@ -131,11 +137,15 @@ def tiles(position: np.ndarray, index: np.ndarray, feature: np.ndarray, *, per_t
     pos = np.asarray(position, np.float32)
     feat = np.asarray(feature, np.int64)
     n = int(feat.max()) + 1
+    present = np.bincount(feat, minlength=n) > 0
     counts = np.maximum(np.bincount(feat, minlength=n), 1)
     cx = np.bincount(feat, pos[:, 0], minlength=n) / counts
     cz = np.bincount(feat, pos[:, 2], minlength=n) / counts
-    k = int(np.clip(np.ceil(np.sqrt(t / per_tile)), 1, 32))
-    x0, x1, z0, z1 = float(pos[:, 0].min()), float(pos[:, 0].max()), float(pos[:, 2].min()), float(pos[:, 2].max())
+    k = int(np.clip(np.ceil(np.sqrt(t / per_tile)), 1, 64))
+    # the grid spans the features' centres without their outliers (a road running out of town would stretch every
+    # cell); outliers go to the edge cells
+    x0, x1 = (float(v) for v in np.percentile(cx[present], [1, 99]))
+    z0, z1 = (float(v) for v in np.percentile(cz[present], [1, 99]))
     gx = np.clip(((cx - x0) / max(x1 - x0, 1e-9) * k).astype(np.int64), 0, k - 1)
     gz = np.clip(((cz - z0) / max(z1 - z0, 1e-9) * k).astype(np.int64), 0, k - 1)
     feature_tile = gz * k + gx
@@ -147,13 +157,18 @@ def tiles(position: np.ndarray, index: np.ndarray, feature: np.ndarray, *, per_t
     nx = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
     nz = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
     wall = ny * ny < 0.25 * (nx * nx + ny * ny + nz * nz)
-    key = feature_tile[feat[index[:, 0]]] * 2 + wall
-    order = np.argsort(key, kind="stable")
-    index, key = index[order], key[order]
-    tri_tile = key >> 1
+    # a feature's size: the square root of its upward faces' area seen from above (m)
+    tri_feat = feat[index[:, 0]]
+    size = np.sqrt(np.bincount(tri_feat, np.where(wall, 0.0, 0.5 * np.abs(ny.astype(np.float64))), minlength=n))
+    tri_size = size[tri_feat]
+    order = np.lexsort((-tri_size, wall, feature_tile[tri_feat]))
+    index, wall, tri_size = index[order], wall[order], tri_size[order]
+    tri_tile = feature_tile[feat[index[:, 0]]]
     starts = np.flatnonzero(np.r_[True, tri_tile[1:] != tri_tile[:-1]])
     ends = np.r_[starts[1:], t]
-    up = np.add.reduceat((key & 1) == 0, starts)
+    up = np.add.reduceat(~wall, starts)
+    # upward triangles of the features at least 8, 16, 32, 64 m across: a prefix of each tile's upward ones
+    big = [np.add.reduceat(~wall & (tri_size >= s_), starts) for s_ in SIZES]
     # bounds of each tile: of its features' vertices
     vtile = feature_tile[feat]
     vorder = np.argsort(vtile, kind="stable")
@@ -164,9 +179,10 @@ def tiles(position: np.ndarray, index: np.ndarray, feature: np.ndarray, *, per_t
     hi = np.maximum.reduceat(p, vstarts, axis=0)
     where = {int(tile): j for j, tile in enumerate(vt[vstarts])}
     rows = []
-    for s, e, u_, tile in zip(starts.tolist(), ends.tolist(), up.tolist(), tri_tile[starts].tolist()):
+    big = np.column_stack(big).tolist()
+    for s, e, u_, tile, b in zip(starts.tolist(), ends.tolist(), up.tolist(), tri_tile[starts].tolist(), big):
         j = where[tile]
-        rows.append([s, u_, e - s, *(round(float(x), 2) for x in (*lo[j], *hi[j]))])
+        rows.append([s, u_, e - s, *(round(float(x), 2) for x in (*lo[j], *hi[j])), *b])
     return index, rows
 
 

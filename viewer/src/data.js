@@ -5,7 +5,8 @@
 //  layers: [{name, colour: [r, g, b], kind: "solid" | "surface" | "line", level, vertices, triangles, features,
 //            position: offset (float32 x, y, z; y up, metres around the city's origin),
 //            index: offset (uint32, 3 a triangle), feature: offset (float32, the row of each vertex's feature),
-//            tiles: [[first triangle, upward triangles, triangles, x0, y0, z0, x1, y1, z1]], scale: a feature's size (m),
+//            tiles: [[first triangle, upward triangles, triangles, x0, y0, z0, x1, y1, z1, upward triangles of the
+//                     features 8, 16, 32, 64 m across]], scale: a feature's size (m),
 //            columns: [{name, type: "float" | "int" | "bool" | "text", offset, values?: [...], width?: 1 | 2 | 4}]}],
 //  bin: base64 of every array, each at its offset (8-byte aligned)}
 

@@ -7,6 +7,7 @@ import { readView } from "./data.js";
 import { createPicker } from "./pick.js";
 
 const $ = (sel) => document.querySelector(sel);
+const SIZES = [8, 16, 32, 64]; // m: feature sizes each tile counts its roofs for (sengine.viewer.SIZES)
 // sRGB 0-255 to linear 0-255 (the sRGB transfer function)
 const LINEAR = Uint8Array.from({ length: 256 }, (_, c) => {
   const x = c / 255;
@@ -115,16 +116,14 @@ function start() {
     const colour = new THREE.Color().setRGB(...layer.colour.map((c) => c / 255), THREE.SRGBColorSpace);
     // the ground (flat layers, a few centimetres apart) is painted layer over layer without a depth test, before
     // the solids, which are then tested against it: no depth fighting however far the camera is
-    const material = new THREE.MeshLambertMaterial({
-      color: colour,
-      flatShading: true,
-      side: solid ? THREE.FrontSide : THREE.DoubleSide,
-      depthTest: solid,
-    });
+    // (flat ground needs no lighting: an unlit material draws it as its colour, at a fraction of the cost)
+    const material = solid
+      ? new THREE.MeshLambertMaterial({ color: colour, flatShading: true, side: THREE.FrontSide })
+      : new THREE.MeshBasicMaterial({ color: colour, side: THREE.DoubleSide, depthTest: false });
     const group = new THREE.Group();
     group.name = layer.name;
     const entry = { layer, group, material, colour, position, index, tiles: [], pickIndex: k + 1, order: solid ? 1000 + k : k };
-    for (const [first, up, count, tx0, ty0, tz0, tx1, ty1, tz1] of layer.tiles) {
+    for (const [first, up, count, tx0, ty0, tz0, tx1, ty1, tz1, ...bySize] of layer.tiles) {
       const geometry = new THREE.BufferGeometry();
       geometry.setAttribute("position", position);
       geometry.setAttribute("fid", fid);
@@ -134,7 +133,7 @@ function start() {
       geometry.boundingSphere = geometry.boundingBox.getBoundingSphere(new THREE.Sphere());
       const mesh = new THREE.Mesh(geometry, material);
       mesh.name = layer.name;
-      mesh.userData = { first, up, count, index: k + 1, entry };
+      mesh.userData = { first, up, count, bySize, index: k + 1, entry };
       mesh.matrixAutoUpdate = false;
       mesh.renderOrder = solid ? 1000 + k : k;
       group.add(mesh);
@@ -146,20 +145,26 @@ function start() {
   });
 
   // Detail by distance, where it cannot be seen: a solid tile keeps only its upward faces (roofs) when its typical
-  // feature's height is under 3 pixels, a surface tile is left out when it has more triangles than the pixels it
+  // feature's height is under 3 pixels, and only the roofs of features a pixel and a half across; a surface tile is left out when it has more triangles than the pixels it
   // covers (lots seen from afar; blocks and streets stay), ribbons when they are under a pixel wide.
   function levelOfDetail() {
     const h = renderer.domElement.clientHeight || 1;
     const k = h / (2 * Math.tan(THREE.MathUtils.degToRad(camera.fov) / 2));
     for (const mesh of tileMeshes) {
-      const { first, up, count, entry } = mesh.userData;
+      const { first, up, count, bySize, entry } = mesh.userData;
       const b = mesh.geometry.boundingBox;
       const d = Math.max(b.distanceToPoint(camera.position), 1);
       const px = k / d; // pixels a metre
       const kind = entry.layer.kind;
       if (kind === "solid") {
-        mesh.visible = true;
-        mesh.geometry.setDrawRange(3 * first, 3 * (entry.layer.scale * px >= 3 ? count : up));
+        // walls when they are 3 pixels tall; else roofs, of the features over a pixel and a half across
+        let n = entry.layer.scale * px >= 3 ? count : up;
+        if (n === up && bySize.length === SIZES.length) {
+          const smallest = 1.5 / px; // m
+          for (let i = SIZES.length - 1; i >= 0; i--) if (SIZES[i] <= smallest) { n = bySize[i]; break; }
+        }
+        mesh.visible = n > 0;
+        mesh.geometry.setDrawRange(3 * first, 3 * n);
       } else if (kind === "line") {
         mesh.visible = !(entry.layer.scale > 0) || entry.layer.scale * px >= 1;
       } else {
