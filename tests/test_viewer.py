@@ -197,6 +197,22 @@ def test_view_command_needs_the_data(tmp_path):
     assert r.returncode == 2 and "not a port" in r.stderr
 
 
+def test_view_serve_on_a_taken_port_is_one_line(tmp_path):
+    import socket
+
+    (tmp_path / DATA_FILE).write_text("window.SENGINE_VIEW = {};\n")
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        sock.listen(1)
+        port = sock.getsockname()[1]
+        r = run_cli("view", tmp_path, "--serve", "--port", port)
+    assert r.returncode == 2
+    assert (
+        r.stderr.startswith(f"sengine: error: --port: cannot serve on 127.0.0.1:{port}") and r.stderr.count("\n") == 1
+    )
+    assert (tmp_path / "index.html").exists()  # the page is written before it is served
+
+
 # -- the page in a browser ----------------------------------------------------------------------------------------
 def canvas_image(page) -> np.ndarray:
     return np.asarray(Image.open(io.BytesIO(page.locator("#view canvas").screenshot())).convert("RGB"), np.int16)
