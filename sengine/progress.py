@@ -113,6 +113,8 @@ class _Step:
         if os.getpid() != self.pid:
             return
         done = self.done()
+        if done == 0 and self.total is None:  # nothing counted, nothing expected: the step is just running
+            return
         now = time.perf_counter()
         final = self.total is not None and done >= self.total
         if done != self.reported and (force or final or now - self.at >= INTERVAL):
@@ -233,12 +235,14 @@ class TerminalProgress(Progress):
         self._stop = threading.Event()
 
     def _run_clock(self) -> None:
-        """Redraw the running step's line every ``tick`` seconds, so that its clock runs between counts.
+        """Every ``tick`` seconds, take the running step's count and redraw its line (its clock runs between counts).
 
         A thread of this process: the workers that :func:`sengine.parallel.run_jobs`
-        forks never draw (they only add to the shared count).
+        forks never draw (they only add to the shared count), and this process
+        may be busy with a job of its own.
         """
         while not self._stop.wait(self.tick):
+            poll()  # what forked workers counted while this process is busy with a job of its own
             bar = self._bar
             if bar is not None:
                 bar.refresh()
