@@ -110,6 +110,11 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="KIND=PATH",
         help="replace the config's map of a kind (district, landuse, height, osm ...)",
     )
+    p.add_argument(
+        "--check",
+        action="store_true",
+        help="exit with status 1 and a one-line summary when a node reports violations (e.g. buildings.check)",
+    )
     _common(p)
 
     p = sub.add_parser(
@@ -273,7 +278,21 @@ def cmd_run(args: argparse.Namespace) -> int:
     if not args.quiet:
         counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
         print(f"{args.out}: {counts} in {result.stats['seconds']['total']:.2f} s")
+    if args.check:
+        return _check(result.stats.get("report", {}))
     return 0
+
+
+def _check(reports: dict) -> int:
+    """1 and one line on stderr when any node's report counts ``violations`` (its ``summary`` says what), else 0."""
+    found = [
+        (node, rep) for node, rep in reports.items() if isinstance(rep, dict) and int(rep.get("violations", 0) or 0) > 0
+    ]
+    if not found:
+        return 0
+    text = "; ".join(f"{node}: {rep.get('summary') or str(rep['violations']) + ' violations'}" for node, rep in found)
+    print(f"sengine: check failed: {text}", file=sys.stderr)
+    return 1
 
 
 def cmd_batch(args: argparse.Namespace) -> int:

@@ -333,7 +333,7 @@ def test_node_result_reads_as_its_layers():
 
 
 PARITY = [
-    ('lots="manhattan"/>', 'lots="manhatan"/>'),
+    ('lots="manhattan"', 'lots="manhatan"'),
     ('minor-angle="follow"', 'minor-angle="abc"'),
     ('relax="4"', 'relax="4.5"'),
     ('class="buildable"/>', 'class="buildable" buildable="maybe"/>'),
@@ -355,7 +355,8 @@ def test_validate_and_run_agree(old, new, tmp_path, capsys):
 
 # nodes on other branches that still read the plan behind the executor's back (the lead converts
 # them: buildings.extrude takes height_map, lots.district takes district_rules)
-STILL_READING_THE_PLAN = {"lots/nodes.py", "buildings/extrude.py"}
+# still to move onto ports (the height map, district and land-use rules): issue 15 part 2, noted as open
+STILL_READING_THE_PLAN = {"lots/nodes.py", "buildings/extrude.py", "buildings/massing.py", "buildings/regulation.py"}
 
 
 def test_only_the_plan_sources_read_the_plan():

@@ -60,11 +60,19 @@ def test_buildings_count_on_the_lots_they_stand_on():
         "far": round(500 / 1800, 4),
         "coverage": round(200 / 1800, 4),
         "residents": 10,
+        "retail_demand_m2": 27.0,  # 2.7 m2 a resident (000 §5.2.4)
     }
     assert report["footprint_off_lots_m2"] == 100.0
     assert report["districts"]["0"]["floor_area_m2"] == 500.0 and report["districts"]["3"]["far"] == 0.0
     _, _, report = run(lots, buildings, m2_per_resident="25")
     assert report["city"]["residents"] == 20
+    # with a land use, only the residential floor area houses residents
+    used = buildings.with_columns(use=np.array(["residential", "office", "residential"]))
+    _, _, report = run(lots, used)
+    assert (
+        report["city"]["residents"] == 300 // 50
+    )  # the 100 m2 x 3 floors; the office and the off-lot one do not count
+    assert report["uses"]["office"] == {"buildings": 1, "floor_area_m2": 200.0}
 
 
 lots_grid = st.tuples(st.integers(1, 5), st.integers(1, 5), st.floats(5, 40), st.floats(5, 40))

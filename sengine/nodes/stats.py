@@ -12,10 +12,15 @@ oriented bounding box.
 §10; paper 000 §5.2.4, paper 003 §5.2): per lot, block, district and for
 the whole city the built footprint, the gross floor area (GFA: footprint
 times floors), the floor area ratio (FAR = GFA / site area), the coverage
-(footprint / site area) and the residents the floor area would house.
-A building is counted on the lots it stands on, in proportion to the area
-it covers there: a real building across two lots counts on each with its
-part.
+(footprint / site area) and the residents the floor area would house
+(residential floor area / 50 m2 when the buildings carry a ``use``; all of
+it otherwise) with the retail floor area they demand (2.7 m2 each, 000
+§5.2.4).  A building is counted on the lots it stands on, in proportion to
+the area it covers there: a real building across two lots counts on each
+with its part, so no building counts for more than its lots hold.  The
+``walls`` section gives the share of the buildings' outline that is party
+wall (shared with another building) and the share of the lots' street
+fronts a building stands on (:mod:`sengine.nodes.buildings.walls`).
 
 References
 ----------
@@ -41,9 +46,19 @@ import shapely
 from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.geom.polygons import obb_frame, shared_areas, threaded
 
-__all__ = ["shape_stats", "building_shares", "built_on_sites", "planning_columns", "StatsShape", "StatsPlanning"]
+__all__ = [
+    "shape_stats",
+    "building_shares",
+    "built_on_sites",
+    "planning_columns",
+    "wall_shares",
+    "StatsShape",
+    "StatsPlanning",
+]
 
 log = logging.getLogger(__name__)
+
+COVER_TOL = 1e-6  #: m: a building corner this close to its lot stands on it
 
 
 def shape_stats(geoms, *, frontage=None, front_angle=None) -> dict:
@@ -102,14 +117,21 @@ def building_shares(sites: Layer, buildings: Layer) -> tuple[np.ndarray, np.ndar
 
     Returns ``(building, site, area)`` index and area arrays, one entry per
     (building, site) pair that share ground.  A building inside the site its
-    ``lot`` column names (every generated one) takes one ``covers`` test; the
-    others (real buildings across lots, or on none) are intersected with
-    every site they touch.
+    ``lot`` column names (every generated one) takes one ``covers`` test,
+    or, where a cut out of the lot left a corner a rounding off its edge,
+    a test of its corners (within :data:`COVER_TOL`); the others (real
+    buildings across lots, or on none) are intersected with every site they touch.
     """
     geoms = buildings.geometry
     site = sites.rows_of(buildings["lot"]) if "lot" in buildings else np.full(len(buildings), -1, np.int64)
     inside = site >= 0
     inside[inside] = threaded(shapely.covers, sites.geometry[site[inside]], geoms[inside])
+    near = np.flatnonzero(~inside & (site >= 0))
+    if len(near):  # cut out of their lot, a rounding off its edges: every corner within COVER_TOL of it
+        xy, bi = shapely.get_coordinates(geoms[near], return_index=True)
+        d = shapely.distance(shapely.points(xy), sites.geometry[site[near][bi]])
+        far = np.bincount(bi, weights=(d > COVER_TOL).astype(float), minlength=len(near)) > 0
+        inside[near[~far]] = True
     named, rest = np.flatnonzero(inside), np.flatnonzero(~inside)
     ri, rsi, shared = shared_areas(geoms[rest], sites.geometry)
     return np.r_[named, rest[ri]], np.r_[site[named], rsi], np.r_[shapely.area(geoms[named]), shared]
@@ -145,15 +167,54 @@ def planning_columns(site_area: np.ndarray, foot: np.ndarray, gfa: np.ndarray) -
     }
 
 
-def _summary(site_area, foot, gfa, m2_per_resident: float) -> dict:
+#: Land uses whose floor area houses residents (the others are jobs, shops, schools ...).
+HOUSING = ("residential", "mixed")
+RETAIL_PER_RESIDENT = 2.7  #: m2 of retail floor area a resident demands (000 §5.2.4, Statistics Finland)
+
+
+def _summary(site_area, foot, gfa, m2_per_resident: float, housing=None) -> dict:
     a, f, g = float(np.sum(site_area)), float(np.sum(foot)), float(np.sum(gfa))
+    h = g if housing is None else float(np.sum(housing))
+    residents = int(h // m2_per_resident)
     return {
         "site_area_m2": round(a, 1),
         "footprint_m2": round(f, 1),
         "floor_area_m2": round(g, 1),
         "far": round(g / a, 4) if a > 0 else 0.0,
         "coverage": round(f / a, 4) if a > 0 else 0.0,
-        "residents": int(g // m2_per_resident),
+        "residents": residents,
+        "retail_demand_m2": round(residents * RETAIL_PER_RESIDENT, 1),
+    }
+
+
+def wall_shares(lots: Layer, buildings: Layer, blocks: Layer | None = None) -> dict:
+    """Party-wall share of the buildings' outlines and street-wall share of the built lots' fronts."""
+    from sengine.nodes.buildings.edges import FRONT, lot_edges
+    from sengine.nodes.buildings.walls import party_walls, street_walls
+
+    polys = shapely.get_type_id(buildings.geometry) == 3 if len(buildings) else np.zeros(0, bool)
+    g = buildings.geometry[polys]
+    if len(g) == 0 or len(lots) == 0:
+        return {}
+    perimeter = shapely.length(g)
+    share = party_walls(g) / np.maximum(perimeter, 1e-12)
+    owner = blocks.rows_of(lots["block"]) if blocks is not None and "block" in lots else None
+    e = lot_edges(lots.geometry, blocks=None if owner is None else blocks.geometry, owner=owner)
+    f = e.kind == FRONT
+    rows = lots.rows_of(buildings["lot"][polys]) if "lot" in buildings else np.full(len(g), -1)
+    on = street_walls(g, rows, (e.p0[f], e.p1[f], e.lot[f]))
+    has = rows >= 0
+    front = np.bincount(e.lot[f], weights=np.hypot(*(e.p1[f] - e.p0[f]).T), minlength=len(lots))
+    built = np.unique(rows[has])
+    built = built[front[built] > 0]
+    lot_on = np.bincount(rows[has], weights=on[has], minlength=len(lots))
+    street = lot_on[built] / front[built]
+    return {
+        "party_wall_share_median": round(float(np.median(share)), 4),
+        "party_wall_share_mean": round(float(np.mean(share)), 4),
+        "buildings_with_party_walls": round(float((share > 0).mean()), 4),
+        "street_wall_share_median": round(float(np.median(street)), 4) if len(street) else 0.0,
+        "street_wall_share_mean": round(float(np.mean(street)), 4) if len(street) else 0.0,
     }
 
 
@@ -182,7 +243,12 @@ class StatsPlanning(SENode):
             min=1.0,
             max=1000.0,
             unit="m2",
-            doc="gross floor area per resident (all floor area counted as housing)",
+            doc="gross floor area per resident (residential floor area; all of it when buildings carry no use)",
+        ),
+        "walls": Param(
+            "bool",
+            False,
+            doc="report party-wall and street-wall shares of the buildings (some seconds on a whole city)",
         ),
     }
 
@@ -191,19 +257,45 @@ class StatsPlanning(SENode):
         lot_area = shapely.area(lots.geometry) if len(lots) else np.zeros(0)
         shares = building_shares(lots, buildings)
         foot, gfa = built_on_sites(lots, buildings, shares)
+        housing = None
+        uses = None
+        if "use" in buildings and len(buildings):  # residents live in residential floor area only
+            bi, si, part = shares
+            uses = np.asarray(buildings["use"]).astype(str)
+            floor_area = part * _floors(buildings)[bi]
+            home = np.isin(uses[bi], HOUSING)
+            housing = np.bincount(si[home], weights=floor_area[home], minlength=len(lots))
         out_lots = lots.with_columns(**planning_columns(lot_area, foot, gfa))
         all_foot = float(shapely.area(buildings.geometry).sum()) if len(buildings) else 0.0
         report = {
-            "city": _summary(lot_area, foot, gfa, per_resident),
+            "city": _summary(lot_area, foot, gfa, per_resident, housing),
             "buildings": len(buildings),
             "footprint_off_lots_m2": round(max(all_foot - float(foot.sum()), 0.0), 1),
         }
         if "district" in lots and len(lots):
             district = np.asarray(lots["district"], np.int64)
             report["districts"] = {
-                str(d): _summary(lot_area[district == d], foot[district == d], gfa[district == d], per_resident)
+                str(d): _summary(
+                    lot_area[district == d],
+                    foot[district == d],
+                    gfa[district == d],
+                    per_resident,
+                    None if housing is None else housing[district == d],
+                )
                 for d in np.unique(district)
             }
+        if uses is not None:
+            bi, _, part = shares
+            floor_area = part * _floors(buildings)[bi]
+            report["uses"] = {
+                str(u): {
+                    "buildings": int((uses == u).sum()),
+                    "floor_area_m2": round(float(floor_area[uses[bi] == u].sum()), 1),
+                }
+                for u in np.unique(uses)
+            }
+        if self.p.walls:
+            report["walls"] = wall_shares(lots, buildings, blocks)
         if "source" in buildings and len(buildings):  # e.g. the map's buildings beside the generated ones
             src = np.asarray(buildings["source"]).astype(str)
             bi, _, part = shares

@@ -215,7 +215,7 @@ def streets_layer(ext: OsmExtract, *, major: frozenset[str], where: str | None =
 
 
 def polygons_layer(ext: OsmExtract, kind: str, meta: dict, *, floor_height: float, default_height: float) -> Layer:
-    """Water, parks or buildings of an extract, projected into the streets' frame."""
+    """Water, parks, buildings or land-use zones of an extract, projected into the streets' frame."""
     hexes, attrs = ext.polygons[kind]
     if not hexes or "crs" not in meta:
         return Layer.empty(meta=meta, kind=object)
@@ -227,6 +227,9 @@ def polygons_layer(ext: OsmExtract, kind: str, meta: dict, *, floor_height: floa
         return Layer.from_geoms(geoms, meta=meta, kind="water", osm_id=osm_id, name=names)
     if kind == "parks":
         return Layer.from_geoms(geoms, meta=meta, level="district", kind="park", osm_id=osm_id, name=names)
+    if kind == "landuse":
+        use = np.array([a["use"] for a in attrs], dtype=object)
+        return Layer.from_geoms(geoms, meta=meta, kind="landuse", use=use, osm_id=osm_id, name=names)
     height = np.array([a["height"] for a in attrs], float)
     levels = np.array([a["levels"] for a in attrs], np.int64)
     source = np.where(np.isfinite(height), "height", np.where(levels > 0, "levels", "default"))
@@ -282,6 +285,10 @@ class OsmRead(SENode):
         "water": Port("polygons", "water areas (natural=water, waterway=riverbank)"),
         "parks": Port("parks", "parks (leisure=park/garden)"),
         "buildings": Port("buildings", "existing buildings with height / building:levels"),
+        "landuse": Port(
+            "polygons",
+            "land-use zones (landuse=residential/commercial/retail/civil/industrial/education, schools) with 'use'",
+        ),
     }
     params = {
         "path": Param("path", "", doc="OSM file; empty: the plan's <map kind='osm'> src"),
@@ -292,7 +299,7 @@ class OsmRead(SENode):
             doc="comma list of highway values kept as minor roads; '*' all others; the rest is ignored",
         ),
         "extras": Param(
-            "str", "water,parks,buildings", doc="comma list of extra layers to read: water, parks, buildings"
+            "str", "water,parks,buildings", doc="comma list of extra layers to read: water, parks, buildings, landuse"
         ),
         "node_ids": Param("bool", False, doc="keep the OSM id of every junction in meta['node_ids'] (slower)"),
         "floor_height": Param("float", 3.2, min=2.0, max=10.0, unit="m", doc="storey height for building:levels"),
@@ -318,12 +325,12 @@ class OsmRead(SENode):
         check_regular_file(path, "OSM file", where)  # a FIFO or /dev/zero would block or fill the memory
         major, minor = _classes(self.p.major), _classes(self.p.minor)
         extras = _classes(self.p.extras)
-        bad = extras - {"water", "parks", "buildings"}
+        bad = extras - {"water", "parks", "buildings", "landuse"}
         if bad:
             from sengine.errors import ParameterError
 
             raise ParameterError(
-                f"extras={self.p.extras!r}: unknown layer {sorted(bad)[0]!r} (expected water, parks, buildings)",
+                f"extras={self.p.extras!r}: unknown layer {sorted(bad)[0]!r} (expected water, parks, buildings, landuse)",
                 where=self.where,
             )
         keep = None if "*" in minor else major | minor
@@ -356,7 +363,9 @@ class OsmRead(SENode):
         )
         small = {k: v for k, v in meta.items() if k not in ("nodes", "node_keys", "node_ids")}
         out = {"roads": roads}
-        for kind in ("water", "parks", "buildings"):
+        kinds = ("water", "parks", "buildings", "landuse") if "landuse" in extras else ("water", "parks", "buildings")
+        out["landuse"] = Layer.empty(meta=small)
+        for kind in kinds:
             out[kind] = polygons_layer(
                 ext, kind, small, floor_height=self.p.floor_height, default_height=self.p.default_height
             )
@@ -373,6 +382,6 @@ class OsmRead(SENode):
             "segments": len(roads),
             "clipped_ways": ext.clipped,
             "sea": len(sea),
-            **{kind: len(out[kind]) for kind in ("water", "parks", "buildings")},
+            **{kind: len(out[kind]) for kind in kinds},
         }
         return NodeResult(out, report)

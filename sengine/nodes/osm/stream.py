@@ -44,6 +44,20 @@ __all__ = ["OsmExtract", "read_osm", "decode_lines", "parse_height", "int_tag", 
 
 _WATER = {("natural", "water"), ("waterway", "riverbank"), ("landuse", "reservoir"), ("landuse", "basin")}
 _PARKS = {("leisure", "park"), ("leisure", "garden")}
+#: OSM ``landuse`` (and school ``amenity``) areas -> the buildings' land use (``extras=landuse``).
+LANDUSE = {
+    ("landuse", "residential"): "residential",
+    ("landuse", "commercial"): "commercial",
+    ("landuse", "retail"): "commercial",
+    ("landuse", "civil"): "office",
+    ("landuse", "industrial"): "industrial",
+    ("landuse", "education"): "educational",
+    ("amenity", "school"): "educational",
+    ("amenity", "university"): "educational",
+    ("amenity", "college"): "educational",
+    ("amenity", "kindergarten"): "educational",
+}
+POLYGON_KINDS = ("water", "parks", "buildings", "landuse")
 _NUM = re.compile(r"^\s*([0-9]+(?:[.,][0-9]+)?)\s*(m|ft|')?\s*$")
 #: The tags kept per way besides ``highway`` (``tunnel`` holds ``covered`` when untagged).
 TAG_KEYS = ("name", "layer", "bridge", "tunnel", "oneway")
@@ -124,7 +138,7 @@ class OsmExtract:
     node_ids : ndarray (n,) of int64 or None
         OSM node id of each point (only when asked for).
     polygons : dict of str to (list of str, list of dict)
-        ``"water"``, ``"parks"``, ``"buildings"``: hex WKB multipolygons and their attributes.
+        ``"water"``, ``"parks"``, ``"buildings"``, ``"landuse"``: hex WKB multipolygons and their attributes.
     clipped : int
         Ways whose nodes are partly missing from the file (cut by the extract's bounding box).
     coastline : list of str
@@ -139,7 +153,7 @@ class OsmExtract:
     codes: dict = field(default_factory=dict)
     tags: dict = field(default_factory=dict)
     node_ids: np.ndarray | None = None
-    polygons: dict = field(default_factory=lambda: {k: ([], []) for k in ("water", "parks", "buildings")})
+    polygons: dict = field(default_factory=lambda: {k: ([], []) for k in POLYGON_KINDS})
     clipped: int = 0
     coastline: list = field(default_factory=list)
 
@@ -315,7 +329,7 @@ def _read_pass(
         callbacks["node"] = node
     polygons: dict = {}
     if extras:
-        polygons = {k: ([], []) for k in ("water", "parks", "buildings")}
+        polygons = {k: ([], []) for k in POLYGON_KINDS}
         callbacks["area"] = _area_callback(wkb, extras, polygons)
     if select is None:
         ways_filter = osmium.filter.KeyFilter("highway", *(("natural",) if sea else ()))
@@ -359,6 +373,9 @@ def _area_callback(wkb, extras: frozenset[str], polygons: dict):
             kind = "water"
         elif ("leisure", tags.get("leisure")) in _PARKS:
             kind = "parks"
+        use = LANDUSE.get(("landuse", tags.get("landuse"))) or LANDUSE.get(("amenity", tags.get("amenity")))
+        if kind is None and use is not None:
+            kind = "landuse"
         if kind is None or kind not in extras:
             return
         try:
@@ -375,6 +392,7 @@ def _area_callback(wkb, extras: frozenset[str], polygons: dict):
                 "levels": int_tag(tags.get("building:levels")),
                 "roof": ROOF_SHAPES.get(tags.get("roof:shape", "flat").strip().lower(), "flat"),
                 "roof_height": parse_height(tags.get("roof:height")),
+                "use": use or "",
             }
         )
 
