@@ -142,14 +142,14 @@ def test_node_shrinks_blocks_and_partitions_faces():
         shapely.area(streets.geometry) + shapely.area(walks.geometry) + shapely.area(blocks.geometry),
         shapely.area(faces.geometry),
     )
-    assert node.report["bridges"] == 1 and node.report["dead_ends_cut"] == 1 and len(streets) == 9
+    assert out.report["bridges"] == 1 and out.report["dead_ends_cut"] == 1 and len(streets) == 9
     assert shapely.within(blocks.geometry, faces.geometry[blocks["face"]]).all()
     assert shapely.distance(blocks.geometry, lines[-1]).min() >= 5.0 * np.cos(np.pi / 8) + 3.0 - 1e-6  # chords
     # laid over the block instead: the block whole, the cul-de-sac a street polygon of its own
     over = get("blocks.circuits")("blocks", {"sidewalk": 3.0, "min_area": 1.0, "dead_ends": "over"})
     out = over.run(roads=_roads(lines, 10.0))
     assert np.allclose(shapely.area(out["blocks"].geometry), (100 - 2 * 8) ** 2)
-    assert len(out["streets"]) == 10 and over.report["dead_ends_cut"] == 0
+    assert len(out["streets"]) == 10 and out.report["dead_ends_cut"] == 0
 
 
 def test_street_inset_moves_each_side_by_its_own_street():
@@ -208,7 +208,7 @@ def test_node_outline_areas_and_reports():
     node = get("blocks.circuits")("blocks", {"sidewalk": 2.0, "width_from": "param", "street_width": 6})
     out = node.run(roads=_roads(lines, 50.0), outline=outline, areas=areas)
     blocks = out["blocks"]
-    assert node.report["dropped_outside_outline"] == 2
+    assert out.report["dropped_outside_outline"] == 2
     assert sorted(blocks["district"].tolist()) == [2, 5]
     assert sorted(blocks.parent.tolist()) == [7, 8]
     assert np.allclose(shapely.area(blocks.geometry), (100 - 10) ** 2)
@@ -224,7 +224,7 @@ def test_thin_faces_are_dropped_and_counted():
     out = node.run(roads=_roads(lines, 8.0))
     assert len(out["faces"]) == 3
     assert len(out["blocks"]) == 2
-    assert node.report["vanished_by_inset"] == 1
+    assert out.report["vanished_by_inset"] == 1
     assert node.run(roads=_roads([], 8.0))["blocks"].geometry.shape == (0,)
 
 
@@ -271,9 +271,9 @@ def test_faces_traced_by_clean_are_taken_over():
     assert graph["decimals"] == 6
     node = get("blocks.circuits")("b", {"node": "false"}, Context())
     taken = node.run(roads=cleaned)
-    rep_taken = dict(node.report)
+    rep_taken = dict(taken.report)
     traced = node.run(roads=cleaned.with_meta(graph=None))  # no graph: traced from the lines
-    assert rep_taken == node.report
+    assert rep_taken == taken.report
     for port in ("faces", "blocks", "streets", "sidewalks"):  # the same polygons in the same order
         a, b = taken[port].geometry, traced[port].geometry
         assert len(a) == len(b) and shapely.equals_exact(a, b, 0).all()

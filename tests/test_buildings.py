@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 import sengine.nodes.buildings.extrude as B
 from sengine import Context, Layer
+from sengine.nodes.maps import plan_inputs
 from sengine.plan import CityPlan
 from sengine.random import uniform
 from sengine.registry import get
@@ -20,8 +21,9 @@ Extrude = get("buildings.extrude")
 
 def run(lots, plan=None, seed=7, node_id="buildings", **params):
     node = Extrude(node_id, params, Context(seed=seed, plan=plan))
-    out = node.run(lots=lots)["buildings"]
-    return out, node.report
+    ran = node.run(lots=lots, **(plan_inputs(plan, node) if plan is not None else {}))
+    out = ran["buildings"]
+    return out, ran.report
 
 
 @pytest.fixture(scope="module")
@@ -69,7 +71,7 @@ def test_heights_follow_map_and_snap_to_floors(city):
     assert near.mean() > far.mean() + 20.0
     # and without variation each height is the map's value rounded to a floor
     b0, _ = run(layers["lots"], plan, floor_height=3.5, variation=0.0)
-    img_h = B.sample_height_map(plan, x, y)[0]
+    img_h = B.sample_height_map(plan_inputs(plan, Extrude)["height_map"], x, y)[0]
     assert np.abs(b0["height"] - img_h).max() <= 3.5 / 2 + 1e-9
 
 
@@ -131,15 +133,21 @@ def test_real_monaco_footprints_as_lots():
 
 
 def test_bad_height_map_attributes_name_the_line(city, tmp_path):
-    from sengine.errors import ConfigError
+    from sengine.errors import ConfigError, ParameterError
     from sengine.plan import MapSpec
 
     plan, layers = city
-    bad = CityPlan(
-        size=plan.size, maps={"height": MapSpec("height", plan.maps["height"].src, {"min": "x"}, "city.xml:7")}
-    )
+
+    def with_attrs(attrs):
+        return CityPlan(
+            size=plan.size, maps={"height": MapSpec("height", plan.maps["height"].src, attrs, "city.xml:7")}
+        )
+
+    # the height map's source node reads and checks it, before any building is made
+    with pytest.raises(ParameterError, match=r"city.xml:7: min='x' is not a valid float"):
+        run(layers["lots"], with_attrs({"min": "x"}))
     with pytest.raises(ConfigError, match=r"city.xml:7: height map needs min and max"):
-        run(layers["lots"], bad)
+        run(layers["lots"], with_attrs({"min": "30", "max": "10"}))
 
 
 @settings(max_examples=60, deadline=None)
@@ -176,9 +184,10 @@ def test_paris_courtyards_stay_open():
     inner = lots["inner"].astype(bool)
     assert inner.any() and (~inner).any()
     node = get("buildings.extrude")("b", {}, ctx)
-    built = node.run(lots=lots)["buildings"]
+    ran = node.run(lots=lots)
+    built = ran["buildings"]
     assert not np.isin(built["lot"], lots.ids[inner]).any()
-    assert node.report["courtyards"] == int(inner.sum())
+    assert ran.report["courtyards"] == int(inner.sum())
     with_courts = get("buildings.extrude")("b", {"courtyards": "true"}, ctx).run(lots=lots)["buildings"]
     assert np.isin(lots.ids[inner], with_courts["lot"]).all()
 
@@ -193,6 +202,7 @@ def test_surveyed_heights_of_existing_buildings_win():
     )
     ctx = Context(seed=1, plan=CityPlan(size=(100.0, 40.0)))
     node = get("buildings.extrude")("b", {"height": "12", "variation": "0"}, ctx)
-    built = node.run(lots=lots, existing=existing)["buildings"]
+    ran = node.run(lots=lots, existing=existing)
+    built = ran["buildings"]
     assert built["height"].tolist() == pytest.approx([35 * 3.2, 4 * 3.2, 4 * 3.2])  # 111 m -> 35 floors
-    assert node.report["surveyed_heights"] == 1
+    assert ran.report["surveyed_heights"] == 1

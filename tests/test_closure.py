@@ -45,7 +45,8 @@ def _clean(roads, **params):
 
 def _blocks(roads, **params):
     node = get("blocks.circuits")("blocks", {"node": "false", **{k: str(v) for k, v in params.items()}}, Context())
-    return node.run(roads=roads), node.report
+    ran = node.run(roads=roads)
+    return ran, ran.report
 
 
 def _grid(n=4, step=100.0):

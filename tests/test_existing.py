@@ -20,7 +20,8 @@ Existing = get("buildings.existing")
 
 def run(buildings, existing, lots=None, **params):
     node = Existing("existing", params, Context(seed=1))
-    return node.run(buildings=buildings, existing=existing, lots=lots)["buildings"], node.report
+    ran = node.run(buildings=buildings, existing=existing, lots=lots)
+    return ran["buildings"], ran.report
 
 
 def street_of_lots():

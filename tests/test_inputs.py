@@ -353,16 +353,10 @@ def test_validate_and_run_agree(old, new, tmp_path, capsys):
     assert _err(capsys)[0] == first and not out.exists()
 
 
-# nodes on other branches that still read the plan behind the executor's back (the lead converts
-# them: buildings.extrude takes height_map, lots.district takes district_rules)
-# still to move onto ports (the height map, district and land-use rules): issue 15 part 2, noted as open
-STILL_READING_THE_PLAN = {"lots/nodes.py", "buildings/extrude.py", "buildings/massing.py", "buildings/regulation.py"}
-
-
 def test_only_the_plan_sources_read_the_plan():
     from sengine import nodes
 
     root = Path(nodes.__file__).parent
     readers = {str(p.relative_to(root)) for p in root.rglob("*.py") if re.search(r"context\.plan\b", p.read_text())}
-    assert readers <= {"maps.py"} | STILL_READING_THE_PLAN, sorted(readers)
+    assert readers == {"maps.py"}, sorted(readers)
     assert "maps.py" in readers

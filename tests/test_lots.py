@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 import sengine.nodes.lots.nodes as LOTS
 from sengine import CityPlan, Context, Layer, Rule
 from sengine.errors import ParameterError
+from sengine.nodes.maps import plan_inputs
 from sengine.registry import get
 
 SETTINGS = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -96,9 +97,10 @@ def test_every_method_partitions_random_blocks(polys):
     blocks = Layer.from_geoms(polys, ids=np.arange(len(polys)) * 10 + 3, district=np.zeros(len(polys), int))
     for name in METHODS:
         node = get(name)("lots", {}, Context(seed=5))
-        lots = node.run(blocks=blocks)["lots"]
+        ran = node.run(blocks=blocks)
+        lots = ran["lots"]
         check_lots(blocks, lots, name)
-        assert node.report["lots"] == len(lots)
+        assert ran.report["lots"] == len(lots)
 
 
 @pytest.mark.parametrize("name", METHODS)
@@ -168,16 +170,17 @@ def test_district_rules_choose_method_and_params():
     polys = [shapely.box(0, 0, 150, 100), shapely.box(200, 0, 300, 100), shapely.box(0, 200, 270, 280)]
     blocks = Layer.from_geoms(polys, district=[0, 1, -1])
     node = get("lots.district")("lots", {}, Context(seed=1, plan=plan))
-    lots = node.run(blocks=blocks)["lots"]
+    ran = node.run(blocks=blocks, **plan_inputs(plan, node))
+    lots = ran["lots"]
     check_lots(blocks, lots, "lots.district")
     by = {b: set(lots["method"][lots["block"] == b]) for b in range(3)}
     assert by == {0: {"paris"}, 1: {"recursive"}, 2: {"manhattan"}}
     rec = shapely.area(lots.geometry[(lots["block"] == 1) & ~lots["inner"]])
     assert (rec <= 400 + 1e-6).mean() >= 0.9
-    assert node.report["over_max_area"] == (rec > 400).sum()
+    assert ran.report["over_max_area"] == (rec > 400).sum()
     bad = Layer.from_geoms([shapely.box(0, 0, 50, 50)], district=[2])
     with pytest.raises(ParameterError, match="c.xml:5.*voronoi"):
-        get("lots.district")("lots", {}, Context(plan=plan)).run(blocks=bad)
+        node.run(blocks=bad, **plan_inputs(plan, node))
 
 
 def test_empty_and_degenerate_blocks_do_not_raise():
@@ -186,9 +189,10 @@ def test_empty_and_degenerate_blocks_do_not_raise():
     )
     for name in METHODS:
         node = get(name)("lots", {})
-        lots = node.run(blocks=blocks)["lots"]
+        ran = node.run(blocks=blocks)
+        lots = ran["lots"]
         assert shapely.is_valid(lots.geometry).all()
-        assert node.report["skipped_empty"] == 1
+        assert ran.report["skipped_empty"] == 1
     assert len(get("lots.paris")("lots", {}).run(blocks=Layer.from_geoms([]))["lots"]) == 0
 
 
@@ -246,9 +250,10 @@ def monaco_blocks():
 @pytest.mark.parametrize("name", METHODS)
 def test_real_blocks(monaco_blocks, name):
     node = get(name)("lots", {}, Context(seed=2))
-    lots = node.run(blocks=monaco_blocks)["lots"]
+    ran = node.run(blocks=monaco_blocks)
+    lots = ran["lots"]
     check_lots(monaco_blocks, lots, name)
-    assert node.report.get("kept_whole", 0) == 0 and node.report["no_frontage"] == 0
+    assert ran.report.get("kept_whole", 0) == 0 and ran.report["no_frontage"] == 0
     assert len(lots) > 3 * len(monaco_blocks)
     # every other block alone: the same lots to the bit (as when the executor cuts the input in chunks)
     half = monaco_blocks.take(np.arange(1, len(monaco_blocks), 2))
@@ -280,9 +285,10 @@ def test_paris_thin_concave_and_holed_blocks():
     ]  # a hole in the courtyard
     blocks = Layer.from_geoms(polys)
     node = get("lots.paris")("lots", {})
-    lots = node.run(blocks=blocks)["lots"]
+    ran = node.run(blocks=blocks)
+    lots = ran["lots"]
     check_lots(blocks, lots, "lots.paris")
-    assert node.report["paris_fallback"] == 0
+    assert ran.report["paris_fallback"] == 0
     court = lots.geometry[lots["inner"] & (lots["block"] == 2)]
     assert len(court) == 1 and len(court[0].interiors) == 1
     # perimeter lots about one segment wide all around each block
@@ -311,9 +317,10 @@ def test_awkward_blocks():
     for name in METHODS:
         for seed in (4, 5):
             node = get(name)("lots", {}, Context(seed=seed))
-            lots = node.run(blocks=blocks)["lots"]
+            ran = node.run(blocks=blocks)
+            lots = ran["lots"]
             check_lots(blocks, lots, name)
-            assert node.report.get("kept_whole", 0) == 0
+            assert ran.report.get("kept_whole", 0) == 0
 
 
 @pytest.fixture(scope="module")

@@ -110,12 +110,13 @@ def test_recursive_rows_partition_random_blocks(polys, row_depth, max_aspect, ma
     params = {"row_depth": row_depth, "max_aspect": max_aspect, "max_area": max_area, "min_area": 20.0}
     params["inner_lots"] = inner
     node = get("lots.recursive")("lots", params, Context(seed=9))
-    lots = node.run(blocks=blocks)["lots"]
+    ran = node.run(blocks=blocks)
+    lots = ran["lots"]
     check_lots(blocks, lots, "lots.recursive")
     area = shapely.area(lots.geometry)
     whole = np.isclose(area, shapely.area(blocks.geometry)[np.searchsorted(blocks.ids, lots["block"])])
     assert (area[~whole] >= 20.0 - 1e-6).all(), "a cut left a lot under min_area"
-    assert node.report["lots"] == len(lots) and node.report["recursive_inner"] == int(lots["inner"].sum())
+    assert ran.report["lots"] == len(lots) and ran.report["recursive_inner"] == int(lots["inner"].sum())
 
 
 @pytest.fixture(scope="module")
@@ -142,11 +143,12 @@ def test_few_thin_lots_on_real_extracts(real_blocks, name, city):
     """At most 2 % of street-facing lots thinner than 1:10 (default parameters); every lot valid, none under 1 m2."""
     blocks = real_blocks[city]
     node = get(name)("lots", {}, Context(seed=2))
-    lots = node.run(blocks=blocks)["lots"]
+    ran = node.run(blocks=blocks)
+    lots = ran["lots"]
     assert shapely.is_valid(lots.geometry).all()
     assert thin_share(lots) <= 0.02, f"{name} on {city}: {thin_share(lots):.1%} thinner than 1:10"
     assert (shapely.area(lots.geometry) >= 1.0).all()
-    assert node.report["no_frontage"] == 0 and node.report.get("kept_whole", 0) == 0
+    assert ran.report["no_frontage"] == 0 and ran.report.get("kept_whole", 0) == 0
     barea = shapely.area(blocks.geometry)
     larea = np.bincount(np.searchsorted(blocks.ids, lots["block"]), weights=shapely.area(lots.geometry))
     assert np.allclose(larea, barea, rtol=1e-3)
@@ -171,10 +173,11 @@ def test_few_thin_lots_on_whole_liege(name):
     roads = get("roads.clean")("clean", {}, ctx).run(roads=roads)["roads"]
     blocks = get("blocks.circuits")("blocks", {"node": False}, ctx).run(roads=roads)["blocks"]
     node = get(name)("lots", {}, Context(seed=1))
-    lots = node.run(blocks=blocks)["lots"]
+    ran = node.run(blocks=blocks)
+    lots = ran["lots"]
     assert thin_share(lots) <= 0.02
     assert (shapely.area(lots.geometry) >= 1.0).all()
-    assert node.report["no_frontage"] == 0
+    assert ran.report["no_frontage"] == 0
 
 
 # -- lots.partition ------------------------------------------------------------------------------
@@ -183,14 +186,15 @@ def test_few_thin_lots_on_whole_liege(name):
 def partition(params, polys, seed=1):
     blocks = Layer.from_geoms(polys)
     node = get("lots.partition")("lots", params, Context(seed=seed))
-    return blocks, node.run(blocks=blocks)["lots"], node
+    ran = node.run(blocks=blocks)
+    return blocks, ran["lots"], ran
 
 
 @pytest.mark.parametrize("angle", [0.0, 33.0])
 def test_partition_by_size_keeps_remainders(angle):
     """A 100 m x 60 m block, lots 30 m x 25 m: 3 x 2 whole lots; the 10 m and 10 m leftovers flagged."""
     block = shapely.affinity.rotate(shapely.box(0, 0, 100, 60), angle)
-    blocks, lots, node = partition({"size": "30 25", "max_aspect": 0}, [block])
+    blocks, lots, ran = partition({"size": "30 25", "max_aspect": 0}, [block])
     check_lots(blocks, lots, "lots.partition")
     area = shapely.area(lots.geometry)
     assert len(lots) == 4 * 3
@@ -201,21 +205,21 @@ def test_partition_by_size_keeps_remainders(angle):
         (i, j) for i in range(3) for j in range(2)
     ]
     assert set(lots["ix"].tolist()) == {0, 1, 2, 3} and set(lots["iy"].tolist()) == {0, 1, 2}
-    assert node.report["remainders"] == 6
+    assert ran.report["remainders"] == 6
     # lots no street reaches are inner: the two in the middle of the 4 x 3 grid
     assert lots["inner"].sum() == 2 and (lots["frontage"][lots["inner"]] == 0).all()
 
 
 def test_partition_folds_thin_leftovers_by_default():
     """A 92 m x 60 m block, lots 30 m x 30 m: the 2 m leftover column (1:15) joins the column before it."""
-    blocks, lots, node = partition({"size": "30 30"}, [shapely.box(0, 0, 92, 60)])
+    blocks, lots, ran = partition({"size": "30 30"}, [shapely.box(0, 0, 92, 60)])
     check_lots(blocks, lots, "lots.partition")
     long, short = obb_sides(lots.geometry)
     assert (short * 6.0 >= long - 1e-9).all()
     assert len(lots) == 6 and np.allclose(np.sort(shapely.area(lots.geometry)), [900] * 4 + [960] * 2)
     assert lots["remainder"].sum() == 2 and set(lots["ix"].tolist()) == {0, 1, 2}
     # max_aspect=0 keeps the strip as its own column of remainders
-    blocks, lots, node = partition({"size": "30 30", "max_aspect": 0}, [shapely.box(0, 0, 92, 60)])
+    blocks, lots, ran = partition({"size": "30 30", "max_aspect": 0}, [shapely.box(0, 0, 92, 60)])
     assert len(lots) == 8 and np.allclose(np.sort(shapely.area(lots.geometry))[:2], [60, 60])
 
 
@@ -277,7 +281,7 @@ def test_partition_random_blocks(polys, mode, size, cluster):
         with pytest.raises(ParameterError, match="is larger than every block"):
             partition(params, polys)
         return
-    blocks, lots, node = partition(params, polys)
+    blocks, lots, ran = partition(params, polys)
     check_lots(blocks, lots, "lots.partition")
     area = shapely.area(lots.geometry)
     barea = shapely.area(blocks.geometry)[lots["block"]]
@@ -373,11 +377,13 @@ def test_parameters_that_cannot_hold_are_one_line_errors():
 def test_parameters_that_fail_for_some_blocks_are_counted():
     blocks = Layer.from_geoms([shapely.box(0, 0, 100, 60), shapely.box(200, 0, 203, 3)])
     node = get("lots.recursive")("lots", {"min_frontage": 20})
-    lots = node.run(blocks=blocks)["lots"]
-    assert node.report["blocks_below_min_frontage"] == 1 and (lots["block"] == 1).sum() == 1
+    ran = node.run(blocks=blocks)
+    lots = ran["lots"]
+    assert ran.report["blocks_below_min_frontage"] == 1 and (lots["block"] == 1).sum() == 1
     node = get("lots.partition")("lots", {"size": "50 50"})
-    lots = node.run(blocks=blocks)["lots"]
-    assert node.report["blocks_below_size"] == 1 and lots["remainder"][lots["block"] == 1].all()
+    ran = node.run(blocks=blocks)
+    lots = ran["lots"]
+    assert ran.report["blocks_below_size"] == 1 and lots["remainder"][lots["block"] == 1].all()
 
 
 def test_cli_bad_lot_parameter_is_one_line_exit_2(tmp_path, capsys):

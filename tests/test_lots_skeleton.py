@@ -22,6 +22,7 @@ from sengine.errors import ParameterError
 from sengine.geom.polygons import obb_frame
 from sengine.nodes.lots.nodes import lot_attributes
 from sengine.nodes.lots.skeleton import skeleton_lots
+from sengine.nodes.maps import plan_inputs
 from sengine.registry import get
 
 SETTINGS = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -103,9 +104,10 @@ def test_skeleton_partitions_generated_blocks(polys, interior, corner):
         with pytest.raises(ParameterError, match="lot_width_min=6 m is more than the whole boundary of every block"):
             node.run(blocks=blocks)
         return
-    lots = node.run(blocks=blocks)["lots"]
+    ran = node.run(blocks=blocks)
+    lots = ran["lots"]
     check_partition(blocks, lots)
-    assert node.report["lots"] == len(lots) and node.report.get("kept_whole", 0) == 0
+    assert ran.report["lots"] == len(lots) and ran.report.get("kept_whole", 0) == 0
     # the interior is flagged and has no street; street lots have street
     inner = lots["inner"]
     assert (lots["frontage"][inner] <= 1e-6).all()
@@ -120,9 +122,10 @@ def test_skeleton_partitions_generated_blocks(polys, interior, corner):
 def test_skeleton_on_real_extracts(name):
     blocks = osm_blocks(name)
     node = get("lots.skeleton")("lots", {}, Context(seed=1))
-    lots = node.run(blocks=blocks)["lots"]
+    ran = node.run(blocks=blocks)
+    lots = ran["lots"]
     check_partition(blocks, lots)
-    assert node.report.get("kept_whole", 0) == 0 and node.report["no_frontage"] == 0
+    assert ran.report.get("kept_whole", 0) == 0 and ran.report["no_frontage"] == 0
     street = lots["kind"] != "inner"
     # the frontage the method carries through its merges is the one measured on the geometry
     ref = lot_attributes(lots.geometry, np.searchsorted(blocks.ids, lots["block"]), blocks.geometry)
@@ -224,13 +227,14 @@ def test_skeleton_in_district_rules():
     plan = CityPlan(rules=[Rule("district", {"lots": "skeleton", "lot-width": "10", "lot-depth": "18"}, "c.xml:3")])
     blocks = Layer.from_geoms([shapely.box(0, 0, 150, 90), shapely.box(300, 0, 450, 90)], district=np.array([0, -1]))
     node = get("lots.district")("lots", {"default": "recursive"}, Context(seed=1, plan=plan))
-    lay = node.run(blocks=blocks)["lots"]
+    ran = node.run(blocks=blocks, **plan_inputs(plan, node))
+    lay = ran["lots"]
     sk = lay["method"] == "skeleton"
     assert sk.any() and (lay["block"][sk] == blocks.ids[0]).all()
     assert (lay["method"][lay["block"] == blocks.ids[1]] == "recursive").all()
     street = sk & (lay["kind"] == "street")
     assert np.allclose(np.median(lay["depth"][street]), 18.0) and np.median(lay["frontage"][street]) < 12.0
-    assert node.report["blocks_skeleton"] == 1
+    assert ran.report["blocks_skeleton"] == 1
 
 
 def test_impossible_parameters_are_one_line_errors():
@@ -241,8 +245,9 @@ def test_impossible_parameters_are_one_line_errors():
         get("lots.skeleton")("lots", {"lot_width_min": 400, "width": 500}, Context()).run(blocks=blocks)
     # impossible for one block only: kept whole and counted
     node = get("lots.skeleton")("lots", {"lot_width_min": 150, "width": 160}, Context())
-    lay = node.run(blocks=blocks)["lots"]
-    assert node.report["skipped_width"] == 1
+    ran = node.run(blocks=blocks)
+    lay = ran["lots"]
+    assert ran.report["skipped_width"] == 1
     assert (lay["block"] == blocks.ids[0]).sum() == 1
     assert len(str(ParameterError("x", where="node 'lots' (lots.skeleton)")).splitlines()) == 1
     with pytest.raises(ParameterError, match="depth"):

@@ -16,6 +16,7 @@ from sengine.nodes.buildings.edges import FRONT, REAR, SIDE, lot_edges
 from sengine.nodes.buildings.far import depth_for, far_height, far_to_building, floors_for
 from sengine.nodes.buildings.typology import TYPOLOGIES
 from sengine.nodes.buildings.walls import party_walls
+from sengine.nodes.maps import plan_inputs
 from sengine.registry import get
 
 Massing = get("buildings.massing")
@@ -26,8 +27,9 @@ GRID = 1e-9  # m: snap-rounding overlay for measurements (see test_lots)
 
 def run(lots, blocks=None, *, node=Massing, plan=None, seed=7, custom=None, **params):
     n = node("buildings", {k: str(v) for k, v in params.items()}, Context(seed=seed, plan=plan))
-    out = n.run(lots=lots, blocks=blocks, custom=custom)["buildings"]
-    return out, n.report
+    ran = n.run(lots=lots, blocks=blocks, custom=custom, **(plan_inputs(plan, n) if plan is not None else {}))
+    out = ran["buildings"]
+    return out, ran.report
 
 
 def row_block(width, depth=30.0, count=3, rows=2, angle=0.0):
@@ -382,7 +384,7 @@ def test_zones_give_the_land_use_and_landuse_rules_follow_it():
     zones = Layer.from_geoms([shapely.box(-1, -1, 41, 31)], use=np.array(["educational"], dtype=object))
     plan = CityPlan(rules=[Rule("landuse", {"class": "educational", "far": "0.8", "loc": "0"}, "x.xml:4")])
     n = Massing("buildings", {}, Context(seed=7, plan=plan))
-    b = n.run(lots=lots, blocks=blocks, zones=zones)["buildings"]
+    b = n.run(lots=lots, blocks=blocks, zones=zones, **plan_inputs(plan, n))["buildings"]
     school = np.isin(b["lot"], lots.ids[:2])
     assert (b["use"][school] == "educational").all() and (b["use"][~school] == "residential").all()
     assert np.all(np.abs(b["far"][school] - 0.8) <= 0.04 + 1e-9) and (b["loc"][school] == 0).all()

@@ -11,6 +11,7 @@ from conftest import CONFIGS, run_cli
 
 from sengine import CityPlan, Context, Layer, Rule
 from sengine.nodes.buildings.regulation import STREET_MINIMA, ZB_TABLE, street_minimum, zb_limit
+from sengine.nodes.maps import plan_inputs
 from sengine.registry import get
 
 Check = get("buildings.check")
@@ -19,7 +20,8 @@ Check = get("buildings.check")
 def run(plan=None, **inputs):
     params = inputs.pop("params", {})
     node = Check("check", params, Context(seed=1, plan=plan))
-    return node.run(**inputs), node.report
+    ran = node.run(**inputs, **(plan_inputs(plan, node) if plan is not None else {}))
+    return ran, ran.report
 
 
 def test_zb_at_the_table_points_and_interpolated():

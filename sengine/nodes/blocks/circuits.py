@@ -59,7 +59,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.geom.planar import PlanarFaces, planar_faces, spur_polygons
 from sengine.geom.polygons import containing, frame_boxes, inset, subtract_buffers, threaded
 from sengine.geom.segments import merge_points, planarize, segments_from_lines
@@ -909,7 +909,6 @@ class BlocksCircuits(SENode):
                 fdistrict[has] = np.asarray(areas["district"], np.int64)[host[has]]
             district, parent = fdistrict[pidx], fparent[pidx]
         report["blocks"] = int(len(parts))
-        self.report = report
         log.info("%s: %d faces -> %d blocks (%s)", self.where, len(bf.faces), len(parts), report)
         battrs = {"district": district, "face": fid[pidx]}
         if bare.any():
@@ -932,4 +931,4 @@ class BlocksCircuits(SENode):
         streets = Layer.from_geoms(sgeom[live], meta=meta, kind=skind[live])
         wgeom = walk[~shapely.is_empty(walk)]
         walks = Layer.from_geoms(wgeom, meta=meta, kind=np.full(len(wgeom), "sidewalk"))
-        return {"blocks": blocks, "streets": streets, "sidewalks": walks, "faces": faces_l}
+        return NodeResult({"blocks": blocks, "streets": streets, "sidewalks": walks, "faces": faces_l}, report)

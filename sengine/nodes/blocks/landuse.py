@@ -31,7 +31,7 @@ import logging
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.geom.polygons import inset
 
 __all__ = ["cut_blocks", "open_land", "BlocksLanduse"]
@@ -248,7 +248,7 @@ class BlocksLanduse(SENode):
         ),
     }
 
-    def run(self, *, blocks: Layer, water: Layer | None = None, parks: Layer | None = None) -> dict[str, Layer]:
+    def run(self, *, blocks: Layer, water: Layer | None = None, parks: Layer | None = None) -> NodeResult:
         cut = [lay.geometry for lay in (water, parks) if lay is not None and len(lay)]
         geoms = np.concatenate(cut) if cut else np.empty(0, dtype=object)
         pieces, src, counts = cut_blocks(blocks.geometry, geoms, min_area=self.p.min_area, min_width=self.p.min_width)
@@ -271,7 +271,7 @@ class BlocksLanduse(SENode):
         # parts too small to keep, split off the open land, are removed land too
         counts["area_removed_m2"] = round(float(blocks.area() - shapely.area(pieces).sum()), 1)
         out = Layer(pieces, ids, out.parent, {**out.attrs, "landuse": landuse}, out.meta)
-        self.report = {**counts, **ocounts, "open_blocks": int(is_open.sum()), "blocks": len(out)}
+        report = {**counts, **ocounts, "open_blocks": int(is_open.sum()), "blocks": len(out)}
         log.info(
             "%s: %d of %d blocks lose water or park land (%.0f m2); %d pieces",
             self.where,
@@ -280,4 +280,4 @@ class BlocksLanduse(SENode):
             counts["area_removed_m2"],
             len(out),
         )
-        return {"blocks": out}
+        return NodeResult({"blocks": out}, report)

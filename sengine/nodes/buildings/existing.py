@@ -26,7 +26,7 @@ import logging
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import InputDataError
 from sengine.geom.polygons import largest_share, shared_areas
 
@@ -122,7 +122,7 @@ class BuildingsExisting(SENode):
         ),
     }
 
-    def run(self, *, buildings: Layer, existing: Layer | None = None, lots: Layer | None = None) -> dict[str, Layer]:
+    def run(self, *, buildings: Layer, existing: Layer | None = None, lots: Layer | None = None) -> NodeResult:
         real = existing if existing is not None and self.p.keep != "generated" else Layer.empty()
         if len(real) and "height" not in real:
             raise InputDataError("existing buildings carry no 'height' column", where=self.where)
@@ -145,7 +145,7 @@ class BuildingsExisting(SENode):
                 height_source=np.full(m, "generated", dtype=object),
             )
             out = Layer.concat([out, kept], renumber=False).with_meta(**buildings.meta)
-        self.report = {
+        report = {
             "buildings": len(out),
             "existing": n,
             "generated": m,
@@ -159,4 +159,4 @@ class BuildingsExisting(SENode):
             m,
             len(buildings),
         )
-        return {"buildings": out}
+        return NodeResult({"buildings": out}, report)

@@ -22,9 +22,10 @@ import logging
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
-from sengine.errors import ConfigError
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.random import uniform
+
+from ..maps import image_of
 
 __all__ = ["inset_footprints", "snap_floors", "sample_height_map", "BuildingsExtrude"]
 
@@ -107,30 +108,28 @@ def snap_floors(
     return floors * fh, floors
 
 
-def sample_height_map(plan, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float, float] | None:
-    """Heights (m) from ``plan.maps["height"]`` at points, with the map's min and max.
+def sample_height_map(height_map: Layer | None, x: np.ndarray, y: np.ndarray):
+    """Heights (m) from the height map at points, with the map's min and max.
 
-    Black is ``min``, white is ``max`` (bilinear between pixel centres); the
-    map covers the city extent.  ``None`` when the plan has no height map.
+    Parameters
+    ----------
+    height_map : Layer or None
+        The ``raster`` layer of ``maps.image`` for ``<map kind="height">``:
+        its decoded grey image and its ``min`` / ``max`` (m, checked there).
+    x, y : ndarray
+        Points (m, the city's planar frame).
+
+    Returns
+    -------
+    tuple of (ndarray, float, float) or None
+        Black is ``min``, white is ``max`` (bilinear between pixel centres);
+        ``None`` when the city has no height map.
     """
-    spec = getattr(plan, "maps", {}).get("height") if plan is not None else None
-    if spec is None:
+    image = image_of(height_map)
+    if image is None:
         return None
-    from sengine.geom.raster import read_map
-
-    try:
-        lo = float(spec.attrs.get("min", "nan"))
-        hi = float(spec.attrs.get("max", "nan"))
-    except ValueError:
-        lo = hi = float("nan")
-    if not (np.isfinite(lo) and np.isfinite(hi) and 0 <= lo <= hi):
-        raise ConfigError(
-            f"height map needs min and max in metres with 0 <= min <= max; got min={spec.attrs.get('min')!r} "
-            f"max={spec.attrs.get('max')!r}",
-            where=spec.where or None,
-        )
-    img = read_map(spec, plan.extent, colour=False)
-    return img.scaled(x, y, lo, hi), lo, hi
+    lo, hi = float(height_map["min"][0]), float(height_map["max"][0])
+    return image.scaled(x, y, lo, hi), lo, hi
 
 
 @register
@@ -153,6 +152,9 @@ class BuildingsExtrude(SENode):
         "lots": Port("lots", "lots to build on"),
         "existing": Port(
             "buildings", "buildings already there (OSM): a lot inside one takes its tagged height", required=False
+        ),
+        "height_map": Port(
+            "raster", "the height map (<map kind='height'>); none: every building 'height'", required=False
         ),
     }
     outputs = {"buildings": Port("buildings", "footprints with height, floors, roof, lot, district")}
@@ -182,7 +184,7 @@ class BuildingsExtrude(SENode):
     }
     maps_features = True
 
-    def run(self, *, lots: Layer, existing: Layer | None = None) -> dict[str, Layer]:
+    def run(self, *, lots: Layer, existing: Layer | None = None, height_map: Layer | None = None) -> NodeResult:
         p = self.p
         footprints, keep = inset_footprints(lots.geometry, p.setback, min_area=p.min_area)
         open_court = np.zeros(len(lots), bool)
@@ -193,7 +195,7 @@ class BuildingsExtrude(SENode):
         ids = lots.ids[keep]
         skipped = int(len(lots) - keep.sum() - open_court.sum())
         c = shapely.centroid(lots.geometry[keep]) if len(ids) else np.empty(0, object)
-        sampled = sample_height_map(self.context.plan, shapely.get_x(c), shapely.get_y(c)) if len(ids) else None
+        sampled = sample_height_map(height_map, shapely.get_x(c), shapely.get_y(c)) if len(ids) else None
         if sampled is None:
             base, lo, hi = np.full(len(ids), p.height), None, None
         else:
@@ -221,7 +223,7 @@ class BuildingsExtrude(SENode):
             },
             dict(lots.meta),
         )
-        self.report = {
+        report = {
             "buildings": int(len(ids)),
             "skipped": skipped,
             "courtyards": int(open_court.sum()),
@@ -235,4 +237,4 @@ class BuildingsExtrude(SENode):
                 p.setback,
                 p.min_area,
             )
-        return {"buildings": out}
+        return NodeResult({"buildings": out}, report)

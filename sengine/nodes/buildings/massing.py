@@ -54,10 +54,11 @@ import logging
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import InputDataError
 from sengine.random import uniform
 
+from ..maps import image_of, rules_of
 from .edges import lot_edges
 from .extrude import sample_height_map
 from .far import TOLERANCE, depth_for, far_to_building
@@ -103,6 +104,10 @@ class _Massing(SENode):
             "level of control 2: footprints with a 'lot' column and 'height' or 'floors', taken as they are",
             required=False,
         ),
+        "height_map": Port("raster", "the height map (level of control 1 without 'floors')", required=False),
+        "landuse_map": Port("raster", "the land-use map: each lot's <landuse> rule by its colour", required=False),
+        "district_rules": Port("rules", "the <district> rules: use, far, setbacks ... per district", required=False),
+        "landuse_rules": Port("rules", "the <landuse> rules: use, far, setbacks ... per land use", required=False),
     }
     outputs = {
         "buildings": Port(
@@ -177,7 +182,7 @@ class _Massing(SENode):
         }
 
     # -- the steps ---------------------------------------------------------------------
-    def _rules(self, lots: Layer, zones: Layer | None = None) -> dict:
+    def _rules(self, lots: Layer, zones: Layer | None, plan: dict) -> dict:
         p = self.p
         defaults = {
             "use": p.use,
@@ -193,7 +198,15 @@ class _Massing(SENode):
             "depth": p.depth,
             "roof": p.roof,
         }
-        return per_lot(lots, self.context.plan, defaults, self.where, zones)
+        return per_lot(
+            lots,
+            defaults,
+            self.where,
+            zones,
+            districts=rules_of(plan["district_rules"]),
+            landuses=rules_of(plan["landuse_rules"]),
+            landuse_map=image_of(plan["landuse_map"]),
+        )
 
     def _typologies(self, r: dict, ids) -> np.ndarray:
         use = r["use"].astype(str)
@@ -215,11 +228,11 @@ class _Massing(SENode):
         u = uniform(self.context.seed, f"{self.id}/typology", ids)
         return choose(tables, inv, u, TYPOLOGIES)
 
-    def _map_floors(self, lots: Layer, ids) -> np.ndarray:
+    def _map_floors(self, lots: Layer, ids, height_map: Layer | None) -> np.ndarray:
         """Floors the height map (or ``height``) asks for at each lot, with the seeded variation."""
         p = self.p
         c = shapely.point_on_surface(lots.geometry) if len(lots) else np.empty(0, object)
-        sampled = sample_height_map(self.context.plan, shapely.get_x(c), shapely.get_y(c)) if len(lots) else None
+        sampled = sample_height_map(height_map, shapely.get_x(c), shapely.get_y(c)) if len(lots) else None
         if sampled is None:
             base, lo, hi = np.full(len(lots), p.height), None, None
         else:
@@ -237,7 +250,11 @@ class _Massing(SENode):
         blocks: Layer | None = None,
         zones: Layer | None = None,
         custom: Layer | None = None,
-    ) -> dict[str, Layer]:
+        height_map: Layer | None = None,
+        landuse_map: Layer | None = None,
+        district_rules: Layer | None = None,
+        landuse_rules: Layer | None = None,
+    ) -> NodeResult:
         p = self.p
         fh = p.floor_height
         n_all = len(lots)
@@ -253,7 +270,12 @@ class _Massing(SENode):
         L = lots.take(work)
         n = len(L)
         ids = L.ids
-        r = self._rules(L, zones)
+        plan = {
+            "landuse_map": landuse_map,
+            "district_rules": district_rules,
+            "landuse_rules": landuse_rules,
+        }
+        r = self._rules(L, zones, plan)
         use = r["use"].astype(str)
         loc = np.asarray([int(v) for v in r["loc"]], np.int64)
         siting = r["siting"].astype(str)
@@ -304,7 +326,7 @@ class _Massing(SENode):
         one = build & (loc == 1)
         explicit = np.array([v is not None for v in r["floors"]], bool)
         if one.any():
-            f = self._map_floors(L, ids)
+            f = self._map_floors(L, ids, height_map)
             f[explicit] = np.array([int(v) for v in r["floors"][explicit]], np.int64)
             f = np.minimum(f, class_floors)
             floors[one] = f[one]
@@ -333,7 +355,7 @@ class _Massing(SENode):
         out = self._layer(L, g, row, role, typ, use, loc, floors, r, edges, lot_area, siting)
         if custom_lot.any():
             out = Layer.concat([out, self._custom(lots, custom, custom_lot)], renumber=False).with_meta(**lots.meta)
-        self.report = {
+        report = {
             "buildings": len(out),
             "lots": n_all,
             "lots_built": int(len(np.unique(out["lot"]))) if len(out) else 0,
@@ -345,8 +367,8 @@ class _Massing(SENode):
             if len(out)
             else {},
         }
-        log.info("%s: %d building parts on %d of %d lots", self.where, len(out), self.report["lots_built"], n_all)
-        return {"buildings": out}
+        log.info("%s: %d building parts on %d of %d lots", self.where, len(out), report["lots_built"], n_all)
+        return NodeResult({"buildings": out}, report)
 
     def _far_loop(self, parts, target, depth, max_floors, rows, first):
         def sub(k, d, frac):

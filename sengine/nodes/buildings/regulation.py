@@ -38,10 +38,11 @@ import logging
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.geom.polygons import shared_areas
 from sengine.registry import declare_rule
 
+from ..maps import rules_of
 from .rules import class_bounds
 
 __all__ = ["ZB_TABLE", "STRUCTURES", "STREET_MINIMA", "zb_limit", "street_minimum", "BuildingsCheck"]
@@ -127,6 +128,9 @@ class BuildingsCheck(SENode):
         "buildings": Port("buildings", "buildings with height, floors (and roof_height, roof, district)"),
         "blocks": Port("blocks", "blocks: their coverage against ZB", required=False),
         "roads": Port("roads", "street centre lines with class and width", required=False),
+        "district_rules": Port(
+            "rules", "the <district> rules: height-class and structure per district", required=False
+        ),
     }
     outputs = {
         "buildings": Port("buildings", "the buildings with ok, violation, height_class"),
@@ -145,9 +149,8 @@ class BuildingsCheck(SENode):
         ),
     }
 
-    def _district_values(self, attr: str, district, default: str) -> np.ndarray:
-        plan = self.context.plan
-        rules = plan.rules_of("district") if plan is not None else []
+    @staticmethod
+    def _district_values(rules, attr: str, district, default: str) -> np.ndarray:
         out = np.full(len(district), default, dtype=object)
         for i, rule in enumerate(rules):
             value = rule.get(attr)
@@ -155,12 +158,20 @@ class BuildingsCheck(SENode):
                 out[np.asarray(district) == i] = value
         return out.astype(str)
 
-    def run(self, *, buildings: Layer, blocks: Layer | None = None, roads: Layer | None = None) -> dict[str, Layer]:
+    def run(
+        self,
+        *,
+        buildings: Layer,
+        blocks: Layer | None = None,
+        roads: Layer | None = None,
+        district_rules: Layer | None = None,
+    ) -> NodeResult:
+        rules = rules_of(district_rules)
         n = len(buildings)
         report: dict = {}
         # buildings: height class, roof envelope, storey height
         district = np.asarray(buildings.get("district", np.full(n, -1)), np.int64)
-        hclass = self._district_values("height-class", district, self.p.height_class)
+        hclass = self._district_values(rules, "height-class", district, self.p.height_class)
         if "height_class" in buildings:
             own = np.asarray(buildings["height_class"]).astype(str)
             hclass = np.where((own != "") & (own != "None"), own, hclass)
@@ -201,7 +212,7 @@ class BuildingsCheck(SENode):
             with np.errstate(divide="ignore", invalid="ignore"):
                 coverage = np.where(area > 0, covered / area, 0.0)
             structure = self._district_values(
-                "structure", np.asarray(blocks.get("district", np.full(m, -1)), np.int64), self.p.structure
+                rules, "structure", np.asarray(blocks.get("district", np.full(m, -1)), np.int64), self.p.structure
             )
             zb = zb_limit(structure, area)
             over = coverage > zb + 1e-9
@@ -227,9 +238,8 @@ class BuildingsCheck(SENode):
             bad += int(narrow.sum())
         report["violations"] = bad
         report["summary"] = ("regulation: " + "; ".join(parts)) if parts else "regulation: no violation"
-        self.report = report
         log.info("%s: %s", self.where, report["summary"])
-        return {"buildings": out_b, "blocks": out_k, "roads": out_r}
+        return NodeResult({"buildings": out_b, "blocks": out_k, "roads": out_r}, report)
 
 
 def _obb_width(geoms):

@@ -81,20 +81,32 @@ def class_bounds(names) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def landuse_rule_at(plan, x, y) -> np.ndarray:
-    """Index into ``plan.rules_of("landuse")`` of the land-use map's colour at each point (``-1``: no map)."""
-    out = np.full(len(x), -1, np.int64)
-    spec = getattr(plan, "maps", {}).get("landuse") if plan is not None else None
-    rules = plan.rules_of("landuse") if plan is not None else []
-    if spec is None or not rules or len(x) == 0:
-        return out
-    from sengine.geom.raster import parse_colour, read_map
+def landuse_rule_at(image, rules, x, y) -> np.ndarray:
+    """Index into ``rules`` (the ``<landuse>`` rules) of the land-use map's colour at each point.
 
-    img = read_map(spec, plan.extent, colour=True)
+    Parameters
+    ----------
+    image : sengine.geom.raster.ImageMap or None
+        The decoded land-use map (``None``: no map, every point gets ``-1``).
+    rules : list of Rule
+        The ``<landuse>`` rules, each with its ``color``.
+    x, y : ndarray
+        Points (m, the city's planar frame).
+
+    Returns
+    -------
+    ndarray of int64
+        The nearest legend colour's rule at each point (RGB distance), ``-1`` without a map.
+    """
+    out = np.full(len(x), -1, np.int64)
+    if image is None or not rules or len(x) == 0:
+        return out
+    from sengine.geom.raster import parse_colour
+
     legend = np.array([parse_colour(r.get("color"), where=r.where) for r in rules if r.get("color")], np.int64)
     if len(legend) != len(rules):
         raise ConfigError("<landuse> needs a color attribute", where=rules[0].where or None)
-    rgb = np.asarray(img.sample(x, y), np.int64).reshape(len(x), -1)
+    rgb = np.asarray(image.sample(x, y), np.int64).reshape(len(x), -1)
     if rgb.shape[1] == 1:
         rgb = np.repeat(rgb, 3, axis=1)
     d2 = ((rgb[:, None, :3] - legend[None, :, :]) ** 2).sum(axis=2)
@@ -139,7 +151,9 @@ def zone_use(lots, zones) -> np.ndarray:
     return out
 
 
-def per_lot(lots, plan, defaults: dict, where: str, zones=None) -> dict[str, np.ndarray]:
+def per_lot(
+    lots, defaults: dict, where: str, zones=None, *, districts=(), landuses=(), landuse_map=None
+) -> dict[str, np.ndarray]:
     """Each rule value for each lot: lot column, land-use rule, district rule, node default.
 
     The land use of a lot is its ``use`` column, else the class of the
@@ -153,7 +167,6 @@ def per_lot(lots, plan, defaults: dict, where: str, zones=None) -> dict[str, np.
     ----------
     lots : Layer
         Lots with ``district`` (and optionally the override columns).
-    plan : CityPlan or None
     defaults : dict
         Node parameter values under the rule names with ``_`` (``setback_front`` ...);
         ``None`` where the node sets none.
@@ -161,6 +174,10 @@ def per_lot(lots, plan, defaults: dict, where: str, zones=None) -> dict[str, np.
         The node, for messages.
     zones : Layer, optional
         Land-use polygons with a ``use`` column.
+    districts, landuses : list of Rule
+        The plan's ``<district>`` and ``<landuse>`` rules (from the ``rules`` ports).
+    landuse_map : sengine.geom.raster.ImageMap, optional
+        The decoded land-use map.
 
     Returns
     -------
@@ -173,8 +190,6 @@ def per_lot(lots, plan, defaults: dict, where: str, zones=None) -> dict[str, np.
     out = {k.replace("-", "_"): np.full(n, defaults.get(k.replace("-", "_")), dtype=object) for k in RULE_PARAMS}
     if n == 0:
         return out
-    districts = plan.rules_of("district") if plan is not None else []
-    landuses = plan.rules_of("landuse") if plan is not None else []
     idx = np.asarray(lots.get("district", np.full(n, -1)), np.int64)
     for i, rule in enumerate(districts):
         sel = idx == i
@@ -184,9 +199,9 @@ def per_lot(lots, plan, defaults: dict, where: str, zones=None) -> dict[str, np.
     has = np.array([u in USES for u in zoned], bool)
     out["use"][has] = zoned[has]
     mapped = np.full(n, -1, np.int64)
-    if landuses and getattr(plan, "maps", {}).get("landuse") is not None:
+    if landuses and landuse_map is not None:
         pts = shapely.point_on_surface(lots.geometry)
-        mapped = landuse_rule_at(plan, shapely.get_x(pts), shapely.get_y(pts))
+        mapped = landuse_rule_at(landuse_map, landuses, shapely.get_x(pts), shapely.get_y(pts))
         for i, rule in enumerate(landuses):
             cls = (rule.get("class") or "").strip().lower()
             if cls in USES:

@@ -32,12 +32,13 @@ import logging
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, Port, SENode, register
+from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import ParameterError
 from sengine.geom.boundary import ring_segments, segments_on_boundary
 from sengine.random import mix64
 from sengine.registry import declare_rule
 
+from ..maps import rules_of
 from .manhattan import manhattan_lots
 from .paris import paris_lots
 from .recursive import check_recursive, recursive_lots
@@ -240,36 +241,34 @@ class _Lots(SENode):
     maps_features = True
     method = ""
 
-    def split(self, blocks: Layer, report: dict) -> LotSplit:
-        """The method's lots of ``blocks`` (see :class:`.vocabulary.LotSplit`)."""
+    def split(self, blocks: Layer, report: dict, **inputs: Layer | None) -> LotSplit:
+        """The method's lots of ``blocks`` (see :class:`.vocabulary.LotSplit`); ``inputs``: the other ports."""
         raise NotImplementedError
 
-    def run(self, *, blocks: Layer) -> dict[str, Layer]:
+    def run(self, *, blocks: Layer, **inputs: Layer | None) -> NodeResult:
         blocks = blocks.take(np.flatnonzero(blocks["landuse"] != "open")) if "landuse" in blocks else blocks
         report: dict = {"blocks": len(blocks)}
         geoms = blocks.geometry
         if len(blocks) == 0:
-            self.report = report
-            return {
-                "lots": Layer.from_geoms(
-                    [],
-                    meta=blocks.meta,
-                    block=np.empty(0, np.int64),
-                    district=np.empty(0, np.int64),
-                    corner=np.empty(0, bool),
-                    frontage=np.empty(0),
-                    street_edges=np.empty(0, np.int64),
-                    method=np.empty(0, "<U9"),
-                    inner=np.empty(0, bool),
-                    front_angle=np.empty(0),
-                    kind=np.empty(0, "<U6"),
-                    depth=np.empty(0),
-                    park=np.empty(0, bool),
-                )
-            }
+            none = Layer.from_geoms(
+                [],
+                meta=blocks.meta,
+                block=np.empty(0, np.int64),
+                district=np.empty(0, np.int64),
+                corner=np.empty(0, bool),
+                frontage=np.empty(0),
+                street_edges=np.empty(0, np.int64),
+                method=np.empty(0, "<U9"),
+                inner=np.empty(0, bool),
+                front_angle=np.empty(0),
+                kind=np.empty(0, "<U6"),
+                depth=np.empty(0),
+                park=np.empty(0, bool),
+            )
+            return NodeResult({"lots": none}, report)
         empty = shapely.is_empty(geoms) | (shapely.area(geoms) <= 0)
         report["skipped_empty"] = int(empty.sum())
-        res = self.split(blocks, report)
+        res = self.split(blocks, report, **inputs)
         lots, owner, method, inner, park = res.lots, res.owner, res.method, res.inner, res.park
         flags = _SegmentFlags(lots, res.on, res.known)
         ok = np.flatnonzero(~shapely.is_empty(lots) & (shapely.get_type_id(lots) == 3))
@@ -292,7 +291,6 @@ class _Lots(SENode):
         report["lots"] = int(len(lots))
         report["no_frontage"] = int(((att["frontage"] <= 0) & ~inner).sum())
         report["kinds"] = {k: int((kind == k).sum()) for k in ("street", "corner", "inner")}
-        self.report = report
         lay = Layer.from_geoms(
             lots,
             parent=blocks.ids[owner],
@@ -309,7 +307,7 @@ class _Lots(SENode):
             depth=lot_depth(lots, att["front_angle"]),
             park=park,
         )
-        return {"lots": lay}
+        return NodeResult({"lots": lay}, report)
 
 
 def _manhattan(self, geoms, report, *, count, width, min_depth, row_depth, min_area):
@@ -613,6 +611,10 @@ class LotsDistrict(_Lots):
     """Per-district lots: the method and sizes from each district rule (``lots``, ``lot-width`` ...)."""
 
     name = "lots.district"
+    inputs = {
+        **_Lots.inputs,
+        "district_rules": Port("rules", "the <district> rules: each district's lot method and sizes", required=False),
+    }
     params = {
         "default": Param("str", "manhattan", choices=_METHODS, doc="method for blocks of no or unset district"),
         **_P_MANHATTAN,
@@ -624,9 +626,7 @@ class LotsDistrict(_Lots):
         "force_street_access": _P_SKELETON["force_street_access"],
     }
 
-    def _rule_params(self, district: int) -> tuple[str, dict, str]:
-        plan = self.context.plan
-        rules = plan.rules_of("district") if plan is not None else []
+    def _rule_params(self, rules: list, district: int) -> tuple[str, dict, str]:
         values = dict(self.p)
         values["skeleton_width"] = _P_SKELETON["width"].default
         method = self.p.default
@@ -646,7 +646,11 @@ class LotsDistrict(_Lots):
             where = rule.where or self.where
         return method, values, where
 
-    def split(self, blocks, report):
+    def run(self, *, blocks: Layer, district_rules: Layer | None = None) -> NodeResult:
+        return super().run(blocks=blocks, district_rules=district_rules)
+
+    def split(self, blocks, report, district_rules=None):
+        rules = rules_of(district_rules)
         geoms = blocks.geometry
         district = (
             np.asarray(blocks["district"], np.int64) if "district" in blocks else np.full(len(blocks), -1, np.int64)
@@ -654,7 +658,7 @@ class LotsDistrict(_Lots):
         outs, sels = [], []
         for dist in np.unique(district):
             sel = np.flatnonzero(district == dist)
-            method, v, where = self._rule_params(int(dist))
+            method, v, where = self._rule_params(rules, int(dist))
             if method == "manhattan":
                 res = _manhattan(
                     self,

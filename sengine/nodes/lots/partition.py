@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from sengine import Layer, Param, register
+from sengine import Layer, NodeResult, Param, register
 from sengine.errors import ParameterError
 from sengine.geom.boundary import segments_on_boundary
 from sengine.geom.grid import clip_frame_grid
@@ -378,9 +378,10 @@ class LotsPartition(_Lots):
         on = np.zeros(int((shapely.get_num_coordinates(lots) - 1 - shapely.get_num_interior_rings(lots)).sum()), bool)
         return LotSplit(lots, owner[o], np.full(len(lots), "partition"), inner, on, inner.copy())
 
-    def run(self, *, blocks: Layer) -> dict[str, Layer]:
+    def run(self, *, blocks: Layer) -> NodeResult:
         self._index = None
-        out = super().run(blocks=blocks)["lots"]
+        made = super().run(blocks=blocks)
+        out, report = made.layers["lots"], made.report
         ix, iy = np.full(len(out), -1, np.int64), np.full(len(out), -1, np.int64)
         remainder, cells = np.zeros(len(out), bool), np.ones(len(out), np.int64)
         if self._index is not None and len(out):
@@ -400,5 +401,5 @@ class LotsPartition(_Lots):
                     out.geometry[lost], blocks.rows_of(out["block"][lost]), blocks.geometry, **self._options()
                 )
         self._index = None
-        self.report["remainders"] = int(remainder.sum())
-        return {"lots": out.with_columns(ix=ix, iy=iy, remainder=remainder, cells=cells)}
+        report["remainders"] = int(remainder.sum())
+        return NodeResult({"lots": out.with_columns(ix=ix, iy=iy, remainder=remainder, cells=cells)}, report)
