@@ -94,3 +94,43 @@ def test_monaco_builds_nothing_in_its_parks_or_water():
     assert np.allclose(lot_area[built], shapely.area(cut.geometry[built]), rtol=1e-3)
     assert rep["open_blocks"] == (~built).sum() > 0 and not lot_area[~built].any()
     assert "sea" in set(read["water"]["kind"])
+
+
+def test_sides_cut_along_land_are_no_street_front():
+    """A park cut out of a block's east half: the lots along the park have no frontage there, none is built."""
+    blocks = Layer.from_geoms([shapely.box(0, 0, 120, 60), shapely.box(200, 0, 320, 60)])
+    parks = Layer.from_geoms([shapely.box(60, -5, 125, 65)], kind="park")
+    ran = get("blocks.landuse")("landuse", {}, Context()).run(blocks=blocks, parks=parks)
+    out = ran["blocks"]
+    front = out["street_front"]
+    assert front[out.ids == 1][0] is None  # uncut: faces streets all round
+    cut = front[out.ids == 0][0]
+    # the cut block keeps its west, north and south sides (60 + 60 + 60 m); its new east side faces the park
+    assert shapely.length(cut) == pytest.approx(180.0, abs=0.1)
+    assert ran.report["pieces_with_land_edges"] == 1
+    lots = get("lots.recursive")("lots", {}, Context(seed=1)).run(blocks=out)["lots"]
+    east = shapely.get_coordinates(lots.geometry[lots["block"] == 0])[:, 0].max()
+    assert east == pytest.approx(60.0)
+    for lot, frontage in zip(lots.geometry, lots["frontage"]):
+        on_park = shapely.length(shapely.intersection(lot.boundary, shapely.LineString([(60, 0), (60, 60)])))
+        assert frontage <= shapely.length(lot.boundary) - on_park + 1e-6
+    # a lot whose only side on the block boundary faces the park has no frontage and gets no building
+    b = get("buildings.massing")("b", {}, Context(seed=1)).run(lots=lots, blocks=out)["buildings"]
+    no_front = lots.ids[lots["kind"] == "inner"]
+    assert not np.isin(b["lot"], no_front).any()
+    # and none turns its front to the park: the lots along it front onto the north and south streets
+    on_park = shapely.dwithin(b.geometry, shapely.LineString([(60, 0), (60, 60)]), 0.01)
+    assert np.isin(np.asarray(b["roof_direction"])[on_park], (0.0, 180.0)).all()
+
+
+def test_monaco_builds_no_front_on_open_land():
+    """Monaco's land beyond 100 m of its streets is open: no generated building lines its edge."""
+    net = sengine.load(ROOT / "configs" / "monaco.xml")
+    layers, stats = net.run(workers=1)
+    blocks, lots, built = layers["landuse"]["blocks"], layers["lots"]["lots"], layers["generated"]["buildings"]
+    open_land = shapely.union_all(blocks.geometry[blocks["landuse"] == "open"])
+    near_open = shapely.dwithin(built.geometry, open_land, 0.5)
+    # before street fronts, 9.0 % (186 of 2,071) of the generated buildings stood on the open land's edge
+    assert near_open.mean() < 0.02, near_open.mean()
+    lot_of = dict(zip(lots.ids.tolist(), lots["frontage"].tolist()))
+    assert all(lot_of[i] > 0 for i in built["lot"].tolist())

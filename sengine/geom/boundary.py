@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-__all__ = ["polygon_parts", "ring_segments", "segments_on_boundary"]
+__all__ = ["polygon_parts", "ring_segments", "segments_on_boundary", "segments_on_box", "segments_on_lines"]
 
 
 def _ramp(counts) -> np.ndarray:
@@ -166,3 +166,60 @@ def segments_on_boundary(geoms, owner, polys, *, tol: float = 1e-6, chunk: int =
             match[u[better]] = pb_n[f][better]
         j0 = j1
     return out()
+
+
+def segments_on_box(p0, p1, box, *, tol: float = 1e-3) -> np.ndarray:
+    """Which segments lie on a side of an axis-aligned box.
+
+    The land an OSM extract closes round its streets is cut by the extract's
+    box (``roads.clean``'s ``close="bbox"``): those sides are no street, so
+    no lot fronts on them.
+
+    Parameters
+    ----------
+    p0, p1 : ndarray (k, 2)
+        Segment end points (m).
+    box : tuple of float or None
+        ``(xmin, ymin, xmax, ymax)`` (m); ``None``: no segment is on it.
+    tol : float
+        Distance (m) within which an end point lies on a side.
+
+    Returns
+    -------
+    ndarray of bool (k,)
+        Both end points on the same side.
+    """
+    p0, p1 = np.asarray(p0, float).reshape(-1, 2), np.asarray(p1, float).reshape(-1, 2)
+    if box is None or not len(p0):
+        return np.zeros(len(p0), bool)
+    xmin, ymin, xmax, ymax = (float(c) for c in box)
+    out = np.zeros(len(p0), bool)
+    for axis, value in ((0, xmin), (0, xmax), (1, ymin), (1, ymax)):
+        out |= (np.abs(p0[:, axis] - value) <= tol) & (np.abs(p1[:, axis] - value) <= tol)
+    return out
+
+
+def segments_on_lines(p0, p1, lines, *, tol: float = 0.02) -> np.ndarray:
+    """Which segments lie on given lines (their midpoint within ``tol``); ``None`` lines hold every segment.
+
+    Parameters
+    ----------
+    p0, p1 : ndarray (k, 2)
+        Segment end points (m).
+    lines : ndarray of object (k,)
+        For each segment, the (Multi)LineString it should lie on (e.g. its
+        block's street front), or ``None`` for no restriction.
+    tol : float
+        Distance (m).
+
+    Returns
+    -------
+    ndarray of bool (k,)
+    """
+    lines = np.asarray(lines, dtype=object)
+    out = np.ones(len(lines), bool)
+    some = np.flatnonzero(np.not_equal(lines, None))
+    if len(some):
+        mid = shapely.points(0.5 * (np.asarray(p0, float)[some] + np.asarray(p1, float)[some]))
+        out[some] = shapely.dwithin(mid, lines[some], tol)
+    return out

@@ -38,6 +38,7 @@ __all__ = ["cut_blocks", "open_land", "BlocksLanduse"]
 
 #: Values of the blocks' ``landuse`` column: lots are drawn on ``BUILT`` blocks only.
 BUILT, OPEN = "built", "open"
+FRONT_TOL = 0.01  # m: a side of a piece within this of its block's boundary still faces the street
 
 log = logging.getLogger(__name__)
 
@@ -203,6 +204,37 @@ def open_land(
     return parts[o], block[owner[o]], is_open[o], counts
 
 
+def street_fronts(pieces: np.ndarray, blocks: np.ndarray, *, tol: float = FRONT_TOL) -> np.ndarray:
+    """The part of each piece's boundary that faces a street: what it keeps of its block's boundary.
+
+    A block traced from the street graph faces streets all round; cutting
+    water, a park or open land out of it makes new sides that face no
+    street, so no lot may front onto them (a lot's frontage is street
+    frontage).
+
+    Parameters
+    ----------
+    pieces : ndarray of Polygon
+        The pieces of land (m).
+    blocks : ndarray of Polygon
+        The block each piece was cut from.
+    tol : float
+        Distance (m) within which a side of a piece lies on its block's boundary.
+
+    Returns
+    -------
+    ndarray of object
+        ``None`` for a piece that is its whole block (every side faces a street),
+        else its street-facing boundary as a (Multi)LineString, possibly empty.
+    """
+    out = np.full(len(pieces), None, dtype=object)
+    cut = np.flatnonzero(~shapely.equals_exact(pieces, blocks, tolerance=0.0)) if len(pieces) else np.zeros(0, int)
+    if len(cut):
+        rim = shapely.buffer(shapely.boundary(blocks[cut]), tol, cap_style="flat", quad_segs=1)
+        out[cut] = shapely.intersection(shapely.boundary(pieces[cut]), rim)
+    return out
+
+
 @register
 class BlocksLanduse(SENode):
     """Blocks minus the water and the parks in them: the land the lots are drawn on (§4, §5.2)."""
@@ -217,7 +249,8 @@ class BlocksLanduse(SENode):
         "blocks": Port(
             "blocks",
             "the pieces of land; a block cut in two keeps its id on the first piece; column landuse "
-            "'built' or 'open' (no street serves it: the lot nodes leave it whole)",
+            "'built' or 'open' (no street serves it: the lot nodes leave it whole); column street_front: "
+            "the street-facing boundary of a cut piece (None: all of it)",
         )
     }
     params = {
@@ -270,7 +303,9 @@ class BlocksLanduse(SENode):
         landuse = np.where(is_open, OPEN, BUILT)
         # parts too small to keep, split off the open land, are removed land too
         counts["area_removed_m2"] = round(float(blocks.area() - shapely.area(pieces).sum()), 1)
-        out = Layer(pieces, ids, out.parent, {**out.attrs, "landuse": landuse}, out.meta)
+        front = street_fronts(pieces, blocks.geometry[src])
+        counts["pieces_with_land_edges"] = int(np.not_equal(front, None).sum())
+        out = Layer(pieces, ids, out.parent, {**out.attrs, "landuse": landuse, "street_front": front}, out.meta)
         report = {**counts, **ocounts, "open_blocks": int(is_open.sum()), "blocks": len(out)}
         log.info(
             "%s: %d of %d blocks lose water or park land (%.0f m2); %d pieces",

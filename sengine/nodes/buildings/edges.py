@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from sengine.geom.boundary import ring_segments, segments_on_boundary
+from sengine.geom.boundary import ring_segments, segments_on_boundary, segments_on_box, segments_on_lines
 
 __all__ = ["FRONT", "SIDE", "REAR", "Lines", "LotEdges", "lot_edges"]
 
@@ -175,7 +175,7 @@ def _longest_per_lot(cand: np.ndarray, lot: np.ndarray, length: np.ndarray, n: i
     return best
 
 
-def lot_edges(lots, *, blocks=None, owner=None, tol: float = ON_TOL) -> LotEdges:
+def lot_edges(lots, *, blocks=None, owner=None, box=None, fronts=None, tol: float = ON_TOL) -> LotEdges:
     """Tag every boundary segment of every lot as front, side or rear.
 
     Parameters
@@ -187,6 +187,11 @@ def lot_edges(lots, *, blocks=None, owner=None, tol: float = ON_TOL) -> LotEdges
         block's boundary is a front.
     owner : array_like of int (n,), optional
         Row in ``blocks`` of each lot's block (``-1``: measure against the neighbours).
+    box : tuple of float, optional
+        The box that closed an extract's land (``meta["bbox"]``): no front lies on it.
+    fronts : array_like of object, optional
+        Per block, its street-facing boundary where land was cut out of it
+        (``blocks.landuse``'s ``street_front``; ``None``: all of it).
     tol : float
         Distance (m) within which a segment lies on a boundary.
 
@@ -205,6 +210,9 @@ def lot_edges(lots, *, blocks=None, owner=None, tol: float = ON_TOL) -> LotEdges
         if known.any():
             k = np.flatnonzero(known)
             _, _, kidx, _, on = segments_on_boundary(lots[k], owner[k], np.asarray(blocks, dtype=object), tol=tol)
+            if fronts is not None:  # sides cut along water, a park or open land face no street
+                mine = np.flatnonzero(np.isin(idx, k))
+                on &= segments_on_lines(p0[mine], p1[mine], np.asarray(fronts, dtype=object)[owner[idx[mine]]])
             front[np.isin(idx, k)] = on  # the subset's segments come in the same order
     rest = ~known[idx] if n else np.zeros(0, bool)
     if rest.any():  # the street is where no other lot is
@@ -217,10 +225,12 @@ def lot_edges(lots, *, blocks=None, owner=None, tol: float = ON_TOL) -> LotEdges
     d = p1 - p0
     length = np.hypot(d[:, 0], d[:, 1])
     unit = d / np.maximum(length, 1e-300)[:, None]
-    front &= length > 1e-9
+    edge = ~segments_on_box(p0, p1, box)
+    front &= (length > 1e-9) & edge
     best = _longest_per_lot(np.flatnonzero(front), idx, length, n)
     has_front = best >= 0
-    fallback = _longest_per_lot(np.flatnonzero(length > 1e-9), idx, length, n)
+    fallback = _longest_per_lot(np.flatnonzero((length > 1e-9) & edge), idx, length, n)
+    fallback = np.where(fallback >= 0, fallback, _longest_per_lot(np.flatnonzero(length > 1e-9), idx, length, n))
     best = np.where(has_front, best, fallback)
     axis = np.tile([1.0, 0.0], (n, 1))
     ok = best >= 0

@@ -261,6 +261,8 @@ class _Massing(SENode):
         open_court = np.zeros(n_all, bool)
         if not p.courtyards and "inner" in lots.attrs:
             open_court = np.asarray(lots["inner"], bool)
+        if not p.courtyards and "kind" in lots.attrs:  # no street frontage at all: a yard, not a building plot
+            open_court = open_court | (np.asarray(lots["kind"]) == "inner")
         custom_lot = np.zeros(n_all, bool)
         if custom is not None and len(custom):
             if "lot" not in custom:
@@ -286,7 +288,13 @@ class _Massing(SENode):
         owner = None
         if blocks is not None and "block" in L:
             owner = blocks.rows_of(np.asarray(L["block"], np.int64))
-        edges = lot_edges(L.geometry, blocks=None if owner is None else blocks.geometry, owner=owner)
+        edges = lot_edges(
+            L.geometry,
+            blocks=None if owner is None else blocks.geometry,
+            owner=owner,
+            box=lots.meta.get("bbox"),
+            fronts=None if owner is None else blocks.get("street_front"),
+        )
         area = building_area(L.geometry, edges, fs, ss, rs)
         typ = self._typologies(r, ids)
         # a tower stands free: its building area keeps the side setback whatever the siting

@@ -34,7 +34,7 @@ import shapely
 
 from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import ParameterError
-from sengine.geom.boundary import ring_segments, segments_on_boundary
+from sengine.geom.boundary import ring_segments, segments_on_boundary, segments_on_box, segments_on_lines
 from sengine.random import mix64
 from sengine.registry import declare_rule
 
@@ -86,7 +86,16 @@ def frontage(geoms, owner, blocks) -> np.ndarray:
 
 
 def lot_attributes(
-    lots, owner, blocks, *, corner_angle: float = 30.0, edge_angle: float = 15.0, on=None, known=None
+    lots,
+    owner,
+    blocks,
+    *,
+    corner_angle: float = 30.0,
+    edge_angle: float = 15.0,
+    on=None,
+    known=None,
+    box=None,
+    fronts=None,
 ) -> dict:
     """Street-facing facts of each lot, from its block's boundary.
 
@@ -106,6 +115,13 @@ def lot_attributes(
         the method knows it (one per segment of :func:`sengine.geom.boundary.ring_segments`
         of ``lots``), and for which lots it knows (default all when ``on`` is
         given); the others are measured (within ``ON_TOL``).
+    box : tuple of float, optional
+        The box that closed the land round an extract's streets (the blocks'
+        ``meta["bbox"]``): block boundary on it is no street, so no frontage.
+    fronts : array_like of object, optional
+        Per block, its street-facing boundary where water, a park or open
+        land was cut out of it (``blocks.landuse``'s ``street_front``;
+        ``None``: all of it): the rest of its boundary is no frontage.
 
     Returns
     -------
@@ -142,7 +158,10 @@ def lot_attributes(
         return out
     d = p1 - p0
     ln = np.hypot(d[:, 0], d[:, 1])
-    on &= ln > 1e-9
+    on &= (ln > 1e-9) & ~segments_on_box(p0, p1, box)
+    if fronts is not None and on.any():
+        sel = np.flatnonzero(on)
+        on[sel] = segments_on_lines(p0[sel], p1[sel], np.asarray(fronts, dtype=object)[owner[idx[sel]]])
     dirn = d / np.maximum(ln, 1e-300)[:, None]
     out["frontage"] = np.bincount(idx[on], weights=ln[on], minlength=k)
     # previous segment within the same ring (cyclic)
@@ -281,7 +300,15 @@ class _Lots(SENode):
         flags = flags.take(np.flatnonzero(keep)).append(lots[len(lots) - nwhole :])
         o = np.lexsort((np.arange(len(owner)), owner))
         lots, owner, method, inner, park, flags = lots[o], owner[o], method[o], inner[o], park[o], flags.take(o)
-        att = lot_attributes(lots, owner, geoms, on=flags.on, known=flags.known)
+        att = lot_attributes(
+            lots,
+            owner,
+            geoms,
+            on=flags.on,
+            known=flags.known,
+            box=blocks.meta.get("bbox"),
+            fronts=blocks.get("street_front"),
+        )
         district = (
             np.asarray(blocks["district"], np.int64)[owner]
             if "district" in blocks
