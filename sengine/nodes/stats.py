@@ -255,7 +255,7 @@ def open_space(land: Layer, parks: Layer | None, trees: Layer | None, report: di
         }
         if n and "zone" in trees:
             z = np.asarray(trees["zone"]).astype(str)[tm]
-            out["trees_by_zone"] = {k: int(v) for k, v in zip(*np.unique(z, return_counts=True))}
+            out["trees_by_zone"] = {str(k): int(v) for k, v in zip(*np.unique(z, return_counts=True))}
         return out
 
     city = summary(
