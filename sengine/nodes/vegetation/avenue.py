@@ -12,8 +12,9 @@ within ``clear`` m of its ends, so the crossings and their sight lines stay
 free.  Both sides of a street get their row, from the blocks on either side.
 
 All rings are handled at once: one coordinate array, turn angles by
-``numpy``, runs by cumulative arc length, and one
-:func:`shapely.line_interpolate_point` call for every tree.
+``numpy``, runs by cumulative arc length, and each tree placed on its
+segment found by one ``searchsorted`` (``shapely.line_interpolate_point``
+walks the whole ring per point: 20 times slower on Liège's long rings).
 
 References
 ----------
@@ -115,9 +116,9 @@ def avenue_points(
     s = b0[rid] + (run[rid] - (k[rid] - 1) * spacing) / 2 + j * spacing
     ring = bring[rid]
     s = np.mod(s, perim[ring])
-    pts = shapely.line_interpolate_point(lines[ring], s)
-    # heading: the segment each tree lies on (arc lengths are increasing over all rings together)
-    vi = np.clip(
-        np.searchsorted(cum, cum[start[ring]] + s, side="right") - 1, start[ring], start[ring] + count[ring] - 1
-    )
-    return shapely.get_coordinates(pts), ring, ang[vi]
+    # the segment each tree lies on (arc lengths increase over all rings together), then along it
+    g = cum[start[ring]] + s
+    vi = np.clip(np.searchsorted(cum, g, side="right") - 1, start[ring], start[ring] + count[ring] - 1)
+    t = np.clip((g - cum[vi]) / np.maximum(seg[vi], 1e-12), 0.0, 1.0)
+    pts = xy[vi] + t[:, None] * edge[vi]
+    return pts, ring, ang[vi]

@@ -53,33 +53,52 @@ ZONES = ("avenue", "district", "block", "lot", "patio", "region")
 _ZONE_KEY = {z: np.uint64(stable_hash(f"zone/{z}")) for z in ZONES}
 
 
+def _in_any(tree, polys: np.ndarray, x: np.ndarray, y: np.ndarray, pts=None) -> np.ndarray:
+    """Which points lie in (or on) some of ``polys`` (prepared), by bounding boxes then point-in-polygon."""
+    out = np.zeros(len(x), bool)
+    pi, qi = tree.query(shapely.points(x, y) if pts is None else pts)
+    if len(pi):
+        hit = shapely.intersects_xy(polys[qi], x[pi], y[pi])
+        out[pi[hit]] = True
+    return out
+
+
 def _obstacle_test(buildings, water, streets, roads, road_width, clearance: float):
-    """``accept(x, y, clear)``: points on no street, in no water, ``clear`` m off every building."""
-    trees = []
+    """``accept(x, y, clear)``: points on no street, in no water, ``clear`` m off every building.
+
+    Big polygons (street surfaces, rivers) are tested point-in-polygon on
+    prepared geometry after a bounding-box query: far faster than a
+    predicate query, which prepares the points instead.
+    """
+    areas = []
     for geoms in (water, streets):
         if geoms is not None and len(geoms):
-            trees.append((shapely.STRtree(geoms), None))
+            geoms = np.asarray(geoms, dtype=object)
+            shapely.prepare(geoms)
+            areas.append((shapely.STRtree(geoms), geoms))
     b_tree = shapely.STRtree(buildings) if buildings is not None and len(buildings) else None
     r_tree = shapely.STRtree(roads) if roads is not None and len(roads) else None
     half = np.asarray(road_width, np.float64) / 2 if r_tree is not None else None
 
     def accept(x, y, clear=clearance):
-        pts = shapely.points(x, y)
-        ok = np.ones(len(pts), bool)
-        for tree, _ in trees:
-            hit, _ = tree.query(pts, predicate="intersects")
-            ok[hit] = False
-        if b_tree is not None:
-            hit, _ = (
-                b_tree.query(pts, predicate="dwithin", distance=clear)
-                if clear > 0
-                else b_tree.query(pts, predicate="intersects")
-            )
-            ok[hit] = False
-        if r_tree is not None and len(half):
+        ok = np.ones(len(x), bool)
+        pts = shapely.points(x, y) if areas else None
+        for tree, geoms in areas:
+            ok &= ~_in_any(tree, geoms, x, y, pts)
+        if b_tree is not None and ok.any():
+            idx = np.flatnonzero(ok)
+            pts = shapely.points(x[idx], y[idx])
+            if clear > 0:
+                hit, _ = b_tree.query(pts, predicate="dwithin", distance=clear)
+            else:
+                hit, _ = b_tree.query(pts, predicate="intersects")
+            ok[idx[hit]] = False
+        if r_tree is not None and len(half) and ok.any():
+            idx = np.flatnonzero(ok)
+            pts = shapely.points(x[idx], y[idx])
             pi, ri = r_tree.query(pts, predicate="dwithin", distance=float(half.max()))
             near = shapely.distance(pts[pi], roads[ri]) < half[ri]
-            ok[pi[near]] = False
+            ok[idx[pi[near]]] = False
         return ok
 
     return accept
@@ -129,10 +148,9 @@ def place_trees(
         row = row[li]
         ok = accept(xy[:, 0], xy[:, 1], 0.0) if len(xy) else np.zeros(0, bool)
         if sidewalks is not None and len(sidewalks) and len(xy):
-            on = np.zeros(len(xy), bool)
-            hit, _ = shapely.STRtree(sidewalks).query(shapely.points(xy), predicate="within")
-            on[hit] = True
-            ok &= on
+            walk = np.asarray(sidewalks, dtype=object)
+            shapely.prepare(walk)
+            ok &= _in_any(shapely.STRtree(walk), walk, xy[:, 0], xy[:, 1])
         rank = np.arange(len(li)) - np.searchsorted(li, li)
         k = mix64(mix64(seed ^ _ZONE_KEY["avenue"], np.asarray(block_ids, np.int64)[row].astype(np.uint64)), rank)
         xs.append(xy[ok])
