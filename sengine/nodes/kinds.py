@@ -68,14 +68,28 @@ KINDS: dict[str, tuple[str, dict[str, tuple[str, bool, str]]]] = {
         },
     ),
     "parks": (
-        "parks at district or block level",
+        "parks at district, block or lot level, and patio zones",
         {
-            "level": (TEXT, True, "district or block"),
+            "level": (TEXT, True, "district, block, lot or patio"),
             "district": (INT, False, "district index (-1 none)"),
             "area": (FLOAT, False, "area (m2)"),
             "kind": (TEXT, False, "park, garden ..."),
             "name": (TEXT, False, "name from the map"),
             "osm_id": (INT, False, "OSM id"),
+        },
+    ),
+    "vegetation": (
+        "trees: one point each, with the plant I(category, type, instance) of Ulmer et al. 2007",
+        {
+            "zone": (TEXT, True, "avenue, district, block, lot, patio or region"),
+            "category": (TEXT, True, "plant category: plane, lime, oak, birch, pine ..."),
+            "type": (TEXT, True, "age class: young, medium, adult"),
+            "instance": (INT, True, "appearance number, below the node's instances"),
+            "height": (FLOAT, True, "height (m)"),
+            "crown": (FLOAT, True, "crown diameter (m)"),
+            "form": (TEXT, False, "broad or conifer"),
+            "park": (INT, False, "id of the tree's park or region (-1 none)"),
+            "district": (INT, False, "district index (-1 none)"),
         },
     ),
     "lots": (

@@ -218,6 +218,58 @@ def wall_shares(lots: Layer, buildings: Layer, blocks: Layer | None = None) -> d
     }
 
 
+#: Park levels that lie outside the blocks (district parks are cut out of the city, block parks replace blocks).
+OUTSIDE_BLOCKS = ("district", "block")
+
+
+def open_space(land: Layer, parks: Layer | None, trees: Layer | None, report: dict) -> dict:
+    """Parks' area and share of the land, trees per km2 and per resident, for the city and each district.
+
+    The land is the blocks plus the parks that are not on them (district and
+    block levels); lot parks and patios lie on blocks and count within them.
+    ``report`` holds the residents (city and ``districts``).
+    """
+    parks = parks if parks is not None else Layer.empty()
+    trees = trees if trees is not None else Layer.empty()
+    p_area = shapely.area(parks.geometry) if len(parks) else np.zeros(0)
+    level = np.asarray(parks["level"]).astype(str) if "level" in parks and len(parks) else np.full(len(parks), "")
+    p_dist = np.asarray(parks["district"], np.int64) if "district" in parks else np.full(len(parks), -1)
+    l_area = shapely.area(land.geometry) if len(land) else np.zeros(0)
+    l_dist = np.asarray(land["district"], np.int64) if "district" in land else np.full(len(land), -1)
+    t_dist = np.asarray(trees["district"], np.int64) if "district" in trees else np.full(len(trees), -1)
+
+    def summary(pm, lm, tm, residents) -> dict:
+        land_m2 = float(l_area[lm].sum() + p_area[pm & np.isin(level, OUTSIDE_BLOCKS)].sum())
+        park_m2 = float(p_area[pm].sum())
+        n = int(tm.sum())
+        out = {
+            "land_m2": round(land_m2, 1),
+            "park_m2": round(park_m2, 1),
+            "park_share": round(park_m2 / land_m2, 4) if land_m2 > 0 else 0.0,
+            "parks_by_level_m2": {
+                lv: round(float(p_area[pm & (level == lv)].sum()), 1) for lv in np.unique(level[pm]).tolist()
+            },
+            "trees": n,
+            "trees_per_km2": round(n / (land_m2 / 1e6), 1) if land_m2 > 0 else 0.0,
+            "trees_per_resident": round(n / residents, 4) if residents else 0.0,
+        }
+        if n and "zone" in trees:
+            z = np.asarray(trees["zone"]).astype(str)[tm]
+            out["trees_by_zone"] = {str(k): int(v) for k, v in zip(*np.unique(z, return_counts=True))}
+        return out
+
+    city = summary(
+        np.ones(len(parks), bool), np.ones(len(land), bool), np.ones(len(trees), bool), report["city"]["residents"]
+    )
+    districts = {}
+    for d in sorted(set(p_dist.tolist()) | set(l_dist.tolist())):
+        if d < 0:
+            continue
+        res = report.get("districts", {}).get(str(d), {}).get("residents", 0)
+        districts[str(d)] = summary(p_dist == d, l_dist == d, t_dist == d, res)
+    return {"city": city, "districts": districts}
+
+
 @register
 class StatsPlanning(SENode):
     """Footprint, gross floor area, FAR, coverage and residents per lot, block, district and city."""
@@ -229,6 +281,8 @@ class StatsPlanning(SENode):
         "blocks": Port(
             "blocks", "blocks, for block-level figures (a lot's 'block' column names its block)", required=False
         ),
+        "parks": Port("parks", "parks of every level: area and share per district and city", required=False),
+        "vegetation": Port("vegetation", "trees: per km2 and per resident", required=False),
     }
     outputs = {
         "lots": Port("lots", "the lots with footprint, floor_area (m2), far and coverage columns"),
@@ -252,7 +306,15 @@ class StatsPlanning(SENode):
         ),
     }
 
-    def run(self, *, lots: Layer, buildings: Layer, blocks: Layer | None = None) -> tuple[dict[str, Layer], dict]:
+    def run(
+        self,
+        *,
+        lots: Layer,
+        buildings: Layer,
+        blocks: Layer | None = None,
+        parks: Layer | None = None,
+        vegetation: Layer | None = None,
+    ) -> tuple[dict[str, Layer], dict]:
         per_resident = self.p.m2_per_resident
         lot_area = shapely.area(lots.geometry) if len(lots) else np.zeros(0)
         shares = building_shares(lots, buildings)
@@ -316,6 +378,8 @@ class StatsPlanning(SENode):
             else:
                 bf, bg = built_on_sites(blocks, buildings)
             out_blocks = blocks.with_columns(**planning_columns(shapely.area(blocks.geometry), bf, bg))
+        if parks is not None or vegetation is not None:
+            report["open_space"] = open_space(blocks if blocks is not None else lots, parks, vegetation, report)
         c = report["city"]
         log.info(
             "%s: FAR %.2f, coverage %.0f %%, %.0f m2 of floor area on %.0f m2 of lots",

@@ -157,7 +157,8 @@ def export_layers(
         Existing folder to write into.
     layers : dict of str to Layer or None
         Layers by name (``roads``, ``streets``, ``sidewalks``, ``blocks``,
-        ``lots``, ``buildings``, ``parks``, ``water``); ``None`` ones are skipped.
+        ``lots``, ``buildings``, ``parks``, ``water``, ``bridges``,
+        ``vegetation``); ``None`` ones are skipped.
     formats : iterable of str
         Names among :data:`FORMATS` (another is a :class:`ParameterError`),
         empty means :data:`DEFAULT_FORMATS`.
@@ -341,6 +342,7 @@ def export_layers(
                     cityjson.write_cityjson,
                     out / "buildings.city.json",
                     layers["buildings"],
+                    vegetation=layers.get("vegetation"),
                     crs=crs_of["buildings"],
                     origin=None if offset is None else (offset, any_crs),
                     attribution=attribution,
@@ -414,6 +416,8 @@ class ExportCity(SENode):
         "buildings": Port("buildings", "building footprints with height", required=False),
         "parks": Port("parks", "parks", required=False),
         "water": Port("polygons", "water areas (rivers, lakes, harbours)", required=False),
+        "bridges": Port("polygons", "bridge decks (roads.bridges): slabs in city.glb", required=False),
+        "vegetation": Port("vegetation", "trees: instanced meshes in city.glb, points elsewhere", required=False),
         "district_rules": Port("rules", "the <district> rules: district names", required=False),
         "landuse_rules": Port("rules", "the <landuse> rules: the land-use class", required=False),
     }
@@ -446,6 +450,8 @@ class ExportCity(SENode):
         buildings: Layer | None = None,
         parks: Layer | None = None,
         water: Layer | None = None,
+        bridges: Layer | None = None,
+        vegetation: Layer | None = None,
         district_rules: Layer | None = None,
         landuse_rules: Layer | None = None,
     ) -> NodeResult:
@@ -465,6 +471,8 @@ class ExportCity(SENode):
             "buildings": buildings,
             "parks": parks,
             "water": water,
+            "bridges": bridges if bridges is not None and len(bridges) else None,
+            "vegetation": vegetation,
         }
         metas = [lay.meta for lay in layers.values() if lay is not None]
         extent = next((m["extent"] for m in metas if "extent" in m), None)

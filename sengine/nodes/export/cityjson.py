@@ -12,7 +12,7 @@ own when it has an EPSG code (UTM, for an OSM city), else the UTM zone of the
 city's origin (a synthetic city's local transverse Mercator has no code); the
 code goes into ``metadata.referenceSystem``.  z is up, in metres.
 Attributes: ``measuredHeight``, ``storeysAboveGround``, ``roofType`` and every
-layer column.  ``transform.translate`` is the city's origin when one is
+layer column.  Trees, when given, are ``SolitaryVegetationObject`` points.  ``transform.translate`` is the city's origin when one is
 given (``--origin local``), else the floor of the model's lowest corner;
 the data's licence notice goes into ``metadata.title``.  Keys are sorted;
 the output is deterministic.
@@ -32,7 +32,7 @@ from sengine.layer import Layer
 from .mesh import drop_collapsed, ring_arrays, weld
 from .roofs import SURFACES, layer_solids
 
-__all__ = ["city_model", "write_cityjson"]
+__all__ = ["city_model", "add_vegetation", "write_cityjson"]
 
 log = logging.getLogger(__name__)
 
@@ -216,6 +216,40 @@ def _lod2_model(
     return _document(objects, xyz, ints, translate, scale, code, attribution=attribution, lod=2)
 
 
+def add_vegetation(doc: dict, trees: Layer, *, crs: str | None) -> None:
+    """Append each tree of ``trees`` to a CityJSON document as a ``SolitaryVegetationObject``.
+
+    Its vertex (z 0 at the foot) goes into the document's frame and
+    transform; attributes ``species`` (the category), ``height`` and
+    ``crownDiameter`` (m, CityGML's names), and the layer's other columns.
+    """
+    import shapely
+
+    xy = shapely.get_coordinates(trees.geometry)
+    code, planar = registered_frame(crs, xy) if crs and len(xy) else (None, xy)
+    scale = doc["transform"]["scale"][0]
+    translate = np.asarray(doc["transform"]["translate"], np.float64)
+    xyz = np.column_stack([planar, np.zeros(len(planar))])
+    ints = np.rint((xyz - translate) / scale).astype(np.int64)
+    base = len(doc["vertices"])
+    doc["vertices"].extend(ints.tolist())
+    cols = {k: c.tolist() for k, c in trees.attrs.items()}
+    rename = {"category": "species", "crown": "crownDiameter"}
+    for i, fid in enumerate(trees.ids.tolist()):
+        attrs = {rename.get(k, k): _value(c[i]) for k, c in cols.items()}
+        doc["CityObjects"][f"tree-{fid}"] = {
+            "type": "SolitaryVegetationObject",
+            "attributes": {k: v for k, v in attrs.items() if v is not None},
+            "geometry": [{"type": "MultiPoint", "lod": "1", "boundaries": [base + i]}],
+        }
+    real = ints * scale + translate
+    ext = doc["metadata"].get("geographicalExtent")
+    lo, hi = real.min(axis=0), real.max(axis=0)
+    if ext:
+        lo, hi = np.minimum(lo, ext[:3]), np.maximum(hi, ext[3:])
+    doc["metadata"]["geographicalExtent"] = [float(v) for v in np.concatenate([lo, hi])]
+
+
 def write_cityjson(
     path: str | Path,
     buildings: Layer,
@@ -224,9 +258,16 @@ def write_cityjson(
     origin: tuple | None = None,
     attribution: str | None = None,
     lod: int = 1,
+    vegetation: Layer | None = None,
 ) -> int:
-    """Write ``buildings`` as CityJSON 2.0 at ``lod`` 1 or 2; return the number of city objects (see :func:`city_model`)."""
+    """Write ``buildings`` as CityJSON 2.0 at ``lod`` 1 or 2; return the number of city objects (see :func:`city_model`).
+
+    ``vegetation`` (points with ``category``, ``height``, ``crown``) adds one
+    ``SolitaryVegetationObject`` per tree, a LoD1 ``MultiPoint`` at its foot.
+    """
     doc = city_model(buildings, crs=crs, origin=origin, attribution=attribution, lod=lod)
+    if vegetation is not None and len(vegetation):
+        add_vegetation(doc, vegetation, crs=crs)
     Path(path).write_text(
         json.dumps(doc, sort_keys=True, separators=(",", ":"), allow_nan=False) + "\n", encoding="utf-8"
     )

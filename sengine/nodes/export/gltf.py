@@ -55,7 +55,7 @@ __all__ = ["LAYERS", "COLOURS", "LEVELS", "layer_mesh", "glb_bytes", "write_glb"
 log = logging.getLogger(__name__)
 
 #: Layer names the exporters know, in drawing order.
-LAYERS = ("water", "streets", "sidewalks", "blocks", "lots", "parks", "roads", "buildings")
+LAYERS = ("water", "streets", "sidewalks", "blocks", "lots", "parks", "bridges", "roads", "buildings", "vegetation")
 
 #: Base colour (sRGB, 0-255) of each layer.
 COLOURS = {
@@ -67,11 +67,22 @@ COLOURS = {
     "lots": (240, 235, 220),
     "parks": (120, 175, 95),
     "buildings": (214, 208, 200),
+    "bridges": (160, 150, 140),
+    "vegetation": (70, 130, 60),
 }
 _DEFAULT_COLOUR = (180, 180, 180)
 
 #: Height (m) of each flat layer, so that overlapping surfaces do not z-fight.
-LEVELS = {"water": -0.5, "streets": 0.0, "sidewalks": 0.12, "blocks": 0.12, "lots": 0.15, "parks": 0.2, "roads": 0.25}
+LEVELS = {
+    "water": -0.5,
+    "streets": 0.0,
+    "sidewalks": 0.12,
+    "blocks": 0.12,
+    "lots": 0.15,
+    "parks": 0.2,
+    "roads": 0.25,
+    "bridges": 0.22,
+}
 
 
 def layer_mesh(name: str, layer: Layer, *, line_width: float = 1.0, lod: int = 1) -> tuple[np.ndarray, np.ndarray]:
@@ -93,6 +104,10 @@ def _layer_mesh(name: str, layer: Layer, *, line_width: float = 1.0, lod: int = 
     types = shapely.get_type_id(geoms)
     lines = np.isin(types, (1, 2, 5))
     polys = np.isin(types, (3, 6))
+    if name == "bridges" and polys.all():  # decks: slabs whose top carries the road ribbon
+        t = np.nan_to_num(np.asarray(layer.get("thickness", np.ones(len(layer))), np.float64), nan=1.0)
+        v, f, _ = mesh.extrude(geoms, t, base=LEVELS["bridges"] - t)
+        return v, f, None
     if polys.any() and "height" in layer.attrs and not lines.any():
         solids = roofs.layer_solids(layer, lod)
         if solids.notes:
@@ -132,6 +147,7 @@ def glb_bytes(
     origin: tuple | None = None,
     copyright: str | None = None,
     lod: int = 1,
+    instancing: bool = True,
 ) -> tuple[bytes, dict]:
     """The binary glTF of ``layers`` and the vertex / triangle counts of each mesh.
 
@@ -143,9 +159,18 @@ def glb_bytes(
     boxes, 2 with their roofs.  ``origin`` is ``((x, y), (lat, lon))``, the
     city's origin planar (m) and geographic (deg): vertices are placed
     relative to it.  ``copyright`` goes into ``asset.copyright``.
+
+    Trees (the ``vegetation`` layer: points with ``category``, ``form``,
+    ``height``, ``crown``, ``instance``) become one low-poly mesh per plant
+    category (:mod:`sengine.nodes.export.trees`), a node each, placed at every
+    tree by ``EXT_mesh_gpu_instancing``; ``instancing=False`` bakes every tree
+    into one mesh instead.
     """
+    trees = layers.get("vegetation")
     built = {
-        name: _layer_mesh(name, lay, line_width=line_width, lod=lod) for name, lay in layers.items() if lay is not None
+        name: _layer_mesh(name, lay, line_width=line_width, lod=lod)
+        for name, lay in layers.items()
+        if lay is not None and name != "vegetation"
     }
     built = {k: v for k, v in built.items() if len(v[1])}
     local = origin is not None
@@ -235,6 +260,18 @@ def glb_bytes(
             node["translation"] = translation
         nodes.append(node)
         counts[name] = {"vertices": int(len(pos)), "triangles": int(len(f))}
+    if trees is not None and len(trees):
+        counts["vegetation"] = _tree_nodes(
+            trees,
+            off,
+            add_view,
+            accessors,
+            gl_meshes,
+            materials,
+            nodes,
+            translation if off.any() and not local else None,
+            instancing=instancing,
+        )
     extras = {"units": "m", "up": "y", "crs": crs or "", "planar_offset": [float(off[0]), float(off[1])]}
     if local:
         extras["origin"] = {"planar": [float(off[0]), float(off[1])], "lat": origin[1][0], "lon": origin[1][1]}
@@ -263,8 +300,11 @@ def glb_bytes(
                 "buffers": [{"byteLength": length + (-length % 4)}],
             }
         )
+    used = sorted({e for n in nodes for e in n.get("extensions", {})})
+    if used:
+        doc["extensionsUsed"] = used
     if tables:
-        doc["extensionsUsed"] = ["EXT_mesh_features", "EXT_structural_metadata"]
+        doc["extensionsUsed"] = sorted({*used, "EXT_mesh_features", "EXT_structural_metadata"})
         doc["extensions"] = {
             "EXT_structural_metadata": {
                 "schema": {"id": "sengine", "classes": classes},
@@ -279,6 +319,85 @@ def glb_bytes(
     if binary:
         chunks += struct.pack("<II", len(binary), 0x004E4942) + binary
     return struct.pack("<III", 0x46546C67, 2, 12 + len(chunks)) + chunks, counts
+
+
+def _tree_nodes(trees, off, add_view, accessors, gl_meshes, materials, nodes, translation, *, instancing=True) -> dict:
+    """Append a mesh and a node per plant category of ``trees``; return the vertex / triangle / instance counts."""
+    from ..vegetation.plants import PLANTS
+    from . import trees as tm
+
+    cats = np.asarray(trees.get("category", np.full(len(trees), "lime")), dtype=object).astype(str)
+    forms = np.asarray(trees.get("form", np.full(len(trees), "")), dtype=object).astype(str)
+
+    def add_accessor(data: np.ndarray, type_: str, target: int | None, minmax: bool = False) -> int:
+        arr = np.ascontiguousarray(data, dtype=np.float32)
+        acc = {"bufferView": add_view(arr.tobytes(), target), "componentType": 5126, "count": len(arr), "type": type_}
+        if minmax:
+            acc["min"] = [float(c.min()) for c in arr.T]
+            acc["max"] = [float(c.max()) for c in arr.T]
+        accessors.append(acc)
+        return len(accessors) - 1
+
+    def material(name: str, rgb) -> int:
+        rgba = [round(c / 255.0, 6) for c in rgb] + [1.0]
+        materials.append(
+            {
+                "name": name,
+                "doubleSided": False,
+                "pbrMetallicRoughness": {"baseColorFactor": rgba, "metallicFactor": 0.0, "roughnessFactor": 0.9},
+            }
+        )
+        return len(materials) - 1
+
+    trunk = material("vegetation/trunk", tm.TRUNK_COLOUR)
+    counts = {"vertices": 0, "triangles": 0, "instances": 0, "meshes": 0}
+    for cat in sorted(set(cats.tolist())):
+        sel = cats == cat
+        lay = trees.take(sel)
+        form = forms[sel][0] if forms[sel][0] else PLANTS.get(cat, ("broad",))[0]
+        crown = material(f"vegetation/{cat}", tm.CROWN_COLOURS.get(cat, COLOURS["vegetation"]))
+        prims = []
+        for part, mat in ((0, trunk), (1, crown)):
+            if instancing:
+                v, f = tm.unit_tree(form)[part]
+            else:
+                v, f = tm.baked(lay, form, part)
+                v = v - np.array([off[0], off[1], 0.0])
+            pos = mesh.to_y_up(v)
+            idx = np.ascontiguousarray(f, dtype=np.uint32)
+            a_pos = add_accessor(pos, "VEC3", 34962, minmax=True)
+            accessors.append(
+                {
+                    "bufferView": add_view(idx.tobytes(), 34963),
+                    "componentType": 5125,
+                    "count": int(idx.size),
+                    "type": "SCALAR",
+                }
+            )
+            prims.append({"attributes": {"POSITION": a_pos}, "indices": len(accessors) - 1, "material": mat, "mode": 4})
+            counts["vertices"] += len(pos)
+            counts["triangles"] += len(f) * (len(lay) if instancing else 1)
+        gl_meshes.append({"name": f"vegetation/{cat}", "primitives": prims})
+        node = {"name": f"vegetation/{cat}", "mesh": len(gl_meshes) - 1}
+        if instancing:
+            t, yaw, scale = tm.instances(lay)
+            t = t - np.array([off[0], off[1], 0.0])
+            quat = np.column_stack([np.zeros(len(yaw)), np.sin(yaw / 2), np.zeros(len(yaw)), np.cos(yaw / 2)])
+            node["extensions"] = {
+                "EXT_mesh_gpu_instancing": {
+                    "attributes": {
+                        "TRANSLATION": add_accessor(mesh.to_y_up(t), "VEC3", None),
+                        "ROTATION": add_accessor(quat, "VEC4", None),
+                        "SCALE": add_accessor(scale, "VEC3", None),
+                    }
+                }
+            }
+        if translation is not None:
+            node["translation"] = translation
+        nodes.append(node)
+        counts["instances"] += len(lay)
+        counts["meshes"] += 1
+    return counts
 
 
 def _weld32(pos: np.ndarray, faces: np.ndarray, feature: np.ndarray):
@@ -335,9 +454,12 @@ def write_glb(
     origin: tuple | None = None,
     copyright: str | None = None,
     lod: int = 1,
+    instancing: bool = True,
 ) -> dict:
     """Write ``layers`` to a binary glTF file; return vertex and face counts per layer (see :func:`glb_bytes`)."""
-    data, counts = glb_bytes(layers, line_width=line_width, crs=crs, origin=origin, copyright=copyright, lod=lod)
+    data, counts = glb_bytes(
+        layers, line_width=line_width, crs=crs, origin=origin, copyright=copyright, lod=lod, instancing=instancing
+    )
     Path(path).write_bytes(data)
     log.info("wrote %s: %d meshes, %d triangles", path, len(counts), sum(c["triangles"] for c in counts.values()))
     return counts

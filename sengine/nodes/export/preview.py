@@ -5,7 +5,8 @@ with numpy, then saved as a palette PNG (small, and no time chunk: the same
 layers give the same bytes).  Layers from bottom to top: water, streets,
 sidewalks, blocks, lots (with their outlines), parks, buildings (a colour
 ramp over height; those of the map, ``source`` ``"osm"``, outlined), roads
-(centre lines).  A footer holds the height legend, a scale bar and the layer
+(centre lines); bridge decks over the water and trees as dots of their
+crown's width over the buildings.  A footer holds the height legend, a scale bar and the layer
 swatches.
 """
 
@@ -28,14 +29,16 @@ __all__ = ["render", "write_preview", "PALETTE", "ROADS_INDEX", "ramp"]
 
 log = logging.getLogger(__name__)
 
-_ORDER = ("water", "streets", "sidewalks", "blocks", "lots", "parks", "buildings", "roads")
+#: Drawing order; trees are dots of their crown's size, bridges decks over the water.
+_ORDER = ("water", "streets", "sidewalks", "blocks", "lots", "parks", "bridges", "buildings", "vegetation", "roads")
+_INDEXED = ("water", "streets", "sidewalks", "blocks", "lots", "parks", "buildings", "roads", "bridges", "vegetation")
 _BACKGROUND = (250, 250, 247)
 _INK = (30, 30, 30)
 _LOT_EDGE = (196, 188, 170)
 _MAP_EDGE = (70, 70, 70)
 # palette: 0 background, 1 ink, 2 white, 3 lot edges, 4 map buildings' edges, 8.. layers, 64..127 height ramp
 _FIXED = {"background": 0, "ink": 1, "white": 2, "lot_edge": 3, "map_edge": 4}
-_LAYER_INDEX = {name: 8 + i for i, name in enumerate(_ORDER)}
+_LAYER_INDEX = {name: 8 + i for i, name in enumerate(_INDEXED)}
 ROADS_INDEX = _LAYER_INDEX["roads"]
 _RAMP0, _RAMP_N = 64, 64
 _RAMP_STOPS = np.array([(255, 240, 170), (253, 190, 90), (240, 110, 50), (190, 40, 70), (100, 20, 90)], float)
@@ -105,6 +108,19 @@ def _draw_lines(draw: ImageDraw.ImageDraw, geoms: np.ndarray, to_px, value: int,
         a, b = starts[k], starts[k + 1]
         if b - a >= 2:
             line(pix[2 * a : 2 * b], fill=value, width=int(w[k]))
+
+
+def _draw_points(draw: ImageDraw.ImageDraw, geoms: np.ndarray, to_px, value: int, diameter) -> None:
+    """Dots of ``diameter`` px (one pixel at least) at points."""
+    pix = to_px(shapely.get_coordinates(geoms))
+    r = np.maximum(np.nan_to_num(np.asarray(diameter, float)) / 2, 0.5)
+    small = r < 1.0
+    if small.any():
+        draw.point(np.rint(pix[small]).astype(np.int64).ravel().tolist(), fill=value)
+    box = np.column_stack([pix - r[:, None], pix + r[:, None]])[~small].tolist()
+    ellipse = draw.ellipse
+    for b in box:
+        ellipse(b, fill=value)
 
 
 def render(
@@ -179,6 +195,12 @@ def render(
                 _draw_polygons(draw, rings, to_px, _LAYER_INDEX.get(name, _FIXED["ink"]), outline=edge)
             if holes:
                 canvas.paste(img, mask=img.point(lambda v: 255 if v else 0))
+        points = types == 0
+        if points.any():  # trees: a dot as wide as the crown
+            crown = np.asarray(lay.get("crown", np.full(len(lay), 6.0)), float)[points]
+            _draw_points(
+                ImageDraw.Draw(canvas), geoms[points], to_px, _LAYER_INDEX.get(name, _FIXED["ink"]), crown * scale
+            )
         if lines.any():
             if name == "roads" and "streets" not in layers and "width" in lay.attrs:
                 widths = np.maximum(1, np.rint(np.nan_to_num(np.asarray(lay["width"], float))[lines] * scale))

@@ -1,4 +1,4 @@
-"""Parks at block level: skylineEngine §4 (one park module, wired at several levels).
+"""Parks at block level (``parks.block``): skylineEngine §4 (one park module, wired at several levels).
 
 "There are cities which have a park so large that it can be considered as a
 district by itself ... Other parks are much smaller, having sizes ranging from
@@ -30,7 +30,7 @@ __all__ = ["choose_park_blocks", "ParksBlock"]
 
 log = logging.getLogger(__name__)
 
-MODES = ("every", "random", "largest", "inside")
+MODES = ("none", "every", "random", "largest", "inside")
 
 
 def choose_park_blocks(
@@ -44,8 +44,8 @@ def choose_park_blocks(
         The blocks (m).
     ids : array_like of int
         Their stable ids.
-    mode : {"every", "random", "largest", "inside"}
-        ``every``: the blocks whose id is a multiple of ``every``;
+    mode : {"none", "every", "random", "largest", "inside"}
+        ``none``: no block; ``every``: the blocks whose id is a multiple of ``every``;
         ``random``: each block with probability ``share``, drawn from
         ``rng_of(block id)`` so the choice does not depend on the batch;
         ``largest``: the ``share`` largest blocks;
@@ -69,7 +69,9 @@ def choose_park_blocks(
     ids = np.asarray(ids, np.int64)
     n = len(geoms)
     area = shapely.area(geoms) if n else np.zeros(0)
-    if mode == "every":
+    if mode == "none":
+        pick = np.zeros(n, bool)
+    elif mode == "every":
         pick = (ids % max(int(every), 1)) == 0
     elif mode == "random":
         pick = np.array([rng_of(int(i)).random() < share for i in ids], dtype=bool) if n else np.zeros(0, bool)
@@ -116,7 +118,7 @@ class ParksBlock(SENode):
             "str",
             "every",
             choices=MODES,
-            doc="how blocks are chosen (every Nth id, random, largest, inside the land-use park class)",
+            doc="how blocks are chosen (none, every Nth id, random, largest, inside the land-use park class)",
         ),
         "every": Param("int", 12, min=1, max=1_000_000, unit="1", doc="every Nth block id becomes a park"),
         "share": Param("float", 0.05, min=0.0, max=1.0, unit="1", doc="fraction of blocks (random, largest)"),
@@ -137,6 +139,9 @@ class ParksBlock(SENode):
             rng_of=lambda i: self.rng(i),
             zones=zones,
         )
+        if self.p.mode == "none":  # no block-level parks: the blocks go on untouched
+            out = parks if parks is not None else Layer.empty(meta=dict(blocks.meta), level=np.dtype("<U8"))
+            return NodeResult({"parks": out, "blocks": blocks}, {"block_parks": 0, "park_area_m2": 0.0})
         chosen = blocks.take(pick)
         district = chosen["district"] if "district" in chosen else np.full(len(chosen), -1, np.int64)
         new = Layer.from_geoms(

@@ -1,0 +1,51 @@
+"""Parks at district level (``parks.district``): skylineEngine §4, Central Park.
+
+"There are cities which have a park so large that it can be considered as a
+district by itself."  The land-use map's ``park`` class is vectorized by
+``roads.districts`` (one coverage with the districts, so the park's border
+is a road); this node is the head of the ``parks`` stream: it takes those
+regions, drops the ones under ``min_area`` (a stray pixel blob is no park) and
+stamps their ``level``.  Mode ``none`` hands on no park at all (the land
+stays cut out of the city: the map said nothing may be built there).
+
+References
+----------
+§4 of [1]_.
+
+.. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
+   technical report, Geometry and Graphics Group, Universitat de Girona, 2011
+   (the specification: paper 002 in shared/papers).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+
+from sengine import Layer, NodeResult, Param, Port, SENode, register
+
+__all__ = ["ParksDistrict"]
+
+
+@register
+class ParksDistrict(SENode):
+    """District-level parks: the land-use map's park class, the head of the parks stream (paper 002 §4)."""
+
+    name = "parks.district"
+    inputs = {"parks": Port("parks", "the land-use map's park regions (roads.districts' parks)", required=False)}
+    outputs = {"parks": Port("parks", "district-level parks (column level = 'district')")}
+    params = {
+        "mode": Param("str", "all", choices=("all", "none"), doc="all: every land-use park region; none: no park"),
+        "min_area": Param("float", 0.0, min=0.0, unit="m2", doc="smaller regions are not parks"),
+    }
+
+    def run(self, *, parks: Layer | None = None):
+        if parks is None:
+            parks = Layer.empty(level=np.dtype("<U8"), district=np.dtype(np.int64), area=np.dtype(np.float64))
+        area = shapely.area(parks.geometry) if len(parks) else np.zeros(0)
+        keep = area >= self.p.min_area if self.p.mode == "all" else np.zeros(len(parks), bool)
+        out = parks if keep.all() else parks.take(keep)
+        if "level" not in out or (len(out) and (np.asarray(out["level"]).astype(str) != "district").any()):
+            out = out.with_columns(level=np.full(len(out), "district"))
+        report = {"district_parks": len(out), "park_area_m2": round(float(area[keep].sum()), 1)}
+        return NodeResult({"parks": out}, report)

@@ -1,0 +1,310 @@
+"""Open space (issue 14): parks at three levels, patios, vegetation, water, bridges and their exports."""
+
+from __future__ import annotations
+
+import json
+import struct
+
+import numpy as np
+import pytest
+import shapely
+from _city import ROOT, data_file
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.spatial import cKDTree
+from test_roofs import _validator_ready, gltf_validate, validate_cityjson
+
+import sengine
+from sengine import Layer
+from sengine.errors import ParameterError
+from sengine.node import Context
+from sengine.nodes.export.gltf import glb_bytes
+from sengine.nodes.vegetation import avenue_points, distr, tree_lines, versailles_split
+from sengine.registry import get
+
+# -- Distr(density, deviation) -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("deviation", [0.0, 25.0])
+def test_distr_gives_the_requested_count_within_sampling_error(deviation):
+    """Each region's count is floor(lambda) + Bernoulli(frac): the total is within 4 sigma of sum(lambda).
+
+    sigma <= sqrt(regions / 4) (a Bernoulli variance is at most 1/4): 300 regions give a tolerance of
+    4 * sqrt(75) = 34.6 trees on some 7,000.
+    """
+    rng = np.random.default_rng(1)
+    regions = [
+        shapely.box(x, 0, x + w, h)
+        for x, w, h in zip(np.arange(300) * 500, rng.uniform(50, 400, 300), rng.uniform(50, 300, 300))
+    ]
+    area = shapely.area(np.array(regions))
+    density = 0.0004
+    xy, reg, wanted = distr(regions, np.arange(300), density, deviation, seed=9, spacing=0.0)
+    lam = density * area
+    assert abs(len(xy) - lam.sum()) <= 4 * np.sqrt(len(regions) / 4)
+    assert (np.bincount(reg, minlength=300) == wanted).all()
+    assert (np.abs(wanted - lam) < 1).all()
+    assert shapely.contains_xy(np.array(regions)[reg], xy[:, 0], xy[:, 1]).all()
+    if deviation > 0:  # Gaussian around the region's centre: nearer the centre than uniform points are
+        centre = shapely.get_coordinates(shapely.point_on_surface(np.array(regions)))
+        u, ureg, _ = distr(regions, np.arange(300), density, 0.0, seed=9)
+        near = np.median(np.hypot(*(xy - centre[reg]).T))
+        assert near < 0.8 * np.median(np.hypot(*(u - centre[ureg]).T))
+
+
+polygons = st.builds(
+    lambda w, h, hole, notch: shapely.difference(
+        shapely.box(0, 0, w, h),
+        shapely.union(
+            shapely.box(w * 0.3, h * 0.3, w * 0.3 + hole * w * 0.4, h * 0.3 + hole * h * 0.4),
+            shapely.box(w * (1 - notch), h * 0.5, w, h),
+        ),
+    ),
+    st.floats(5, 400),
+    st.floats(2, 300),
+    st.floats(0, 1),
+    st.floats(0, 0.9),
+)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(polygons, min_size=1, max_size=4), st.floats(0.001, 0.08), st.floats(0.5, 6.0))
+def test_minimum_spacing_holds_and_points_stay_inside(polys, density, spacing):
+    geoms = np.array([shapely.affinity.translate(p, 1000 * i, 0) for i, p in enumerate(polys)], dtype=object)
+    geoms = geoms[~shapely.is_empty(geoms)]
+    xy, reg, wanted = distr(geoms, np.arange(len(geoms)), density, 0.0, seed=3, spacing=spacing)
+    assert len(xy) <= wanted.sum()
+    if len(xy) > 1:
+        d, _ = cKDTree(xy).query(xy, k=2)
+        assert d[:, 1].min() >= spacing - 1e-9
+    assert shapely.contains_xy(geoms[reg], xy[:, 0], xy[:, 1]).all()
+    # below random packing density the count is met
+    if density * spacing**2 < 0.3 and (shapely.area(geoms) > 20 * spacing**2).all():
+        assert len(xy) >= 0.97 * wanted.sum()
+
+
+# -- avenue trees and Versailles -----------------------------------------------------------------
+
+
+def test_avenue_trees_are_spaced_and_stop_short_of_the_corners():
+    blocks = np.array([shapely.box(0, 0, 100, 60), shapely.Point(300, 0).buffer(40)], dtype=object)
+    lines, row = tree_lines(blocks, 1.5)
+    xy, li, _ = avenue_points(lines, spacing=10, clear=6)
+    corners = shapely.get_coordinates(lines[0])
+    on_box = row[li] == 0
+    d = np.hypot(*(xy[on_box][:, None] - corners[None]).transpose(2, 0, 1)).min(axis=1)
+    assert d.min() >= 6 - 1e-9
+    # 103 m sides: 10 trees, 63 m sides: 6 trees
+    assert on_box.sum() == 2 * 10 + 2 * 6
+    # the circle is one run without crossings
+    assert abs((~on_box).sum() - shapely.length(lines[1]) // 10) <= 1
+
+
+@pytest.mark.parametrize(
+    "region",
+    [
+        shapely.box(0, 0, 800, 500),
+        shapely.Point(0, 0).buffer(300),
+        shapely.Polygon([(0, 0), (600, 0), (600, 200), (200, 200), (200, 500), (0, 500)]),
+    ],
+    ids=["rectangle", "disc", "L"],
+)
+def test_versailles_three_splits_give_eight_sub_regions(region):
+    parts, owner, avenues, _, depth = versailles_split([region], depth=3, width=24)
+    assert len(parts) == 8 and (owner == 0).all()
+    assert sorted(np.bincount(depth).tolist()) == [1, 2, 4]
+    assert shapely.union_all(parts).within(region.buffer(1e-6))
+    assert (
+        not shapely.intersects(parts[:, None], parts[None]).sum() - len(parts)
+        or shapely.area(shapely.intersection(parts[:, None], parts[None])).sum() - shapely.area(parts).sum() < 1e-6
+    )
+
+
+# -- the standard network: parks at three levels, water, bridges, trees ---------------------------
+
+
+@pytest.fixture(scope="module")
+def paris():
+    net = sengine.load(
+        ROOT / "configs" / "paris.xml",
+        sets=[
+            "blockParks.mode=every",
+            "blockParks.every=40",
+            "lotParks.mode=every",
+            "lotParks.every=60",
+            "patios.mode=all",
+            "patios.front=8",
+        ],
+    )
+    layers, stats = net.run(seed=11, check_kinds=True)
+    return net, layers, stats["report"]
+
+
+@pytest.mark.slow
+def test_parks_at_every_level_in_one_network_without_a_cycle(paris):
+    net, layers, report = paris
+    import networkx as nx
+
+    g = nx.DiGraph([(a, c) for a, _, c, _ in net.validate().edges])
+    assert nx.is_directed_acyclic_graph(g)
+    parks = layers["patios"]["parks"]
+    assert set(np.asarray(parks["level"]).astype(str)) == {"district", "block", "lot", "patio"}
+    # a lot park is a lot with no building
+    lp = parks.take(np.asarray(parks["level"]).astype(str) == "lot")
+    b = layers["buildings"]["buildings"]
+    assert len(lp) > 20
+    assert not np.isin(b["lot"], lp["lot"]).any()
+    pi, bi = shapely.STRtree(b.geometry).query(lp.geometry, predicate="intersects")
+    assert shapely.area(shapely.intersection(lp.geometry[pi], b.geometry[bi])).sum() < 1e-3
+    # block parks are no longer blocks; patios touch no building
+    blocks = layers["blockParks"]["blocks"]
+    bp = parks.take(np.asarray(parks["level"]).astype(str) == "block")
+    assert not np.isin(bp.parent, blocks.ids).any()
+    pz = parks.take(np.asarray(parks["level"]).astype(str) == "patio")
+    pi, bi = shapely.STRtree(b.geometry).query(pz.geometry, predicate="intersects")
+    assert len(pz) > 0 and len(pi) == 0
+
+
+@pytest.mark.slow
+def test_no_tree_on_a_road_in_water_or_in_a_building(paris):
+    _, layers, report = paris
+    t = layers["vegetation"]["vegetation"]
+    assert len(t) > 10_000
+    pts = t.geometry
+    for lay in (layers["blocks"]["streets"], layers["water"]["water"], layers["buildings"]["buildings"]):
+        hit, _ = shapely.STRtree(lay.geometry).query(pts, predicate="intersects")
+        assert len(hit) == 0
+    d, _ = cKDTree(shapely.get_coordinates(pts)).query(shapely.get_coordinates(pts), k=2)
+    assert d[:, 1].min() >= 4.0 - 1e-9
+    zones = set(np.asarray(t["zone"]).astype(str))
+    assert {"avenue", "district", "block", "lot", "patio"} <= zones
+    # the report's counts are the layer's
+    os_ = report["planning"]["open_space"]["city"]
+    assert os_["trees"] == len(t) == report["vegetation"]["trees"]
+    assert 0 < os_["park_share"] < 1
+    assert sum(d["trees"] for d in report["planning"]["open_space"]["districts"].values()) <= len(t)
+
+
+@pytest.mark.slow
+def test_the_river_has_water_and_bridges(paris):
+    _, layers, report = paris
+    water = layers["water"]["water"]
+    assert len(water) == 1 and 0.5e6 < water.area() < 0.7e6
+    roads = layers["bridges"]["roads"]
+    br = roads.take(np.asarray(roads["bridge"], bool))
+    assert 1 <= len(br) <= 3
+    assert shapely.length(br.geometry).max() <= 250
+    assert shapely.crosses(br.geometry, water.geometry[0]).all()
+    decks = layers["bridges"]["bridges"]
+    assert len(decks) == len(br)
+
+
+# -- a real extract: avenue trees on sidewalks, stopping at crossings -----------------------------
+
+
+@pytest.fixture(scope="module")
+def kirchberg(tmp_path_factory):
+    cfg = tmp_path_factory.mktemp("k") / "k.xml"
+    cfg.write_text(
+        f'<sengine version="1"><city name="k" seed="2"><map kind="osm" src="{data_file("kirchberg_iller.osm")}"/></city>'
+        '<network base="loadmap"/></sengine>'
+    )
+    net = sengine.load(cfg)
+    return net.run(seed=2)
+
+
+def test_avenue_trees_lie_on_sidewalks_and_stop_at_crossings(kirchberg):
+    layers, _ = kirchberg
+    t = layers["vegetation"]["vegetation"]
+    ave = t.take(np.asarray(t["zone"]).astype(str) == "avenue")
+    assert len(ave) > 20
+    walk = layers["blocks"]["sidewalks"].geometry
+    hit, _ = shapely.STRtree(walk).query(ave.geometry, predicate="within")
+    assert len(np.unique(hit)) == len(ave)
+    roads = layers["clean"]["roads"].geometry
+    ends = np.concatenate([shapely.get_coordinates(shapely.get_point(roads, i)) for i in (0, -1)])
+    node, deg = np.unique(np.round(ends, 3), axis=0, return_counts=True)
+    crossings = node[deg >= 3]
+    d, _ = cKDTree(crossings).query(shapely.get_coordinates(ave.geometry))
+    assert d.min() >= 8.0 - 0.5  # avenue_clear, measured from the sidewalk corner (further from the centre)
+
+
+def test_same_seed_same_bytes(kirchberg, tmp_path):
+    layers, _ = kirchberg
+    node = get("vegetation.trees")
+    ins = dict(
+        blocks=layers["landuse"]["blocks"],
+        parks=layers["majorRoads"]["parks"],
+        sidewalks=layers["blocks"]["sidewalks"],
+        streets=layers["blocks"]["streets"],
+        buildings=layers["buildings"]["buildings"],
+        water=layers["majorRoads"]["water"],
+    )
+    a = node("vegetation", {}, Context(seed=2)).run(**ins)["vegetation"]
+    b = node("vegetation", {}, Context(seed=2)).run(**ins)["vegetation"]
+    c = node("vegetation", {}, Context(seed=3)).run(**ins)["vegetation"]
+    assert json.dumps(a.to_geojson()) == json.dumps(b.to_geojson())
+    assert glb_bytes({"vegetation": a})[0] == glb_bytes({"vegetation": b})[0]
+    assert json.dumps(a.to_geojson()) != json.dumps(c.to_geojson())
+
+
+def test_an_unknown_plant_is_a_parameter_error():
+    node = get("vegetation.trees")("vegetation", {"avenue_plants": "plane,baobab"}, Context(seed=1))
+    with pytest.raises(ParameterError, match="baobab"):
+        node.run(blocks=Layer.from_geoms([shapely.box(0, 0, 50, 50)], district=-1))
+
+
+# -- exports --------------------------------------------------------------------------------------
+
+
+def _trees():
+    node = get("vegetation.trees")("vegetation", {"region_pattern": "versailles"}, Context(seed=5))
+    blocks = Layer.from_geoms(
+        [shapely.box(x, y, x + 80, y + 60) for x in range(0, 1000, 100) for y in range(0, 800, 80)], district=-1
+    )
+    regions = Layer.from_geoms([shapely.box(1200, 0, 2000, 500)], kind="region")
+    parks = Layer.from_geoms([shapely.box(0, 900, 600, 1300)], level="district", district=-1)
+    return node.run(blocks=blocks, regions=regions, parks=parks)["vegetation"]
+
+
+def test_trees_are_instanced_in_the_glb_and_pass_the_validator(tmp_path):
+    t = _trees()
+    assert {"avenue", "region", "district"} <= set(np.asarray(t["zone"]).astype(str))
+    inst, counts = glb_bytes({"vegetation": t})
+    baked, _ = glb_bytes({"vegetation": t}, instancing=False)
+    assert counts["vegetation"]["instances"] == len(t)
+    assert len(inst) < len(baked) / 10
+    n = struct.unpack("<I", inst[12:16])[0]
+    doc = json.loads(inst[20 : 20 + n])
+    assert "EXT_mesh_gpu_instancing" in doc["extensionsUsed"]
+    cats = sorted(set(np.asarray(t["category"]).astype(str)))
+    assert [m["name"] for m in doc["meshes"]] == [f"vegetation/{c}" for c in cats]
+    got = sum(
+        doc["accessors"][nd["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]["TRANSLATION"]]["count"]
+        for nd in doc["nodes"]
+    )
+    assert got == len(t)
+    if _validator_ready():
+        for data, name in ((inst, "i.glb"), (baked, "b.glb")):
+            (tmp_path / name).write_bytes(data)
+            report = gltf_validate(tmp_path / name)
+            assert report["issues"]["numErrors"] == 0, report["issues"]["messages"][:5]
+
+
+def test_trees_in_every_format(tmp_path):
+    t = _trees()
+    b = Layer.from_geoms([shapely.box(5, 5, 20, 20)], height=10.0, floors=3, roof="flat", lot=-1, district=-1)
+    export = get("export.city")(
+        "export", {}, Context(seed=1, out=tmp_path, formats=frozenset({"geojson", "cityjson", "png", "gpkg"}))
+    )
+    export.run(vegetation=t, buildings=b)
+    gj = json.loads((tmp_path / "vegetation.geojson").read_text())
+    assert len(gj["features"]) == len(t)
+    props = gj["features"][0]["properties"]
+    assert {"zone", "category", "type", "instance", "height", "crown"} <= set(props)
+    assert gj["features"][0]["geometry"]["type"] == "Point"
+    doc = json.loads((tmp_path / "buildings.city.json").read_text())
+    svo = [o for o in doc["CityObjects"].values() if o["type"] == "SolitaryVegetationObject"]
+    assert len(svo) == len(t)
+    validate_cityjson(doc)
+    assert (tmp_path / "city.gpkg").stat().st_size > 0
