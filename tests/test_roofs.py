@@ -321,6 +321,24 @@ def test_glb_feature_ids_and_property_table(lod):
         assert bv["byteOffset"] % 8 == 0
 
 
+def test_an_empty_text_column_makes_no_empty_buffer_view(tmp_path):
+    """Manhattan's typologies leave ``height_class`` empty everywhere: its strings took 0 bytes, and a
+    bufferView of byteLength 0 is invalid glTF (the Khronos validator's one error on the demo)."""
+    lay = _monaco()
+    lay = lay.with_columns(height_class=np.full(len(lay), "", object), note=np.full(len(lay), None, object))
+    data, _ = glb_bytes({"buildings": lay}, lod=2)
+    doc, _ = read_glb(data)
+    assert min(bv["byteLength"] for bv in doc["bufferViews"]) >= 1
+    meta = doc["extensions"]["EXT_structural_metadata"]
+    (table,) = meta["propertyTables"]
+    assert {"height_class", "note"} <= set(meta["schema"]["classes"][table["class"]]["properties"])
+    assert not {"height_class", "note"} & set(table["properties"])  # no value: left out of the table
+    assert "roof" in table["properties"]
+    if _validator_ready():
+        (tmp_path / "b.glb").write_bytes(data)
+        assert gltf_validate(tmp_path / "b.glb")["issues"]["numErrors"] == 0
+
+
 def _validator_ready() -> bool:
     return shutil.which("node") is not None and (ROOT / ".ci" / "node" / "node_modules" / "gltf-validator").is_dir()
 
