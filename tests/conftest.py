@@ -11,7 +11,11 @@ import pytest
 from hypothesis import settings
 
 # CI explores the same examples every run (a red CI is then reproducible);
-# a developer's run draws new ones.
+# a developer's run draws new ones.  "The same" for the same selection of tests
+# only: Hypothesis also draws literal constants of every local module imported
+# so far, so a module run alone explores other examples than the whole suite.
+# A failure seen only in the suite is a real input: print_blob gives the
+# @reproduce_failure line that replays it alone.
 settings.register_profile("ci", derandomize=True, deadline=None, print_blob=True)
 settings.register_profile("dev", deadline=None, print_blob=True)
 settings.load_profile("ci" if os.environ.get("CI") else "dev")

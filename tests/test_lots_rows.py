@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import shapely
 import shapely.affinity
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 from test_lots import SETTINGS, block_polygon, check_lots
 
@@ -251,10 +251,25 @@ def test_partition_clusters_up_to_four_lots():
         partition({"cluster": "3 2"}, [block])
 
 
-@pytest.mark.skip(
-    reason="fails under CI=true only inside the whole suite (passes alone and within its module); "
-    "found at the final merge, cause not yet found: see the session note on issue 11"
+# Found by the derandomized run of the whole suite only (Hypothesis draws from the literal constants of
+# the local modules imported so far, so the suite explores other examples than the module alone): a
+# square block with a courtyard whose edges lie on grid lines.  A cell a hair (1e-15 m) inside the
+# courtyard's edge was taken as an inner lot (no frontage) while lot_attributes, within 1e-5 m, measured
+# 6 m; a cell touching the courtyard's corner at a point had frontage 0 but was not inner.
+COURTYARD_EDGE = shapely.from_wkt(
+    "POLYGON ((0 0, -2.093438249717753 39.94518139018295, 37.8517431404652 42.0386196399007, 39.94518139018295 "
+    "2.093438249717753, 0 0), (22.501702059307345 29.21768992295872, 10.51814764225246 28.58965844804339, "
+    "11.35552294213956 12.611585891970213, 23.339077359194448 13.239617366885538, 22.501702059307345 "
+    "29.21768992295872))"
 )
+COURTYARD_CORNER = shapely.from_wkt(
+    "POLYGON ((0 0, -1.7011827630621246 39.96380834213201, 38.26262557906989 41.66499110519413, "
+    "39.96380834213201 1.7011827630621246, 0 0), (22.78745707113572 28.995375497329686, 10.798314568496117 "
+    "28.485020668411046, 11.478787673720966 12.499497331558242, 23.46793017636057 13.009852160476878, "
+    "22.78745707113572 28.995375497329686))"
+)
+
+
 @SETTINGS
 @given(
     st.lists(block_polygon(), min_size=1, max_size=3),
@@ -262,6 +277,8 @@ def test_partition_clusters_up_to_four_lots():
     st.tuples(st.floats(3.0, 60.0), st.floats(3.0, 60.0)),
     st.tuples(st.integers(1, 2), st.integers(1, 2)),
 )
+@example([COURTYARD_EDGE], "size", (3.0, 3.0), (1, 2))
+@example([COURTYARD_CORNER], "size", (3.0, 3.0), (1, 1))
 def test_partition_random_blocks(polys, mode, size, cluster):
     """Random blocks and modes: an exact partition, valid lots, none under 1 m2 unless a whole tiny block;
     a size no block can hold is an error."""

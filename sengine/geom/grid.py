@@ -23,7 +23,7 @@ def _ramp(counts) -> np.ndarray:
     return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
 
 
-def clip_frame_grid(geoms, center, axis, xs, nx, ys, ny, *, margin=None):
+def clip_frame_grid(geoms, center, axis, xs, nx, ys, ny, *, margin=None, clearance=0.0):
     """Each geometry cut into the cells of its own grid (vectorized; only the outline's cells clipped).
 
     Parameters
@@ -41,6 +41,12 @@ def clip_frame_grid(geoms, center, axis, xs, nx, ys, ny, *, margin=None):
         The outer cells reach this far past the first and last edges, so
         that the grid covers the geometry (m; default 1 m plus 1 % of the
         grid's size).
+    clearance : float
+        An ``inside`` cell stands farther than this (m) from every ring; a
+        cell nearer (or touching) is clipped like the outline's.  Give the
+        tolerance under which a caller takes a segment to lie on a ring, so
+        that an ``inside`` cell is one that tolerance finds on no ring (a
+        cell a hair inside a courtyard's edge is then no inner lot).
 
     Returns
     -------
@@ -51,7 +57,7 @@ def clip_frame_grid(geoms, center, axis, xs, nx, ys, ny, *, margin=None):
         Geometry, column and row of each cell.
     inside : ndarray of bool
         Cells that are their whole rectangle, inside the geometry's
-        interior (they touch none of its rings).  Every other cell has part
+        interior (they touch none of its rings, nor come within ``clearance``).  Every other cell has part
         of the geometry's boundary on its own, unless ``whole``.
     whole : ndarray of bool
         Cells that are their whole rectangle (``inside`` ones, and outline
@@ -85,7 +91,9 @@ def clip_frame_grid(geoms, center, axis, xs, nx, ys, ny, *, margin=None):
     fresh = geoms[~shapely.is_prepared(geoms)]  # the caller's own preparations stay as they are
     shapely.prepare(fresh)
     try:
-        inside = shapely.contains_properly(geoms[own], boxes)
+        c = float(clearance)
+        grown = _boxes(center[own], axis[own], a0 - c, a1 + c, b0 - c, b1 + c) if c > 0 else boxes
+        inside = shapely.contains_properly(geoms[own], grown)
         edge = np.zeros(len(own), bool)
         edge[~inside] = shapely.intersects(geoms[own[~inside]], boxes[~inside])
     finally:

@@ -435,11 +435,14 @@ def _property_table(name: str, layer: Layer, add_view) -> tuple[dict, dict]:
             data = [t.encode("utf-8") for t in text]
             offsets = np.concatenate([[0], np.cumsum([len(d) for d in data])]).astype("<u4")
             props[pid] = {"type": "STRING"}
-            values[pid] = {
-                "values": add_view(b"".join(data)),
-                "stringOffsets": add_view(offsets.tobytes()),
-                "stringOffsetType": "UINT32",
-            }
+            # every value empty: a bufferView of 0 bytes is invalid glTF (the Khronos validator's
+            # VALUE_NOT_IN_RANGE); the table leaves the property out (the class keeps it, not required)
+            if offsets[-1]:
+                values[pid] = {
+                    "values": add_view(b"".join(data)),
+                    "stringOffsets": add_view(offsets.tobytes()),
+                    "stringOffsetType": "UINT32",
+                }
         if pid != key:
             props[pid]["name"] = key
     return {"name": name, "properties": props}, {"class": name, "count": len(layer), "properties": values}

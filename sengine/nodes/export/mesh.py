@@ -32,6 +32,7 @@ __all__ = [
     "ring_arrays",
     "triangulate",
     "fill_skipped",
+    "split_t_junctions",
     "extrude",
     "flat",
     "ribbons",
@@ -189,27 +190,116 @@ def triangulate(rings: Rings) -> np.ndarray:
         start = np.repeat(s, nt)
         k = np.arange(nt.sum()) - np.repeat(np.cumsum(nt) - nt, nt) + 1
         parts.append(np.column_stack([start, start + k, start + k + 1]))
-    # earcut for the rest
+    # earcut for the rest; it winds all of a polygon's triangles one way: turned counter-clockwise
+    # together, by their total area (a triangle's own sign is noise when it is flat, and turning
+    # it alone would wind it against its neighbours: a crack)
     for p in np.flatnonzero(~fan):
         r0, r1 = rings.poly_ring[p], rings.poly_ring[p + 1]
         v0, v1 = rings.ring_start[r0], rings.ring_start[r1]
         ends = (rings.ring_start[r0 + 1 : r1 + 1] - v0).astype(np.uint32)
+        local = xy[v0:v1] - xy[v0]
         tri = mapbox_earcut.triangulate_float64(xy[v0:v1], ends)
         if len(tri):
-            parts.append(tri.astype(np.int64).reshape(-1, 3) + v0)
+            tri = tri.astype(np.int64).reshape(-1, 3)
+            a, b, c = local[tri[:, 0]], local[tri[:, 1]], local[tri[:, 2]]
+            area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+            if area2.sum() < 0:
+                tri = tri[:, [0, 2, 1]]
+            parts.append(tri + v0)
     if not parts:
         return np.empty((0, 3), np.int64)
     tri = np.concatenate(parts)
-    a, b, c = xy[tri[:, 0]], xy[tri[:, 1]], xy[tri[:, 2]]
-    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    flip = area2 < 0
-    tri[flip] = tri[flip][:, [0, 2, 1]]
     # flat triangles over collinear ring vertices stay: dropping one would open a crack beside a wall
     tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])]
     unused = np.bincount(tri.ravel(), minlength=len(xy)) == 0
     if unused.any():  # collinear ring vertices skipped or in a dropped flat triangle: the walls need them
         tri = _refill(rings, tri, np.unique(rings.vertex_poly()[unused]))
+    vpoly = rings.vertex_poly()
+    cut = np.flatnonzero(~fan[vpoly[tri[:, 0]]])  # a fan of a convex ring has no T-junction; earcut's may
+    if cut.size:
+        fixed, origin = split_t_junctions(xy, tri[cut], nxt, vpoly, rings.ring_start[rings.poly_ring])
+        if len(fixed) != len(cut):  # in place of the triangles they split, the order otherwise kept
+            rest = np.setdiff1d(np.arange(len(tri)), cut)
+            order = np.argsort(np.concatenate([rest, cut[origin]]), kind="stable")
+            tri = np.concatenate([tri[rest], fixed])[order]
     return tri
+
+
+def split_t_junctions(
+    xy: np.ndarray, tri: np.ndarray, nxt: np.ndarray, vpoly: np.ndarray, poly_start: np.ndarray, tol: float = 1e-7
+) -> tuple[np.ndarray, np.ndarray]:
+    """Split triangles whose edge runs over ring vertices of their polygon (T-junctions), so the mesh closes.
+
+    Earcut may join holes whose edges lie on one line (a terrace ring cut by
+    its recessed storeys, for one) with a single triangle edge running along
+    all of them; the ring vertices on that edge are then used by the
+    triangles on its other side only, a crack of zero width that leaves the
+    solid open.  Such an edge has no reverse twin and is no ring edge: the
+    triangle on it becomes a fan from its third vertex over the vertices on
+    it (same winding).
+
+    Parameters
+    ----------
+    xy : numpy.ndarray, shape (m, 2)
+        Ring vertices (m).
+    tri : numpy.ndarray of int64, shape (t, 3)
+        Counter-clockwise triangles (all of a polygon's, or its edges lack their twins).
+    nxt : numpy.ndarray of int, shape (m,)
+        Next vertex along each vertex's ring.
+    vpoly : numpy.ndarray of int, shape (m,)
+        Polygon of each vertex (vertices of one polygon are contiguous).
+    poly_start : numpy.ndarray of int, shape (p + 1,)
+        Offset of each polygon's first vertex.
+    tol : float
+        Distance (m) from the edge under which a vertex is on it.
+
+    Returns
+    -------
+    triangles : numpy.ndarray of int64, shape (t', 3)
+    origin : numpy.ndarray of int64, shape (t',)
+        Input triangle each output triangle comes from (ascending).
+    """
+    m = len(xy)
+    origin = np.arange(len(tri))
+    for _ in range(8):  # each pass splits a triangle on one edge; a triangle rarely has two such edges
+        if not len(tri):
+            break
+        e = tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+        key = e[:, 0] * m + e[:, 1]
+        lone = ~np.isin(e[:, 1] * m + e[:, 0], key) & (nxt[e[:, 0]] != e[:, 1])
+        if not lone.any():
+            break
+        done = np.zeros(len(tri), bool)
+        pieces = {}
+        for k in np.flatnonzero(lone).tolist():
+            t = k // 3
+            if done[t]:
+                continue
+            u, w = int(e[k, 0]), int(e[k, 1])
+            p = int(vpoly[u])
+            a, b = int(poly_start[p]), int(poly_start[p + 1])
+            d = xy[w] - xy[u]
+            ln2 = float(d @ d)
+            if not ln2 > 0:
+                continue
+            rel = xy[a:b] - xy[u]
+            s = rel @ d / ln2
+            off = np.abs(rel[:, 0] * d[1] - rel[:, 1] * d[0]) / np.sqrt(ln2)
+            on = np.flatnonzero((s > 0) & (s < 1) & (off <= tol)) + a
+            on = on[(on != u) & (on != w)]
+            if not on.size:
+                continue
+            seq = [u, *on[np.argsort(s[on - a], kind="stable")].tolist(), w]
+            c = int(tri[t][(k % 3 + 2) % 3])
+            pieces[t] = np.array([[i, j, c] for i, j in zip(seq, seq[1:])], np.int64)
+            done[t] = True
+        if not pieces:
+            break
+        src = np.concatenate([np.flatnonzero(~done), np.repeat(list(pieces), [len(v) for v in pieces.values()])])
+        order = np.argsort(src, kind="stable")
+        tri = np.concatenate([tri[~done], *pieces.values()])[order]
+        origin = origin[src[order]]
+    return tri, origin
 
 
 def _refill(rings: Rings, tri: np.ndarray, polys: np.ndarray) -> np.ndarray:

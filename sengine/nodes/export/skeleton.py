@@ -30,7 +30,7 @@ from __future__ import annotations
 import mapbox_earcut
 import numpy as np
 
-from .mesh import Rings, fill_skipped
+from .mesh import Rings, fill_skipped, split_t_junctions
 
 __all__ = ["skeleton_solids", "available"]
 
@@ -128,12 +128,11 @@ def _one(ext, rings: Rings, p: int, eave: float, rise: float, base: float, gable
         if j is None:
             return None
         vid[i] = j
-    # CGAL may give several skeleton nodes at one point (simultaneous events): one vertex for them
+    # CGAL may give several skeleton nodes at one point, or a hair apart (simultaneous events): one vertex
     high = np.flatnonzero(~low)
-    _, first, same = np.unique(sv[high], axis=0, return_index=True, return_inverse=True)
     canon = np.arange(len(sv))
-    canon[high] = high[first[same.ravel()]]
-    high = np.unique(high[first])
+    canon[high] = high[_clusters(sv[high], MERGE)]
+    high = np.unique(canon[high])
     vid[high] = n + np.arange(len(high))
     roof = []
     for face in sf:
@@ -163,29 +162,35 @@ def _one(ext, rings: Rings, p: int, eave: float, rise: float, base: float, gable
     nxt = i + 1
     for a_, b_ in zip(starts, starts[1:]):
         nxt[b_ - 1] = a_
+    roof = [_with_dropped(vid[f].tolist(), n, nxt) for f in roof]
+    gable_walls = [_with_dropped(vid[f].tolist(), n, nxt) for f in wall_faces]
+    lost = _lost_faces(roof + gable_walls, n, nxt, flat2)
+    if lost is None:
+        return None
     tris = []
-    for face in roof:
-        face = _with_dropped(vid[face].tolist(), n, nxt)
+    for face in roof + lost:  # each face turned to look up as a whole (a sliver's own sign is noise)
         if len(face) == 3:
-            tris.append(face)
-            continue
-        t = mapbox_earcut.triangulate_float64(flat2[face], np.array([len(face)], np.uint32)).reshape(-1, 3)
+            t = np.array([[0, 1, 2]])
+        else:
+            t = mapbox_earcut.triangulate_float64(flat2[face], np.array([len(face)], np.uint32)).reshape(-1, 3)
+        if _area2(flat2[np.asarray(face)[t]]).sum() < 0:
+            t = t[:, [0, 2, 1]]
         tris += fill_skipped([face], np.asarray(face)[t].tolist())
     tri = np.asarray(tris, np.int64).reshape(-1, 3)
-    a, b, c = flat2[tri[:, 0]], flat2[tri[:, 1]], flat2[tri[:, 2]]
-    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    flip = area2 < -1e-9 * (1.0 + np.abs(flat2).max())
-    tri[flip] = tri[flip][:, [0, 2, 1]]  # roof faces look up
-    gab = _fans([_with_dropped(vid[f].tolist(), n, nxt) for f in wall_faces], n)
+    gab = _fans(gable_walls, n)
     bottom = np.column_stack([xy, np.full(n, base)])
     walls = np.concatenate([np.column_stack([i + n_top, nxt + n_top, nxt]), np.column_stack([i + n_top, nxt, i])])
     floor = mapbox_earcut.triangulate_float64(xy - origin, np.asarray(starts[1:], np.uint32)).astype(np.int64)
     floor = floor.reshape(-1, 3)
-    a, b, c = xy[floor[:, 0]], xy[floor[:, 1]], xy[floor[:, 2]]
-    area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-    floor[area2 > 0] = floor[area2 > 0][:, [0, 2, 1]]  # the floor looks down
+    if _area2(local[floor]).sum() > 0:  # the floor looks down (earcut winds all its triangles one way)
+        floor = floor[:, [0, 2, 1]]
+    prv = np.empty(n, np.int64)
+    prv[nxt] = i  # seen from below, the rings run backwards
+    floor, _ = split_t_junctions(local, floor, prv, np.zeros(n, np.int64), np.array([0, n]))
     floor = floor + n_top
     faces = np.concatenate([floor, walls, gab, tri])
+    if not _closed(faces):  # never hand on an open solid: the caller draws another roof
+        return None
     kind = np.concatenate(
         [
             np.zeros(len(floor), np.uint8),
@@ -194,6 +199,42 @@ def _one(ext, rings: Rings, p: int, eave: float, rise: float, base: float, gable
         ]
     )
     return np.concatenate([top, bottom]), faces, kind
+
+
+#: Skeleton nodes closer than this (m) are one vertex: CGAL's simultaneous events
+#: give several nodes at one point, computed apart by a few units in the last place.
+MERGE = 1e-7
+
+
+def _clusters(p: np.ndarray, tol: float) -> np.ndarray:
+    """Per point, the first (lowest) index of the points within ``tol`` of it, chained (single linkage)."""
+    k = len(p)
+    order = np.argsort(p[:, 0], kind="stable")
+    q = p[order]
+    a_, b_ = [], []
+    j = 1
+    while j < k:
+        near = q[j:, 0] - q[:-j, 0] <= tol
+        if not near.any():
+            break
+        i = np.flatnonzero(near)
+        close = np.abs(q[i + j] - q[i]).max(axis=1) <= tol
+        a_.append(order[i[close]])
+        b_.append(order[i[close] + j])
+        j += 1
+    label = np.arange(k)
+    if a_:
+        a, b = np.concatenate(a_), np.concatenate(b_)
+        while True:  # propagate the smallest label along the pairs until nothing changes
+            m = np.minimum(label[a], label[b])
+            new = label.copy()
+            np.minimum.at(new, a, m)
+            np.minimum.at(new, b, m)
+            new = new[new]
+            if np.array_equal(new, label):
+                break
+            label = new
+    return label
 
 
 #: Grid (m) the footprint is snapped to for CGAL: on arbitrary doubles its exact
@@ -240,6 +281,89 @@ def _with_dropped(face: list[int], n: int, nxt: np.ndarray) -> list[int]:
             if guard >= n:  # b is not ahead of a on the ring: not an eave
                 del out[len(out) - guard :]
     return out
+
+
+def _area2(t: np.ndarray) -> np.ndarray:
+    """Twice the signed area of triangles ``t`` (k, 3, 2) (m2; positive counter-clockwise)."""
+    a, b, c = t[:, 0], t[:, 1], t[:, 2]
+    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+
+
+def _lost_faces(faces: list[list[int]], n: int, nxt: np.ndarray, flat2: np.ndarray) -> list[list[int]] | None:
+    """The roof faces CGAL left out, rebuilt from the crack they leave; ``None`` if the roof is beyond repair.
+
+    ``extrude_skeleton`` triangulates each skeleton face in its own plane and
+    silently drops a face whose outline passes one point twice (CGAL's
+    constrained triangulation throws on the touching constraints).  That is
+    what simultaneous events make: a square ring 0.6 m thick collapses
+    everywhere at 0.3 m, and CGAL gives several skeleton nodes at each corner
+    of the middle line.  Once those nodes are one vertex the dropped face's
+    outline is a simple polygon again: the edges that only one face (or one
+    eave) uses, chained into loops.  A roof is a height field, so each loop is
+    handed back as a face triangulated in plan (exact when one face was
+    dropped: its vertices are the loop's; a plan triangulation of their union
+    when neighbours were).
+
+    Parameters
+    ----------
+    faces : list of list of int
+        Roof faces and gable walls (top vertex ids: ``< n`` eave vertices).
+    n : int
+        Number of footprint vertices.
+    nxt : numpy.ndarray of int
+        Next footprint vertex along its ring.
+    flat2 : numpy.ndarray, shape (t, 2)
+        Plan coordinates of the top vertices (m).
+    """
+    count: dict[tuple[int, int], int] = {}
+    for f in faces:
+        for a, b in zip(f, f[1:] + f[:1]):
+            if a != b:
+                key = (a, b) if a < b else (b, a)
+                count[key] = count.get(key, 0) + 1
+    for a in range(n):  # the eaves: each is the top of a wall
+        b = int(nxt[a])
+        key = (a, b) if a < b else (b, a)
+        count[key] = count.get(key, 0) + 1
+    if any(c > 2 for c in count.values()):
+        return None
+    crack = [e for e, c in count.items() if c == 1]
+    if not crack:
+        return []
+    adj: dict[int, list[int]] = {}
+    for a, b in crack:
+        adj.setdefault(a, []).append(b)
+        adj.setdefault(b, []).append(a)
+    if any(len(v) != 2 for v in adj.values()):
+        return None  # cracks touching at a vertex: no unambiguous outline
+    out, seen = [], set()
+    for start in sorted(adj):
+        if start in seen:
+            continue
+        loop, prev, cur = [start], -1, start
+        seen.add(start)
+        while True:
+            a, b = adj[cur]
+            prev, cur = cur, (b if a == prev else a)
+            if cur == start:
+                break
+            loop.append(cur)
+            seen.add(cur)
+        if len(loop) < 3:
+            return None
+        out.append(loop)
+    return out
+
+
+def _closed(faces: np.ndarray) -> bool:
+    """Every directed edge of the triangles has exactly one reverse twin (a closed, consistently wound shell)."""
+    e = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    if (e[:, 0] == e[:, 1]).any():
+        return False
+    m = int(faces.max()) + 1
+    fwd = np.sort(e[:, 0] * m + e[:, 1])
+    rev = np.sort(e[:, 1] * m + e[:, 0])
+    return bool((np.diff(fwd) > 0).all() and np.array_equal(fwd, rev))
 
 
 def _fans(faces: list[list[int]], n: int) -> np.ndarray:

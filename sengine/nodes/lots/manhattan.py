@@ -31,6 +31,20 @@ from sengine.geom.polygons import obb_frame
 
 __all__ = ["manhattan_lots", "manhattan_rows"]
 
+ON_TOL = 1e-5  # m: a lot's segment within this of its block's boundary lies on it (frontage is measured so)
+
+
+def touches_along(lots, owner, blocks) -> np.ndarray:
+    """Per lot: some segment of its boundary, longer than a nanometre, lies on its block's boundary.
+
+    The frontage rule of :func:`sengine.nodes.lots.nodes.lot_attributes` (segments within
+    :data:`ON_TOL`, zero-length ones left out): a lot that meets the outline at a point only
+    (where a clip left a vertex doubled a hair apart) has no frontage and is inner.
+    """
+    p0, p1, si, _, on = segments_on_boundary(lots, owner, blocks, tol=ON_TOL)
+    on &= np.hypot(*(p1 - p0).T) > 1e-9
+    return np.bincount(si[on], minlength=len(lots)) > 0
+
 
 def _ramp(counts) -> np.ndarray:
     """0, 1, ..., c - 1 for each count, concatenated."""
@@ -110,7 +124,7 @@ def _inner_land(blocks, center, axis, L, W, per, depth):
     ky, oy = _ramp(ny + 1), np.repeat(np.arange(len(g_blk)), ny + 1)
     ys = -Wi[g_blk][oy] / 2 + ky * Wi[g_blk][oy] / ny[oy]
     cells, g, _, _, inside, whole = clip_frame_grid(
-        blocks[g_blk], center[g_blk], axis[g_blk], xs, nx, ys, ny, margin=0.0
+        blocks[g_blk], center[g_blk], axis[g_blk], xs, nx, ys, ny, margin=0.0, clearance=ON_TOL
     )
     return cells, g_blk[g], inside, whole, g_kind[g] == 2
 
@@ -178,7 +192,7 @@ def manhattan_lots(blocks, *, count=0, width=65.0, min_depth=10.0, depth=30.0, m
     Wy, Dy, Ry = W[own_y], depth[own_y], rows[own_y]
     ys = np.where(Ry == 3, np.select([r == 1, r == 2], [-Wy / 2 + Dy, Wy / 2 - Dy], 0.0), -Wy / 2 + r * Wy / Ry)
     ys = np.where(r == 0, -Wy / 2, np.where(r == Ry, Wy / 2, ys))
-    cells, owner, _, row, inside, whole = clip_frame_grid(blocks, center, axis, xs, per, ys, rows)
+    cells, owner, _, row, inside, whole = clip_frame_grid(blocks, center, axis, xs, per, ys, rows, clearance=ON_TOL)
     street = (rows[owner] < 3) | (row != 1)  # the middle row of a deep block is cut again below
     cells, owner, inside, whole = cells[street], owner[street], inside[street], whole[street]
     inner = np.zeros(len(cells), bool)
@@ -204,8 +218,7 @@ def manhattan_lots(blocks, *, count=0, width=65.0, min_depth=10.0, depth=30.0, m
     inner &= inside | whole
     sub = np.flatnonzero(inner & ~inside)
     if len(sub):
-        _, _, si, _, on = segments_on_boundary(lots[sub], owner[sub], blocks, tol=1e-5)
-        inner[sub[np.bincount(si[on], minlength=len(sub)) > 0]] = False
+        inner[sub[touches_along(lots[sub], owner[sub], blocks)]] = False
     if report is not None:
         report["merged_slivers"] = report.get("merged_slivers", 0) + merged
         report["dropped_slivers"] = report.get("dropped_slivers", 0) + dropped

@@ -39,7 +39,7 @@ from sengine.random import mix64
 from sengine.registry import declare_rule
 
 from ..maps import rules_of
-from .manhattan import manhattan_lots
+from .manhattan import ON_TOL, manhattan_lots
 from .paris import paris_lots
 from .recursive import check_recursive, recursive_lots
 from .skeleton import CORNERS, INTERIORS, skeleton_lots
@@ -60,8 +60,6 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
-
-ON_TOL = 1e-5  # m: a segment within this of the block boundary lies on it
 
 
 # -- frontage and lot attributes ---------------------------------------------------

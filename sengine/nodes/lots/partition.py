@@ -35,12 +35,11 @@ import shapely
 
 from sengine import Layer, NodeResult, Param, register
 from sengine.errors import ParameterError
-from sengine.geom.boundary import segments_on_boundary
 from sengine.geom.grid import clip_frame_grid
 from sengine.geom.merge import merge_small
 from sengine.geom.polygons import obb_frame
 
-from .manhattan import _polygons
+from .manhattan import ON_TOL, _polygons, touches_along
 from .nodes import _Lots
 from .recursive import REAL_BLOCK
 from .vocabulary import LotSplit
@@ -209,7 +208,7 @@ def partition_lots(
     # the grid in the block frame centred on the box (edges from 0 shifted by half the box)
     xs = xs - np.repeat(L / 2, nx + 1)
     ys = ys - np.repeat(W / 2, ny + 1)
-    pieces, own, ix, iy, inside, whole = clip_frame_grid(blocks, center, axis, xs, nx, ys, ny)
+    pieces, own, ix, iy, inside, whole = clip_frame_grid(blocks, center, axis, xs, nx, ys, ny, clearance=ON_TOL)
     lots, box = _polygons(pieces)
     owner, ix, iy, inside, whole = own[box], ix[box], iy[box], inside[box], whole[box]
     lots, keep, grown, merged, dropped = merge_small(lots, owner, min_area, cell=(ix, iy))
@@ -226,8 +225,7 @@ def partition_lots(
     inner = inside.copy()
     check = np.flatnonzero(whole & ~inside)
     if len(check):
-        _, _, si, _, on = segments_on_boundary(lots[check], owner[check], blocks, tol=1e-5)
-        inner[check] = np.bincount(si[on], minlength=len(check)) == 0
+        inner[check] = ~touches_along(lots[check], owner[check], blocks)
     if report is not None:
         report["remainders"] = report.get("remainders", 0) + int(remainder.sum())
         report["merged_slivers"] = report.get("merged_slivers", 0) + merged
