@@ -27,7 +27,14 @@ from sengine.random import uniform
 
 from ..maps import image_of
 
-__all__ = ["inset_footprints", "snap_floors", "sample_height_map", "BuildingsExtrude"]
+__all__ = [
+    "inset_footprints",
+    "snap_floors",
+    "sample_height_map",
+    "mapped_heights",
+    "HEIGHT_PARAMS",
+    "BuildingsExtrude",
+]
 
 log = logging.getLogger(__name__)
 
@@ -132,6 +139,46 @@ def sample_height_map(height_map: Layer | None, x: np.ndarray, y: np.ndarray):
     return image.scaled(x, y, lo, hi), lo, hi
 
 
+def mapped_heights(height_map, points, ids, *, seed, key: str, height: float, variation: float):
+    """Heights (m) the height map asks for at ``points``, with a seeded variation; and the map's range.
+
+    ``h = base x (1 + variation x (2u - 1))`` with ``base`` the height map
+    at each point (``height`` without a map) and ``u`` uniform from
+    ``(seed, key, id)`` (independent of batching), kept within the map's
+    ``[min, max]`` (002 §5.2).
+
+    Returns
+    -------
+    tuple of (ndarray, float or None, float or None)
+        Heights and the map's ``min`` and ``max`` (``None`` without a map).
+    """
+    n = len(ids)
+    sampled = sample_height_map(height_map, shapely.get_x(points), shapely.get_y(points)) if n else None
+    base, lo, hi = (np.full(n, height), None, None) if sampled is None else sampled
+    u = uniform(seed, key, ids)
+    raw = base * (1.0 + variation * (2.0 * u - 1.0))
+    return (raw if lo is None else np.clip(raw, lo, hi)), lo, hi
+
+
+#: The height parameters every building node shares.
+HEIGHT_PARAMS = {
+    "height": Param(
+        "float", 15.0, min=1.0, max=1000.0, unit="m", doc="building height when the city has no height map"
+    ),
+    "variation": Param(
+        "float", 0.2, min=0.0, max=0.95, unit="1", doc="random height variation, a fraction of the mapped height (+/-)"
+    ),
+    "floor_height": Param(
+        "float",
+        3.2,
+        min=2.6,
+        max=10.0,
+        unit="m",
+        doc="storey height; heights snap to whole floors (at least 2.6 m, paper 003)",
+    ),
+}
+
+
 @register
 class BuildingsExtrude(SENode):
     """One flat-roofed building per lot: lot inset by a setback, height from the height map.
@@ -160,25 +207,7 @@ class BuildingsExtrude(SENode):
     outputs = {"buildings": Port("buildings", "footprints with height, floors, roof, lot, district")}
     params = {
         "setback": Param("float", 2.0, min=0.0, max=50.0, unit="m", doc="inset of the footprint from every lot edge"),
-        "height": Param(
-            "float", 15.0, min=1.0, max=1000.0, unit="m", doc="building height when the city has no height map"
-        ),
-        "variation": Param(
-            "float",
-            0.2,
-            min=0.0,
-            max=0.95,
-            unit="1",
-            doc="random height variation, a fraction of the mapped height (+/-)",
-        ),
-        "floor_height": Param(
-            "float",
-            3.2,
-            min=2.6,
-            max=10.0,
-            unit="m",
-            doc="storey height; heights snap to whole floors (at least 2.6 m, paper 003)",
-        ),
+        **HEIGHT_PARAMS,
         "min_area": Param("float", 20.0, min=0.0, unit="m2", doc="footprints smaller than this are not built"),
         "courtyards": Param("bool", False, doc="also build on inner lots (courtyards with no street frontage)"),
     }
@@ -195,15 +224,9 @@ class BuildingsExtrude(SENode):
         ids = lots.ids[keep]
         skipped = int(len(lots) - keep.sum() - open_court.sum())
         c = shapely.centroid(lots.geometry[keep]) if len(ids) else np.empty(0, object)
-        sampled = sample_height_map(height_map, shapely.get_x(c), shapely.get_y(c)) if len(ids) else None
-        if sampled is None:
-            base, lo, hi = np.full(len(ids), p.height), None, None
-        else:
-            base, lo, hi = sampled
-        u = uniform(self.context.seed, f"{self.id}/height", ids)
-        raw = base * (1.0 + p.variation * (2.0 * u - 1.0))
-        if lo is not None:
-            raw = np.clip(raw, lo, hi)
+        raw, lo, hi = mapped_heights(
+            height_map, c, ids, seed=self.context.seed, key=f"{self.id}/height", height=p.height, variation=p.variation
+        )
         known = existing_heights(c, existing) if existing is not None and len(ids) else np.full(len(ids), np.nan)
         surveyed = np.isfinite(known)
         height, floors = snap_floors(raw, p.floor_height, lo, hi)

@@ -60,7 +60,7 @@ from sengine.random import uniform
 
 from ..maps import image_of, rules_of
 from .edges import lot_edges
-from .extrude import sample_height_map
+from .extrude import HEIGHT_PARAMS, mapped_heights
 from .far import TOLERANCE, depth_for, far_to_building
 from .rules import class_bounds, per_lot
 from .siting import building_area
@@ -156,26 +156,15 @@ class _Massing(SENode):
             "floors": Param(
                 "int", 0, min=0, max=300, unit="1", doc="floors of every building (loc 1); 0: the height map"
             ),
-            "height": Param(
-                "float", 15.0, min=1.0, max=1000.0, unit="m", doc="building height when the city has no height map"
-            ),
-            "variation": Param(
-                "float",
-                0.2,
-                min=0.0,
-                max=0.95,
-                unit="1",
-                doc="random height variation, a fraction of the mapped height",
-            ),
+            "height": HEIGHT_PARAMS["height"],
+            "variation": HEIGHT_PARAMS["variation"],
             "height_class": Param(
                 "str",
                 "",
                 choices=("", "I", "II", "III", "IV", "V", "VI", "VII", "VIII"),
                 doc="Prague height class capping the regulated height (003); empty: none",
             ),
-            "floor_height": Param(
-                "float", 3.2, min=2.6, max=10.0, unit="m", doc="storey height (at least 2.6 m, paper 003)"
-            ),
+            "floor_height": HEIGHT_PARAMS["floor_height"],
             "roof": Param("str", "auto", doc="roof kinds and shares ('gable:2,hip'); auto: by land use (004 Fig. 7)"),
             "min_area": Param("float", 20.0, min=0.0, unit="m2", doc="building parts smaller than this are not built"),
             "courtyards": Param("bool", False, doc="also build on inner lots (courtyards with no street frontage)"),
@@ -232,15 +221,9 @@ class _Massing(SENode):
         """Floors the height map (or ``height``) asks for at each lot, with the seeded variation."""
         p = self.p
         c = shapely.point_on_surface(lots.geometry) if len(lots) else np.empty(0, object)
-        sampled = sample_height_map(height_map, shapely.get_x(c), shapely.get_y(c)) if len(lots) else None
-        if sampled is None:
-            base, lo, hi = np.full(len(lots), p.height), None, None
-        else:
-            base, lo, hi = sampled
-        u = uniform(self.context.seed, f"{self.id}/height", ids)
-        raw = base * (1.0 + p.variation * (2.0 * u - 1.0))
-        if lo is not None:
-            raw = np.clip(raw, lo, hi)
+        raw, _, _ = mapped_heights(
+            height_map, c, ids, seed=self.context.seed, key=f"{self.id}/height", height=p.height, variation=p.variation
+        )
         return np.maximum(1, np.rint(raw / p.floor_height)).astype(np.int64)
 
     def run(
