@@ -43,15 +43,15 @@ PARTY_TOL = 0.05  # m: an outline this close to a neighbour's counts as a shared
 def _osm_network(path: Path, sets: list[str]):
     """The network ``sengine osm FILE`` runs, with every lot built on (``buildings.keep=generated``)."""
     import tempfile
-
-    from sengine.plan import MapSpec
+    from xml.sax.saxutils import quoteattr
 
     with tempfile.TemporaryDirectory() as tmp:
         config = Path(tmp) / "osm.xml"
-        config.write_text(f'<sengine version="1"><city name="{path.stem}"/><network base="loadmap"/></sengine>')
-        net = sengine.load(config, sets=["buildings.keep=generated", *sets])
-    net.plan.maps["osm"] = MapSpec("osm", path.resolve(), {}, where="bench")
-    return net
+        config.write_text(
+            f'<sengine version="1"><city name="{path.stem}"><map kind="osm" src={quoteattr(str(path.resolve()))}/>'
+            '</city><network base="loadmap"/></sengine>'
+        )
+        return sengine.load(config, sets=["buildings.keep=generated", *sets])
 
 
 CASES = {
