@@ -61,7 +61,7 @@ def district_names(rules) -> list[str] | None:
 
 def built_landuse(rules) -> str | None:
     """The one buildable ``<landuse>`` class, or None (none, or several: not known per feature)."""
-    buildable = sorted({cls for _, cls, ok, _ in landuse_classes(rules) if ok})
+    buildable = sorted({cls for _, cls, ok, _ in landuse_classes(rules, colour=False) if ok})  # no map needed
     return buildable[0] if len(buildable) == 1 else None
 
 
