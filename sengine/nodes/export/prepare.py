@@ -61,7 +61,7 @@ def district_names(rules) -> list[str] | None:
 
 def built_landuse(rules) -> str | None:
     """The one buildable ``<landuse>`` class, or None (none, or several: not known per feature)."""
-    buildable = sorted({cls for _, cls, ok, _ in landuse_classes(rules, colours=False) if ok})
+    buildable = sorted({cls for _, cls, ok, _ in landuse_classes(rules, colour=False) if ok})  # no map needed
     return buildable[0] if len(buildable) == 1 else None
 
 
@@ -145,8 +145,6 @@ def prepare_layer(
         elif kind in "US":
             col = _nullable(col, col == "") if (col == "").any() else col
         elif kind == "O":
-            if any(isinstance(v, shapely.Geometry) for v in col.tolist()):
-                continue  # working geometry (a block's street front), not an attribute
             empty = np.array([v is None or (isinstance(v, str) and v == "") for v in col.tolist()], bool)
             if empty.any():
                 col = col.copy()

@@ -360,15 +360,15 @@ def district_styles(rules) -> list[DistrictStyle]:
     return [parse_district(r, i) for i, r in enumerate(rules)]
 
 
-def landuse_classes(rules, *, colours: bool = True) -> list[tuple[tuple[int, int, int] | None, str, bool, str]]:
+def landuse_classes(rules, *, colour: bool = True) -> list[tuple[tuple[int, int, int] | None, str, bool, str]]:
     """``(colour, class, buildable, where)`` for each ``<landuse>`` rule (a layer, list or plan as for :func:`district_styles`).
 
-    A rule needs its ``color`` only where a land-use map is read (``colours``);
-    rules that set planning values per OSM land-use class have none (``None``).
+    ``colour``: every rule must give one (it reads a land-use map); ``False``:
+    a rule without one (land-use rules of a plan without a map) gets ``None``.
     """
     out = []
     for rule in _rules(rules, "landuse"):
-        if colours and not rule.get("color"):
+        if colour and not rule.get("color"):
             raise ConfigError("<landuse> needs a color attribute", where=rule.where or None)
         cls = (rule.get("class") or "buildable").strip().lower()
         flag = rule.get("buildable")
@@ -378,8 +378,8 @@ def landuse_classes(rules, *, colours: bool = True) -> list[tuple[tuple[int, int
             buildable = flag.strip().lower() in ("true", "yes", "1")
         else:
             raise ConfigError(f"<landuse> buildable={flag!r} is not true or false", where=rule.where or None)
-        colour = parse_colour(rule.get("color"), where=rule.where) if rule.get("color") else None
-        out.append((colour, cls, buildable, rule.where))
+        rgb = parse_colour(rule.get("color"), where=rule.where) if rule.get("color") else None
+        out.append((rgb, cls, buildable, rule.where))
     return out
 
 
