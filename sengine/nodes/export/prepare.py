@@ -145,6 +145,8 @@ def prepare_layer(
         elif kind in "US":
             col = _nullable(col, col == "") if (col == "").any() else col
         elif kind == "O":
+            if any(isinstance(v, shapely.Geometry) for v in col.tolist()):
+                continue  # working geometry (a block's street front), not an attribute
             empty = np.array([v is None or (isinstance(v, str) and v == "") for v in col.tolist()], bool)
             if empty.any():
                 col = col.copy()
