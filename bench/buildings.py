@@ -31,6 +31,7 @@ sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 import shapely  # noqa: E402
+from _osm import osm_network  # noqa: E402
 from _results import RESULTS, write  # noqa: E402
 
 LIEGE = HERE.parent.parent / "shared" / "data" / "liege_streets.osm.pbf"
@@ -47,17 +48,8 @@ def best_of(repeat: int, func) -> tuple[float, object]:
 
 def city_buildings(path: Path):
     """The buildings layer that ``sengine osm PATH`` exports (run in memory, one worker)."""
-    import tempfile
-
-    from sengine.plan import MapSpec
-    from sengine.xmlconfig import load_config
-
-    with tempfile.TemporaryDirectory() as tmp:
-        config = Path(tmp) / "osm.xml"
-        config.write_text('<sengine version="1">\n  <city name="bench"/>\n  <network base="loadmap"/>\n</sengine>\n')
-        net = load_config(config)
-        net.plan.maps["osm"] = MapSpec("osm", path.resolve(), {}, where="bench")
-        layers, _ = net.run(workers=1)
+    net = osm_network(path, name="bench")
+    layers, _ = net.run(workers=1)
     ((src, port),) = [
         (s, sp) for s, sp, d, dp in net.validate().edges if net.specs[d].type == "export.city" and dp == "buildings"
     ]

@@ -34,6 +34,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "tests"))
 
 from _city import grid_city  # noqa: E402
+from _osm import osm_network  # noqa: E402
 from _results import write  # noqa: E402
 
 from sengine import Context  # noqa: E402
@@ -57,14 +58,7 @@ def grid_layers(tmp: Path, repeat: int) -> tuple[object, dict, dict]:
 
 def liege_layers(path: Path) -> tuple[object, dict, dict]:
     """Whole Liège through the load-map network in memory: the exporter's inputs."""
-    from sengine.plan import MapSpec
-    from sengine.xmlconfig import load_config
-
-    with tempfile.TemporaryDirectory() as tmp:
-        cfg = Path(tmp) / "osm.xml"
-        cfg.write_text('<sengine version="1">\n  <city name="liege"/>\n  <network base="loadmap"/>\n</sengine>\n')
-        net = load_config(cfg)
-    net.plan.maps["osm"] = MapSpec("osm", path.resolve(), {}, where="bench")
+    net = osm_network(path, name="liege")
     net.specs.pop("export")  # the layers only: the bench calls the writers itself
     net.connections = [c for c in net.connections if c.dst != "export"]
     t = time.perf_counter()

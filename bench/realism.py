@@ -29,7 +29,8 @@ from pathlib import Path
 
 import numpy as np
 import shapely
-from _results import RESULTS, write  # bench/ is on sys.path when run as a script
+from _osm import osm_network  # bench/ is on sys.path when run as a script
+from _results import RESULTS, write
 
 import sengine
 from sengine.geom.polygons import obb_frame
@@ -42,16 +43,7 @@ PARTY_TOL = 0.05  # m: an outline this close to a neighbour's counts as a shared
 
 def _osm_network(path: Path, sets: list[str]):
     """The network ``sengine osm FILE`` runs, with every lot built on (``buildings.keep=generated``)."""
-    import tempfile
-    from xml.sax.saxutils import quoteattr
-
-    with tempfile.TemporaryDirectory() as tmp:
-        config = Path(tmp) / "osm.xml"
-        config.write_text(
-            f'<sengine version="1"><city name="{path.stem}"><map kind="osm" src={quoteattr(str(path.resolve()))}/>'
-            '</city><network base="loadmap"/></sengine>'
-        )
-        return sengine.load(config, sets=["buildings.keep=generated", *sets])
+    return osm_network(path, ["buildings.keep=generated", *sets])
 
 
 CASES = {
