@@ -70,7 +70,7 @@ def route_sengine(path: str) -> dict:
     import osmium  # noqa: F401 (imported before the clock, as the library route does)
     import shapely
 
-    from sengine.node import Context
+    from sengine.node import Context, NodeResult
     from sengine.registry import get
 
     get("osm.read"), get("roads.clean"), get("blocks.circuits")  # load the node library before timing
@@ -78,10 +78,12 @@ def route_sengine(path: str) -> dict:
     base = _peak_mb()
     c0, t0 = _cpu(), time.perf_counter()
     read = get("osm.read")("majorRoads", {"path": path, "extras": ""}, Context())
-    roads = read.run()["roads"]
+    read_out = NodeResult.of(read, read.run())  # a node hands its report with its layers
+    roads = read_out.layers["roads"]
     t1 = time.perf_counter()
     clean = get("roads.clean")("clean", params["clean"], Context())
-    cleaned = clean.run(roads=roads)["roads"]
+    clean_out = NodeResult.of(clean, clean.run(roads=roads))
+    cleaned = clean_out.layers["roads"]
     t2 = time.perf_counter()
     # the circuits alone (what polygonize gives): roads.clean traced them on its plane segment graph
     g = cleaned.meta["graph"]
@@ -94,7 +96,7 @@ def route_sengine(path: str) -> dict:
     c3, t3 = _cpu(), time.perf_counter()
     del bf
     blocks = get("blocks.circuits")("blocks", {**params["blocks"], "min_area": str(MIN_AREA)}, Context())
-    out = blocks.run(roads=cleaned)
+    out = NodeResult.of(blocks, blocks.run(roads=cleaned)).layers
     c4, t4 = _cpu(), time.perf_counter()
     faces = out["faces"].geometry
     box = cleaned.meta.get("bbox")
@@ -114,12 +116,12 @@ def route_sengine(path: str) -> dict:
         "circuits": int(len(circuits)),
         "peak_rss_mb": _peak_mb(),
         "rss_before_mb": base,
-        "ways": read.report["ways"],
+        "ways": read_out.report["ways"],
         "segments": len(roads),
         "faces": int(len(faces)),
         "faces_area_m2": float(shapely.area(faces).sum()),
         "blocks": int(len(out["blocks"])),
-        "clean_report": clean.report,
+        "clean_report": clean_out.report,
         "crs": roads.meta["crs"],
         "_check": int(np.sum(shapely.is_valid(faces))),
     }

@@ -486,6 +486,21 @@ class ExportCity(SENode):
         report.pop("seconds", None)  # timings would make stats.json differ between runs
         return NodeResult({}, _flat_counts(report))
 
+    # a sharded run (sengine.shard): each shard's layers as parts, joined into the files at the end
+    def write_shard(self, inputs: dict, *, shard: int, city_ports: frozenset) -> dict:
+        from .shards import LAYER_PORTS, write_part
+
+        ports = frozenset(LAYER_PORTS) - city_ports
+        return write_part(self, inputs, shard=f"{shard:04d}", ports=ports, folder=self._parts())
+
+    def finish_shards(self, inputs: dict, parts: list, *, city_ports: frozenset) -> dict:
+        from .shards import join_parts
+
+        return _flat_counts(join_parts(self, inputs, parts, city_ports=city_ports, folder=self._parts()))
+
+    def _parts(self) -> Path:
+        return Path(self.context.out) / ".parts" / self.id
+
 
 def _flat_counts(report: dict) -> dict:
     """``{"glb.buildings.triangles": 123, ...}``: the JSON-able counts of a report."""
