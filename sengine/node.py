@@ -334,6 +334,8 @@ class SENode:
     #: The input port holding the enclosures (areas enclosed by major roads) along which a sharded
     #: run (:mod:`sengine.shard`) splits the city at this node; the node implements :meth:`shard_inputs`.
     shard_port: ClassVar[str | None] = None
+    #: The formats a sink writes shard by shard (:meth:`write_shard`), when it can.
+    shard_formats: ClassVar[tuple[str, ...]] = ()
 
     def __init__(
         self,

@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from . import __version__, registry
-from .errors import SEngineError
+from .errors import ParameterError, SEngineError
 from .layer import Layer
 from .node import SENode
 
@@ -73,7 +73,10 @@ def group_enclosures(weights, shards: int) -> list[np.ndarray]:
     if cum[-1] <= 0:
         cum = np.arange(1, n + 1, dtype=np.float64)
     cuts = np.searchsorted(cum, total * np.arange(1, shards) / shards, side="left") + 1
-    bounds = np.unique(np.r_[0, np.clip(cuts, 0, n), n])
+    bounds = [0]
+    for i, c in enumerate(cuts.tolist(), 1):  # at least one enclosure each, room left for the rest
+        bounds.append(min(max(int(c), bounds[-1] + 1), n - (shards - i)))
+    bounds.append(n)
     return [np.arange(a, b) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
 
 
@@ -242,6 +245,13 @@ def run_sharded(
         for k in sinks:
             if type(bound.nodes[k]).write_shard is SENode.write_shard:
                 raise SEngineError(f"--shards: node {k!r} ({bound.nodes[k].name}) cannot write shard by shard")
+        can = sorted({f for k in sinks for f in bound.nodes[k].shard_formats})
+        bad = sorted(set(formats) - set(can))
+        if bad:
+            raise ParameterError(
+                f"--shards writes {', '.join(can) or 'nothing'}, not {', '.join(bad)} (run without --shards for those)",
+                where="--format",
+            )
         layers: dict[str, dict[str, Layer]] = {}
         counts: dict[str, int] = {}
         secs: dict[str, float] = {}

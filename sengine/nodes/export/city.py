@@ -419,6 +419,7 @@ class ExportCity(SENode):
     }
     outputs = {}
     formats = FORMATS
+    shard_formats = ("parquet", "gpkg", "glb")
     format_hints = FORMAT_HINTS
     params = {
         "line_width": Param(
@@ -491,12 +492,15 @@ class ExportCity(SENode):
         from .shards import LAYER_PORTS, write_part
 
         ports = frozenset(LAYER_PORTS) - city_ports
-        return write_part(self, inputs, shard=f"{shard:04d}", ports=ports, folder=self._parts())
+        return write_part(
+            self, inputs, shard=f"{shard:04d}", ports=ports, folder=self._parts(), city_origin=city_origin
+        )
 
     def finish_shards(self, inputs: dict, parts: list, *, city_ports: frozenset) -> dict:
         from .shards import join_parts
 
-        return _flat_counts(join_parts(self, inputs, parts, city_ports=city_ports, folder=self._parts()))
+        report = join_parts(self, inputs, parts, city_ports=city_ports, folder=self._parts(), city_origin=city_origin)
+        return _flat_counts(report)
 
     def _parts(self) -> Path:
         return Path(self.context.out) / ".parts" / self.id

@@ -70,15 +70,16 @@ def _attribution(inputs: dict) -> str | None:
     )
 
 
-def write_part(node, inputs: dict, *, shard, ports, folder: Path) -> dict:
+def write_part(node, inputs: dict, *, shard, ports, folder: Path, city_origin) -> dict:
     """Write the layers of ``ports`` as Arrow parts named ``shard``; with glb, ``city-<shard>.glb`` too.
+
+    ``city_origin`` is :func:`sengine.nodes.export.city.city_origin` (the glb's origin).
 
     Returns ``{"layers": {name: {"path", "type", "bounds", "written", "collapsed"}}, "clean": ..., "glb": ...}``.
     """
     import pyarrow as pa
 
     from . import gltf
-    from .city import city_origin
     from .prepare import prepare_layers
 
     formats = shard_formats(node.context.formats)
@@ -163,7 +164,7 @@ def _schemas(parts: list[dict]):
     return out
 
 
-def join_parts(node, inputs: dict, parts: list[dict], *, city_ports: frozenset, folder: Path) -> dict:
+def join_parts(node, inputs: dict, parts: list[dict], *, city_ports: frozenset, folder: Path, city_origin) -> dict:
     """Write the city's files from the shards' parts (and the whole-city layers of ``city_ports``)."""
     import pyarrow as pa
 
@@ -172,7 +173,7 @@ def join_parts(node, inputs: dict, parts: list[dict], *, city_ports: frozenset, 
     formats = shard_formats(node.context.formats)
     options = dict(getattr(node.context, "options", None) or {})
     out = Path(node.context.out)
-    city = write_part(node, inputs, shard="city", ports=city_ports, folder=folder)
+    city = write_part(node, inputs, shard="city", ports=city_ports, folder=folder, city_origin=city_origin)
     lat_lon, any_crs, target, grid = _frame(inputs, options)
     attribution = _attribution(inputs)
     names = sorted({n for p in [city, *parts] for n in p["layers"]})
