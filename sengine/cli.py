@@ -132,6 +132,13 @@ def build_parser() -> argparse.ArgumentParser:
         "processes and write the layers shard by shard (bounded memory; the same files as unsharded; "
         "formats parquet, gpkg and glb, which is then one city-<shard>.glb per shard)",
     )
+    p.add_argument(
+        "--scheduler",
+        default="local",
+        choices=("local", "dask"),
+        help="with --shards: where the shards run, local processes (default) or a Dask LocalCluster of "
+        "--workers processes (pip install 'sengine[dask]')",
+    )
     _common(p)
 
     p = sub.add_parser(
@@ -248,9 +255,6 @@ def _workers(text: str) -> int:
     return n
 
 
-MAX_SCALE_SIDE = 400_000.0  # m; a synthetic city larger than this (400 km a side) is a typo, not a city
-
-
 def _scale(text: str) -> float:
     """``--scale``: a positive area factor."""
     try:
@@ -269,12 +273,14 @@ def _apply_scale(net, factor: float | None) -> None:
     plan = net.plan
     if any(spec.kind == "osm" for spec in plan.maps.values()):
         raise SEngineError("--scale stretches a synthetic city's image maps; an OSM city has the size of its data")
+    from .xmlconfig import MAX_CITY_SIZE
+
     k = factor**0.5
     w, h = (float(v) * k for v in plan.size)
-    if max(w, h) > MAX_SCALE_SIDE:
+    if max(w, h) > MAX_CITY_SIZE:
         raise LimitError(
-            f"--scale {factor:g} makes the city {w / 1000:,.0f} x {h / 1000:,.0f} km, about "
-            f"{factor:,.3g} times its area; the limit is {MAX_SCALE_SIDE / 1000:,.0f} km a side",
+            f"--scale {factor:g} makes the city {w / 1000:,.0f} x {h / 1000:,.0f} km, {factor:,.3g} times its "
+            f"area; the limit is {MAX_CITY_SIZE / 1000:,.0f} km a side",
             where="--scale",
         )
     plan.size = (round(w, 3), round(h, 3))
@@ -328,6 +334,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             progress=_progress(args),
             workers=args.workers,
             options=_options(args),
+            scheduler=args.scheduler,
         )
     else:
         result = net.run(

@@ -441,6 +441,14 @@ class SENode:
         """
         raise NotImplementedError
 
+    def join_shard(self, part: Any, *, shard: int) -> None:
+        """A sink in a sharded run, optionally: take shard ``shard``'s part as soon as it and those before it are done.
+
+        Called in the process that started the run, in shard order, while
+        later shards still run (a writer streams the part into its file);
+        :meth:`finish_shards` then gets every part again.
+        """
+
     def finish_shards(self, inputs: dict[str, Layer | None], parts: list, *, city_ports: frozenset) -> dict:
         """A sink in a sharded run, once every shard is written: join the parts ``write_shard`` returned.
 

@@ -285,6 +285,8 @@ def run_sharded(
         _CITY = _City(bound, incoming, layers, shard_nodes, sinks, tracer, groups, city_ports)
         outcomes: list = [None] * len(groups)
         t_shards = time.perf_counter()
+        joined = 0  # shards handed to the sinks' join_shard, in order, while the next ones run
+        t_join = 0.0
         with make_scheduler(scheduler, workers, len(groups)) as sched:
             done = 0
             for idx, ok, value in sched.run(_run_shard, range(len(groups))):
@@ -293,6 +295,12 @@ def run_sharded(
                 outcomes[idx] = value
                 done += 1
                 log.info("shard %d/%d: %s in %.2f s", done, len(groups), value["counts"], value["total"])
+                while joined < len(groups) and outcomes[joined] is not None:
+                    t = time.perf_counter()
+                    for node_id in sinks:
+                        bound.nodes[node_id].join_shard(outcomes[joined]["parts"][node_id], shard=joined)
+                    t_join += time.perf_counter() - t
+                    joined += 1
         shard_wall = time.perf_counter() - t_shards
         for node_id in shard_nodes:
             counts[node_id] = int(sum(o["counts"].get(node_id, 0) for o in outcomes))
@@ -300,6 +308,7 @@ def run_sharded(
             reps = [o["reports"][node_id] for o in outcomes if node_id in o["reports"]]
             if reps:
                 report[node_id] = merge_reports(reps)
+        t_finish = time.perf_counter()
         for node_id in sinks:
             node = bound.nodes[node_id]
             kwargs = {p: None for p in node.inputs}
@@ -311,9 +320,11 @@ def run_sharded(
             secs[node_id] = round(sum(o["seconds"].get(node_id, 0.0) for o in outcomes) + time.perf_counter() - t0, 4)
             if rep:
                 report[node_id] = rep
+        t_finish = time.perf_counter() - t_finish
         if progress is not None:
             progress(n_total + 1, n_total + 1, "shards", f"{len(groups)} shards", counts.get(tracer, 0), shard_wall)
         secs["shards"] = round(shard_wall, 4)
+        secs["join"] = round(t_join + t_finish, 4)
         secs["total"] = round(time.perf_counter() - t_start, 4)
         stats = {
             "sengine": __version__,

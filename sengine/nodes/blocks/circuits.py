@@ -824,21 +824,30 @@ def shard_lines(lines, areas, rows) -> np.ndarray:
         are the enclosures themselves (dropped by their host) and the faces
         outside them.
     """
+    return _select_lines(_line_hosts(lines, areas), rows)
+
+
+def _line_hosts(lines, areas) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """``(n, li, ai, deep)``: the (line, enclosure) pairs of lines in or on an enclosure, and which are inside."""
     lines = np.asarray(lines, dtype=object)
-    rows = np.asarray(rows, np.int64)
-    keep = np.zeros(len(lines), bool)
     if not len(lines):
-        return keep
+        return 0, np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool)
     mid = shapely.line_interpolate_point(lines, 0.5, normalized=True)
-    tree = shapely.STRtree(areas)
+    li, ai = shapely.STRtree(areas).query(mid, predicate="dwithin", distance=SHARD_TOLERANCE)
+    edge = shapely.distance(mid[li], shapely.boundary(np.asarray(areas, dtype=object)[ai])) <= SHARD_TOLERANCE
+    deep = ~edge & shapely.within(mid[li], np.asarray(areas, dtype=object)[ai])
+    return len(lines), li, ai, deep
+
+
+def _select_lines(hosts, rows) -> np.ndarray:
+    n, li, ai, deep = hosts
+    rows = np.asarray(rows, np.int64)
+    keep = np.zeros(n, bool)
     if len(rows):
-        li, ai = tree.query(mid, predicate="dwithin", distance=SHARD_TOLERANCE)
         keep[li[np.isin(ai, rows)]] = True
-        return keep
-    li, ai = tree.query(mid, predicate="within")
-    deep = shapely.distance(mid[li], shapely.boundary(np.asarray(areas, dtype=object)[ai])) > SHARD_TOLERANCE
-    keep[:] = True
-    keep[li[deep]] = False
+    else:
+        keep[:] = True
+        keep[li[deep]] = False
     return keep
 
 
@@ -925,7 +934,11 @@ class BlocksCircuits(SENode):
         rows = np.asarray(rows, np.int64)
         if areas is None or not len(areas):
             return inputs
-        keep = shard_lines(roads.geometry, areas.geometry, rows)
+        key = (id(roads), id(areas))
+        cache = getattr(self, "_shard_cache", None)
+        if cache is None or cache[0] != key:  # once per process: where each line lies
+            cache = self._shard_cache = (key, _line_hosts(roads.geometry, areas.geometry))
+        keep = _select_lines(cache[1], rows)
         return {**inputs, "roads": roads.take(np.flatnonzero(keep)).with_meta(**{SHARD_KEY: rows})}
 
     def run(self, *, roads: Layer, outline: Layer | None = None, areas: Layer | None = None):

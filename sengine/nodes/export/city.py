@@ -496,6 +496,11 @@ class ExportCity(SENode):
             self, inputs, shard=f"{shard:04d}", ports=ports, folder=self._parts(), city_origin=city_origin
         )
 
+    def join_shard(self, part: dict, *, shard: int) -> None:
+        from .shards import stream_part
+
+        stream_part(self, part)
+
     def finish_shards(self, inputs: dict, parts: list, *, city_ports: frozenset) -> dict:
         from .shards import join_parts
 

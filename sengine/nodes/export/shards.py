@@ -99,6 +99,8 @@ def write_part(node, inputs: dict, *, shard, ports, folder: Path, city_origin) -
                 for batch in batches:
                     w.write_batch(batch)
             out["layers"][name] = {
+                "target": target,
+                "attribution": attribution,
                 "path": str(path),
                 "type": batches.geometry_type,
                 "bounds": list(batches.bounds),
@@ -164,6 +166,44 @@ def _schemas(parts: list[dict]):
     return out
 
 
+def stream_part(node, part: dict) -> None:
+    """Append a shard's parts to the ``<layer>.parquet`` files as soon as it comes (in shard order).
+
+    A layer's file is started with the first shard's geometry type and
+    schema; a later shard that needs another (Multi geometries, a column
+    type) makes :func:`join_parts` write that file again from every part.
+    """
+    from . import parquet
+
+    formats = shard_formats(node.context.formats)
+    if "parquet" not in formats:
+        return
+    streams = node.__dict__.setdefault("_streams", {})
+    out = Path(node.context.out)
+    for name, info in part["layers"].items():
+        schema = _schemas([info])[0]
+        st = streams.get(name)
+        if st is None:
+            st = streams[name] = {
+                "writer": parquet.ParquetLayerWriter(
+                    out / f"{name}.parquet", info["target"], attribution=info["attribution"]
+                ),
+                "type": info["type"],
+                "schema": schema,
+                "ok": True,
+                "parts": 0,
+            }
+        st["parts"] += 1
+        if not st["ok"]:
+            continue
+        if (info["written"] and info["type"] != st["type"]) or schema != st["schema"]:
+            st["ok"] = False  # rewritten at the end from every part
+            continue
+        st["writer"].write_batches(schema, _part_batches([info], info["type"], schema), chunk=CHUNK)
+        if info["written"]:
+            st["writer"].add_extent(info["type"], info["bounds"])
+
+
 def join_parts(node, inputs: dict, parts: list[dict], *, city_ports: frozenset, folder: Path, city_origin) -> dict:
     """Write the city's files from the shards' parts (and the whole-city layers of ``city_ports``)."""
     import pyarrow as pa
@@ -177,6 +217,7 @@ def join_parts(node, inputs: dict, parts: list[dict], *, city_ports: frozenset, 
     lat_lon, any_crs, target, grid = _frame(inputs, options)
     attribution = _attribution(inputs)
     names = sorted({n for p in [city, *parts] for n in p["layers"]})
+    streams = node.__dict__.pop("_streams", {})
     report: dict = {"clean": {}, "shards": len(parts)}
     for p in [city, *parts]:
         for layer, rep in (p.get("clean") or {}).items():
@@ -188,7 +229,11 @@ def join_parts(node, inputs: dict, parts: list[dict], *, city_ports: frozenset, 
     if "gpkg" in formats and gpkg_path.exists():
         gpkg_path.unlink()
     for name in names:
-        mine = [city["layers"][name]] if name in city["layers"] else [p["layers"][name] for p in parts]
+        mine = (
+            [city["layers"][name]]
+            if name in city["layers"]
+            else [p["layers"][name] for p in parts if name in p["layers"]]
+        )
         types = {p["type"] for p in mine if p["written"]} or {mine[0]["type"]}
         want = next((_MULTI[t] for t in types if _MULTI.get(t) in types), None) or sorted(types)[0]
         if len(types) > 1 and want not in _MULTI.values():
@@ -203,10 +248,22 @@ def join_parts(node, inputs: dict, parts: list[dict], *, city_ports: frozenset, 
         bounds = [p["bounds"] for p in mine if p["written"]]
         if "parquet" in formats:
             require("pyarrow", "parquet")
-            with parquet.ParquetLayerWriter(out / f"{name}.parquet", target, attribution=attribution) as w:
-                w.write_batches(schema, _part_batches(mine, want, schema), chunk=CHUNK)
-                for b in bounds:
-                    w.add_extent(want, b)
+            st = streams.pop(name, None)
+            if (
+                st is not None
+                and st["ok"]
+                and st["parts"] == len(mine)
+                and st["type"] == want
+                and st["schema"] == schema
+            ):
+                st["writer"].close()  # streamed shard by shard as they came
+            else:
+                if st is not None:
+                    st["writer"].close()
+                with parquet.ParquetLayerWriter(out / f"{name}.parquet", target, attribution=attribution) as w:
+                    w.write_batches(schema, _part_batches(mine, want, schema), chunk=CHUNK)
+                    for b in bounds:
+                        w.add_extent(want, b)
             report.setdefault("parquet", {})[name] = {"features": written}
         if "gpkg" in formats:
             gschema = schema.remove(schema.get_field_index("bbox")) if "bbox" in schema.names else schema
