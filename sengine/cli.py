@@ -326,6 +326,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.shards is not None:
         from .shard import run_sharded
 
+        if not args.debug:  # Dask's logs (its loggers set their own levels, in every worker) only with --debug
+            for handler in logging.getLogger().handlers:
+                handler.addFilter(_no_dask_info)
+
         result = run_sharded(
             net,
             out=args.out,

@@ -146,3 +146,14 @@ def test_scale_refuses_an_absurd_size_with_its_estimate(tmp_path, capsys):
     status, err = _run(["run", METROPOLIS, "--scale", "0", "-o", tmp_path / "o", "-q"], capsys)
     assert status == 2 and "positive" in err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow
+def test_shards_on_a_dask_local_cluster_give_the_same_bytes(tmp_path, capsys):
+    pytest.importorskip("distributed")
+    base = [METROPOLIS, "--scale", "0.004", "--format", "parquet", "-q", "--shards", "3", "--workers", "2"]
+    assert _run(["run", *base, "-o", tmp_path / "local"], capsys)[0] == 0
+    status, err = _run(["run", *base, "-o", tmp_path / "dask", "--scheduler", "dask"], capsys)
+    assert status == 0 and not err.strip(), err
+    for name in [f"{t}.parquet" for t in TABLES]:
+        assert (tmp_path / "local" / name).read_bytes() == (tmp_path / "dask" / name).read_bytes(), name
