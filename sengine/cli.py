@@ -115,6 +115,30 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="exit with status 1 and a one-line summary when a node reports violations (e.g. buildings.check)",
     )
+    p.add_argument(
+        "--scale",
+        type=_scale,
+        default=None,
+        metavar="F",
+        help="a synthetic city F times as large in area: its maps stretched over the size times sqrt(F) "
+        "(configs/metropolis.xml --scale 0.1 is a tenth of it)",
+    )
+    p.add_argument(
+        "--shards",
+        type=_workers,
+        default=None,
+        metavar="N",
+        help="split the city into about N shards along its major-road enclosures, run them on --workers "
+        "processes and write the layers shard by shard (bounded memory; the same files as unsharded; "
+        "formats parquet, gpkg and glb, which is then one city-<shard>.glb per shard)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default="local",
+        choices=("local", "dask"),
+        help="with --shards: where the shards run, local processes (default) or a Dask LocalCluster of "
+        "--workers processes (pip install 'sengine[dask]')",
+    )
     _common(p)
 
     p = sub.add_parser(
@@ -231,6 +255,37 @@ def _workers(text: str) -> int:
     return n
 
 
+def _scale(text: str) -> float:
+    """``--scale``: a positive area factor."""
+    try:
+        f = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (f > 0 and f < float("inf")):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a positive number")
+    return f
+
+
+def _apply_scale(net, factor: float | None) -> None:
+    """``--scale F``: the city's size times sqrt(F), its maps stretched over it; absurd sizes refused."""
+    if factor is None:
+        return
+    plan = net.plan
+    if any(spec.kind == "osm" for spec in plan.maps.values()):
+        raise SEngineError("--scale stretches a synthetic city's image maps; an OSM city has the size of its data")
+    from .xmlconfig import MAX_CITY_SIZE
+
+    k = factor**0.5
+    w, h = (float(v) * k for v in plan.size)
+    if max(w, h) > MAX_CITY_SIZE:
+        raise LimitError(
+            f"--scale {factor:g} makes the city {w / 1000:,.0f} x {h / 1000:,.0f} km, {factor:,.3g} times its "
+            f"area; the limit is {MAX_CITY_SIZE / 1000:,.0f} km a side",
+            where="--scale",
+        )
+    plan.size = (round(w, 3), round(h, 3))
+
+
 MAX_SEEDS = 10_000  # runs in one batch; more is a typo (1-1000000000) or a job for a cluster
 
 
@@ -267,14 +322,33 @@ def cmd_run(args: argparse.Namespace) -> int:
     formats = _formats(args.formats)
     net = load_config(args.config, sets=args.sets, maps=args.maps, plugins=args.plugin, seed=args.seed)
     _set_lod(net, args.lod)
-    result = net.run(
-        out=args.out,
-        formats=formats,
-        progress=_progress(args),
-        workers=args.workers,
-        options=_options(args),
-        check_kinds=args.debug,
-    )
+    _apply_scale(net, args.scale)
+    if args.shards is not None:
+        from .shard import run_sharded
+
+        if not args.debug:  # Dask's logs (its loggers set their own levels, in every worker) only with --debug
+            for handler in logging.getLogger().handlers:
+                handler.addFilter(_no_dask_info)
+
+        result = run_sharded(
+            net,
+            out=args.out,
+            shards=args.shards,
+            formats=formats,
+            progress=_progress(args),
+            workers=args.workers,
+            options=_options(args),
+            scheduler=args.scheduler,
+        )
+    else:
+        result = net.run(
+            out=args.out,
+            formats=formats,
+            progress=_progress(args),
+            workers=args.workers,
+            options=_options(args),
+            check_kinds=args.debug,
+        )
     if not args.quiet:
         counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
         print(f"{args.out}: {counts} in {result.stats['seconds']['total']:.2f} s")

@@ -331,6 +331,11 @@ class SENode:
     params: ClassVar[Mapping[str, Param]] = {}
     maps_features: ClassVar[bool] = False
     source_for: ClassVar[str | None] = None
+    #: The input port holding the enclosures (areas enclosed by major roads) along which a sharded
+    #: run (:mod:`sengine.shard`) splits the city at this node; the node implements :meth:`shard_inputs`.
+    shard_port: ClassVar[str | None] = None
+    #: The formats a sink writes shard by shard (:meth:`write_shard`), when it can.
+    shard_formats: ClassVar[tuple[str, ...]] = ()
 
     def __init__(
         self,
@@ -417,6 +422,41 @@ class SENode:
         Raise an :class:`~sengine.errors.SEngineError` for a problem (several
         at once as :class:`~sengine.errors.Problems`).
         """
+
+    # -- sharded runs (sengine.shard) -----------------------------------------
+    def shard_inputs(self, inputs: dict[str, Layer | None], rows: np.ndarray) -> dict[str, Layer | None]:
+        """The node's inputs for one shard: the enclosures at ``rows`` of its :attr:`shard_port` layer.
+
+        Empty ``rows`` asks for the remainder: what lies outside every
+        enclosure.  Only a node that sets :attr:`shard_port` implements it.
+        """
+        raise NotImplementedError
+
+    def write_shard(self, inputs: dict[str, Layer | None], *, shard: int, city_ports: frozenset) -> Any:
+        """A sink (a node without outputs) in a sharded run: write shard ``shard``'s part; return a small summary.
+
+        ``inputs`` on ``city_ports`` are the whole city's layers (made once,
+        before the shards: written by :meth:`finish_shards`), the others the
+        shard's.  Nodes that cannot write shard by shard leave it raising.
+        """
+        raise NotImplementedError
+
+    def join_shard(self, part: Any, *, shard: int) -> None:
+        """A sink in a sharded run, optionally: take shard ``shard``'s part as soon as it and those before it are done.
+
+        Called in the process that started the run, in shard order, while
+        later shards still run (a writer streams the part into its file);
+        :meth:`finish_shards` then gets every part again.
+        """
+
+    def finish_shards(self, inputs: dict[str, Layer | None], parts: list, *, city_ports: frozenset) -> dict:
+        """A sink in a sharded run, once every shard is written: join the parts ``write_shard`` returned.
+
+        ``inputs`` hold the whole city's layers on ``city_ports`` (None on
+        the other ports); ``parts`` the summaries in shard order.  Returns
+        the node's report.
+        """
+        raise NotImplementedError
 
     @classmethod
     def describe(cls) -> dict:

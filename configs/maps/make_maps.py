@@ -16,6 +16,10 @@ engine samples them bilinearly).
   a radial star in the west, organic quarters around, one square park.
 * ``districts_*`` (configs/districts.xml, 3000 x 2000 m): a grid, a radial
   and an organic district meeting along curved borders, with a lake.
+* ``metropolis_*`` (configs/metropolis.xml, drawn on 32 x 32 km, placed on 27 x 27 km; ``--scale`` stretches
+  it): a downtown grid on a river bend, a radial district and an old town
+  beside it, residential grids on three bearings, suburbs of small recursive
+  lots, two lakes and a ring of parks.
 """
 
 from __future__ import annotations
@@ -205,9 +209,61 @@ def make_districts():
     land.save("districts_landuse.png")
 
 
+# -- a metropolis of about a million lots ---------------------------------------------
+METROPOLIS = (32000.0, 32000.0)
+
+
+def make_metropolis():
+    size, px = METROPOLIS, (640, 640)
+    w, h = size
+    dist = Canvas(size, px, hexrgb("#b0b0b0"))  # suburbs: small recursive lots
+    ring = [(w / 2 + 12500 * math.cos(t), h / 2 + 11500 * math.sin(t)) for t in np.linspace(0, 2 * math.pi, 64)]
+    dist.polygon(ring, hexrgb("#6a5acd"))  # inner residential, on the city's bearing
+    inner_w = [p for p in ring if p[0] < w / 2 - 2000]
+    dist.polygon(
+        sorted(inner_w, key=lambda p: p[1]) + [(w / 2 - 2000, h / 2 + 11000), (w / 2 - 2000, h / 2 - 11000)],
+        hexrgb("#8fbf5a"),
+    )  # western residential, on another bearing
+    core = [(w / 2 + 6000 * math.cos(t), h / 2 + 5000 * math.sin(t)) for t in np.linspace(0, 2 * math.pi, 48)]
+    dist.polygon(core, hexrgb("#d03030"))  # downtown grid
+    star = [
+        (w / 2 - 7500 + 2600 * math.cos(t), h / 2 + 5500 + 2600 * math.sin(t)) for t in np.linspace(0, 2 * math.pi, 40)
+    ]
+    dist.polygon(star, hexrgb("#5080c0"))  # radial
+    old = [
+        (w / 2 + 7000 + 2400 * math.cos(t), h / 2 - 6000 + 2000 * math.sin(t)) for t in np.linspace(0, 2 * math.pi, 40)
+    ]
+    dist.polygon(old, hexrgb("#c8a060"))  # organic old town
+    dist.save("metropolis_districts.png")
+    land = Canvas(size, px, LAND)
+    flow = [
+        (-200, 0.62 * h),
+        (0.2 * w, 0.58 * h),
+        (0.4 * w, 0.47 * h),
+        (0.55 * w, 0.44 * h),
+        (0.7 * w, 0.36 * h),
+        (0.85 * w, 0.3 * h),
+        (w + 200, 0.22 * h),
+    ]
+    land.polygon(river(flow, 260.0), WATER)
+    for cx, cy, rx, ry in ((0.2 * w, 0.2 * h, 1400, 900), (0.78 * w, 0.8 * h, 1100, 1500)):
+        land.polygon([(cx + rx * math.cos(t), cy + ry * math.sin(t)) for t in np.linspace(0, 2 * math.pi, 40)], WATER)
+    for t in np.linspace(0, 2 * math.pi, 9)[:-1]:  # a ring of parks between downtown and the residential grids
+        cx, cy = w / 2 + 8000 * math.cos(t), h / 2 + 7600 * math.sin(t)
+        land.polygon([(cx - 500, cy - 350), (cx + 500, cy - 350), (cx + 500, cy + 350), (cx - 500, cy + 350)], PARK)
+    land.save("metropolis_landuse.png")
+    peaks = [
+        (w / 2, h / 2, 2500.0, 0.9),
+        (w / 2 - 7500, h / 2 + 5500, 1800.0, 0.4),
+        (w / 2 + 7000, h / 2 - 6000, 2000.0, 0.3),
+    ]
+    height_png("metropolis_height.png", size, (128, 128), peaks, base=0.04)
+
+
 if __name__ == "__main__":
     make_manhattan()
     make_paris()
     make_districts()
+    make_metropolis()
     for f in sorted(HERE.glob("*.png")):
         print(f"{f.name}: {f.stat().st_size} bytes")

@@ -82,6 +82,12 @@ __all__ = [
     "clip_to_box",
     "shrink_city",
     "street_graph",
+    "canonical_faces",
+    "face_order",
+    "ranked_ids",
+    "shard_lines",
+    "ID_SPAN",
+    "SHARD_KEY",
     "BlocksCircuits",
 ]
 
@@ -583,7 +589,9 @@ def _split_by_lobes(geoms, group, lobes, lobe_group) -> np.ndarray:
     return out
 
 
-def shrink_city(faces, fid, hw, bf: BlockFaces, width, sidewalk: float, *, by_street, bare, dead_ends: bool = True):
+def shrink_city(
+    faces, fid, hw, bf: BlockFaces, width, sidewalk: float, *, by_street, bare, dead_ends: bool = True, canonical=False
+):
     """Street, sidewalk and block of every face, the streets inside the faces cut out.
 
     Parameters
@@ -606,6 +614,9 @@ def shrink_city(faces, fid, hw, bf: BlockFaces, width, sidewalk: float, *, by_st
     dead_ends : bool
         Cut the streets inside the faces (dead ends, connectors) out of
         their blocks; else they get street polygons of their own over them.
+    canonical : bool
+        The faces are in canonical form (:func:`canonical_faces`): so are
+        then the faces with spurs, whatever walk traced them.
 
     Returns
     -------
@@ -637,6 +648,8 @@ def shrink_city(faces, fid, hw, bf: BlockFaces, width, sidewalk: float, *, by_st
     slot[fid] = np.arange(k)
     if dead_ends:
         sid, spoly, spurs, lobes = spur_polygons(bf, bf.xy)
+        if canonical:
+            spoly = canonical_faces(spoly)
     else:
         sid, spoly = np.empty(0, np.int64), np.empty(0, dtype=object)
         spurs, lobes = np.empty((0, 3), np.int64), np.empty((0, 2), np.int64)
@@ -730,6 +743,114 @@ def shrink_city(faces, fid, hw, bf: BlockFaces, width, sidewalk: float, *, by_st
     return street, walk, block, seg, counts
 
 
+#: Ids a major-road enclosure gives its faces and its blocks: ``enclosure id x ID_SPAN + rank``.
+ID_SPAN = 10_000
+#: Key of a road layer's ``meta``: the rows of the ``areas`` whose faces a shard keeps (empty: the faces
+#: outside every area), set by :mod:`sengine.shard`.
+SHARD_KEY = "shard_areas"
+
+
+def canonical_faces(faces) -> np.ndarray:
+    """Faces in one form whatever walk traced them: each ring from its lowest vertex, shell counter-clockwise.
+
+    ``shapely.normalize`` starts every ring at the same vertex and sorts the
+    holes; reversing it turns the shell back counter-clockwise (holes
+    clockwise), as the walk gives them.  A face traced in a shard of the
+    street graph is then the same polygon, coordinate for coordinate, as in
+    the whole graph.
+    """
+    faces = np.asarray(faces, dtype=object)
+    return shapely.reverse(shapely.normalize(faces)) if len(faces) else faces
+
+
+def face_order(faces, host, n_areas: int) -> np.ndarray:
+    """Order of the faces by enclosure (``host``, row of the areas; -1 last), then by their bounds.
+
+    Bounds come from the coordinates alone, so the order is the same for
+    any subset of the enclosures; faces with equal bounds (two triangles
+    of a square) are told apart by their centroid.
+    """
+    if not len(faces):
+        return np.zeros(0, np.int64)
+    b = shapely.bounds(faces)
+    c = np.round(shapely.get_coordinates(shapely.centroid(faces)), 6)
+    h = np.where(np.asarray(host) >= 0, host, n_areas)
+    return np.lexsort((c[:, 1], c[:, 0], b[:, 3], b[:, 2], b[:, 1], b[:, 0], h))
+
+
+def ranked_ids(enclosure, *, where: str = "", what: str = "blocks") -> np.ndarray:
+    """Ids ``enclosure x ID_SPAN + rank`` for features sorted by enclosure (rank: their place within it)."""
+    enclosure = np.asarray(enclosure, np.int64)
+    if not len(enclosure):
+        return np.zeros(0, np.int64)
+    first = np.r_[True, enclosure[1:] != enclosure[:-1]]
+    start = np.maximum.accumulate(np.where(first, np.arange(len(enclosure)), 0))
+    rank = np.arange(len(enclosure)) - start
+    if rank.max() >= ID_SPAN:
+        from sengine.errors import LimitError
+
+        e = int(enclosure[int(np.argmax(rank))])
+        raise LimitError(
+            f"enclosure {e} holds more than {ID_SPAN:,} {what}; make the minor-road spacing larger", where=where
+        )
+    return enclosure * ID_SPAN + rank
+
+
+#: How near (m) a road's midpoint must be to an enclosure to count as on its boundary.
+SHARD_TOLERANCE = 0.01
+
+
+def shard_lines(lines, areas, rows) -> np.ndarray:
+    """Which road lines a shard of the enclosures traces its faces on.
+
+    Parameters
+    ----------
+    lines : ndarray of shapely.LineString
+        The whole city's noded street graph (each line from node to node).
+    areas : ndarray of shapely.Polygon
+        The enclosures (areas enclosed by major roads).
+    rows : array_like of int
+        The shard's enclosures (rows of ``areas``); empty: the remainder,
+        the land outside every enclosure.
+
+    Returns
+    -------
+    ndarray of bool
+        For a shard, the lines inside or on the boundary of its enclosures
+        (midpoint within :data:`SHARD_TOLERANCE`): their faces are exactly
+        the whole graph's faces inside those enclosures, since the graph is
+        noded once and no line crosses an enclosure's boundary.  For the
+        remainder, every line not strictly inside an enclosure: its faces
+        are the enclosures themselves (dropped by their host) and the faces
+        outside them.
+    """
+    return _select_lines(_line_hosts(lines, areas), rows)
+
+
+def _line_hosts(lines, areas) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """``(n, li, ai, deep)``: the (line, enclosure) pairs of lines in or on an enclosure, and which are inside."""
+    lines = np.asarray(lines, dtype=object)
+    if not len(lines):
+        return 0, np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool)
+    mid = shapely.line_interpolate_point(lines, 0.5, normalized=True)
+    li, ai = shapely.STRtree(areas).query(mid, predicate="dwithin", distance=SHARD_TOLERANCE)
+    edge = shapely.distance(mid[li], shapely.boundary(np.asarray(areas, dtype=object)[ai])) <= SHARD_TOLERANCE
+    deep = ~edge & shapely.within(mid[li], np.asarray(areas, dtype=object)[ai])
+    return len(lines), li, ai, deep
+
+
+def _select_lines(hosts, rows) -> np.ndarray:
+    n, li, ai, deep = hosts
+    rows = np.asarray(rows, np.int64)
+    keep = np.zeros(n, bool)
+    if len(rows):
+        keep[li[np.isin(ai, rows)]] = True
+    else:
+        keep[:] = True
+        keep[li[deep]] = False
+    return keep
+
+
 def street_graph(bf: BlockFaces) -> nx.Graph:
     """The traced street graph as a networkx Graph.
 
@@ -806,8 +927,23 @@ class BlocksCircuits(SENode):
         "decimals": Param("int", 6, min=0, max=12, unit="1", doc="merge nodes equal to this many decimals (m)"),
     }
 
+    shard_port = "areas"
+
+    def shard_inputs(self, inputs: dict, rows) -> dict:
+        roads, areas = inputs["roads"], inputs.get("areas")
+        rows = np.asarray(rows, np.int64)
+        if areas is None or not len(areas):
+            return inputs
+        key = (id(roads), id(areas))
+        cache = getattr(self, "_shard_cache", None)
+        if cache is None or cache[0] != key:  # once per process: where each line lies
+            cache = self._shard_cache = (key, _line_hosts(roads.geometry, areas.geometry))
+        keep = _select_lines(cache[1], rows)
+        return {**inputs, "roads": roads.take(np.flatnonzero(keep)).with_meta(**{SHARD_KEY: rows})}
+
     def run(self, *, roads: Layer, outline: Layer | None = None, areas: Layer | None = None):
-        meta = {k: v for k, v in roads.meta.items() if k != "graph"}  # the roads' graph, not the blocks'
+        # the roads' graph and shard, not the blocks'
+        meta = {k: v for k, v in roads.meta.items() if k not in ("graph", SHARD_KEY)}
         report: dict = {}
         lines = roads.geometry
         n = len(roads)
@@ -845,6 +981,19 @@ class BlocksCircuits(SENode):
             report["dropped_outside_outline"] = int((ok & ~inside).sum())
             ok &= inside
         faces, fid, hw = faces[ok], fid[ok], hw[ok]
+        host = None
+        if areas is not None and len(areas):
+            # faces in a canonical form and order, with ids derived from them (not from the walk's
+            # order): the same for the whole city and for a shard of its enclosures (sengine.shard)
+            host = containing(shapely.point_on_surface(faces), areas.geometry)
+            shard = roads.meta.get(SHARD_KEY)
+            if shard is not None:
+                mine = np.isin(host, np.asarray(shard, np.int64)) if len(shard) else host < 0
+                report["dropped_other_shards"] = int((~mine).sum())
+                faces, fid, hw, host = faces[mine], fid[mine], hw[mine], host[mine]
+            faces = canonical_faces(faces)
+            o = face_order(faces, host, len(areas))
+            faces, fid, hw, host = faces[o], fid[o], hw[o], host[o]
         closed = np.zeros(len(bf.faces), bool)  # faces with a closing edge
         ef = bf.edge_faces[bare].ravel()
         closed[ef[ef >= 0]] = True
@@ -860,6 +1009,7 @@ class BlocksCircuits(SENode):
             by_street=by_street,
             bare=bare,
             dead_ends=self.p.dead_ends == "cut",
+            canonical=host is not None,
         )
         report.update(counts)
         box = roads.meta.get("bbox")
@@ -901,20 +1051,30 @@ class BlocksCircuits(SENode):
         parent = np.full(len(parts), -1, np.int64)
         fdistrict = np.full(len(faces), -1, np.int64)
         fparent = np.full(len(faces), -1, np.int64)
-        if areas is not None and len(areas):
-            host = containing(shapely.point_on_surface(faces), areas.geometry)
+        block_ids = face_ids = street_ids = walk_ids = None
+        if host is not None:
             has = host >= 0
             fparent[has] = areas.ids[host[has]]
             if "district" in areas:
                 fdistrict[has] = np.asarray(areas["district"], np.int64)[host[has]]
             district, parent = fdistrict[pidx], fparent[pidx]
+            enclosure = np.where(has, areas.ids[np.maximum(host, 0)], int(areas.ids.max()) + 1)
+            face_ids = ranked_ids(enclosure, where=self.where, what="faces")
+            block_ids = ranked_ids(enclosure[pidx], where=self.where, what="blocks")
         report["blocks"] = int(len(parts))
         log.info("%s: %d faces -> %d blocks (%s)", self.where, len(bf.faces), len(parts), report)
-        battrs = {"district": district, "face": fid[pidx]}
+        battrs = {"district": district, "face": fid[pidx] if face_ids is None else face_ids[pidx]}
         if bare.any():
             battrs["closed"] = closed[pidx]
-        blocks = Layer.from_geoms(parts, parent=parent, meta=meta, **battrs)
-        faces_l = Layer.from_geoms(faces, ids=fid, parent=fparent, meta=meta, district=fdistrict, half_width=hw)
+        blocks = Layer.from_geoms(parts, ids=block_ids, parent=parent, meta=meta, **battrs)
+        faces_l = Layer.from_geoms(
+            faces,
+            ids=fid if face_ids is None else face_ids,
+            parent=fparent,
+            meta=meta,
+            district=fdistrict,
+            half_width=hw,
+        )
         # dead ends and connectors outside the faces: their street surface as flat-capped rectangles
         a, b = bf.xy[bf.u[seg]], bf.xy[bf.v[seg]]
         ln = np.hypot(*(b - a).T)
@@ -928,7 +1088,12 @@ class BlocksCircuits(SENode):
         sgeom = np.concatenate([street, dead_poly, deck_poly])
         skind = np.r_[np.full(len(street) + len(dead_poly), "street"), np.full(len(deck_poly), "bridge")]
         live = ~shapely.is_empty(sgeom)
-        streets = Layer.from_geoms(sgeom[live], meta=meta, kind=skind[live])
-        wgeom = walk[~shapely.is_empty(walk)]
-        walks = Layer.from_geoms(wgeom, meta=meta, kind=np.full(len(wgeom), "sidewalk"))
+        wlive = ~shapely.is_empty(walk)
+        if face_ids is not None:  # a face's street and sidewalk take its id; the others their road's, after
+            beyond = (int(areas.ids.max()) + 2) * ID_SPAN
+            street_ids = np.r_[face_ids, beyond + bf.src[seg], beyond + deck_rows][live]
+            walk_ids = face_ids[wlive]
+        streets = Layer.from_geoms(sgeom[live], ids=street_ids, meta=meta, kind=skind[live])
+        wgeom = walk[wlive]
+        walks = Layer.from_geoms(wgeom, ids=walk_ids, meta=meta, kind=np.full(len(wgeom), "sidewalk"))
         return NodeResult({"blocks": blocks, "streets": streets, "sidewalks": walks, "faces": faces_l}, report)

@@ -423,6 +423,7 @@ class ExportCity(SENode):
     }
     outputs = {}
     formats = FORMATS
+    shard_formats = ("parquet", "gpkg", "glb")
     format_hints = FORMAT_HINTS
     params = {
         "line_width": Param(
@@ -493,6 +494,29 @@ class ExportCity(SENode):
         )
         report.pop("seconds", None)  # timings would make stats.json differ between runs
         return NodeResult({}, _flat_counts(report))
+
+    # a sharded run (sengine.shard): each shard's layers as parts, joined into the files at the end
+    def write_shard(self, inputs: dict, *, shard: int, city_ports: frozenset) -> dict:
+        from .shards import LAYER_PORTS, write_part
+
+        ports = frozenset(LAYER_PORTS) - city_ports
+        return write_part(
+            self, inputs, shard=f"{shard:04d}", ports=ports, folder=self._parts(), city_origin=city_origin
+        )
+
+    def join_shard(self, part: dict, *, shard: int) -> None:
+        from .shards import stream_part
+
+        stream_part(self, part)
+
+    def finish_shards(self, inputs: dict, parts: list, *, city_ports: frozenset) -> dict:
+        from .shards import join_parts
+
+        report = join_parts(self, inputs, parts, city_ports=city_ports, folder=self._parts(), city_origin=city_origin)
+        return _flat_counts(report)
+
+    def _parts(self) -> Path:
+        return Path(self.context.out) / ".parts" / self.id
 
 
 def _flat_counts(report: dict) -> dict:

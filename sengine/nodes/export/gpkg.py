@@ -25,9 +25,9 @@ import numpy as np
 
 from sengine.layer import Layer
 
-from .table import CHUNK, LayerBatches, require
+from .table import CHUNK, LayerBatches, rebatch, require
 
-__all__ = ["write_gpkg_layer", "write_gpkg"]
+__all__ = ["write_gpkg_layer", "write_gpkg_batches", "write_gpkg"]
 
 log = logging.getLogger(__name__)
 
@@ -80,12 +80,47 @@ def write_gpkg_layer(
     dict
         ``features`` written (and ``collapsed`` when the output snap dropped some).
     """
+    batches = LayerBatches(layer, transform, grid, name=name, chunk=chunk)
+    write_gpkg_batches(
+        path,
+        name,
+        batches.schema(),
+        batches,
+        batches.geometry_type,
+        crs,
+        append=append,
+        attribution=attribution,
+        chunk=chunk,
+    )
+    counts = {"features": batches.written}
+    if batches.collapsed:
+        counts["collapsed"] = batches.collapsed
+    return counts
+
+
+def write_gpkg_batches(
+    path: str | Path,
+    name: str,
+    schema,
+    batches,
+    geometry_type: str,
+    crs: str,
+    *,
+    append: bool = False,
+    attribution: str | None = None,
+    chunk: int = CHUNK,
+) -> None:
+    """Write Arrow record batches (attributes and a WKB ``geometry``) as table ``name`` of the GeoPackage.
+
+    The rows go to GDAL in batches of exactly ``chunk``
+    (:func:`~sengine.nodes.export.table.rebatch`), so that a layer written
+    at once and the same rows coming shard after shard make the same file.
+    """
     pyogrio = require("pyogrio", "gpkg")
     require("pyarrow", "gpkg")
     import pyarrow as pa
 
-    batches = LayerBatches(layer, transform, grid, name=name, chunk=chunk)
-    reader = pa.RecordBatchReader.from_batches(batches.schema(), iter(batches))
+    reader = pa.RecordBatchReader.from_batches(schema, rebatch(batches, schema, chunk))
     layer_options = {"FID": "id", "IDENTIFIER": name}
     if attribution:
         layer_options["DESCRIPTION"] = attribution
@@ -98,7 +133,7 @@ def write_gpkg_layer(
             layer=name,
             driver="GPKG",
             geometry_name="geometry",
-            geometry_type=batches.geometry_type,
+            geometry_type=geometry_type,
             crs=crs,
             append=append,
             layer_metadata={"attribution": attribution} if attribution and not append else None,
@@ -106,10 +141,6 @@ def write_gpkg_layer(
         )
     finally:
         pyogrio.set_gdal_config_options(old)
-    counts = {"features": batches.written}
-    if batches.collapsed:
-        counts["collapsed"] = batches.collapsed
-    return counts
 
 
 def write_gpkg(

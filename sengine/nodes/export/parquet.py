@@ -81,6 +81,10 @@ class ParquetLayerWriter:
         self.crs = crs
         self.attribution = attribution
         self._writer = None
+        self._schema = None
+        self._chunk = CHUNK
+        self._pending: list = []
+        self._rows = 0
         self._types: set[str] = set()
         self._bounds = np.array([np.inf, np.inf, -np.inf, -np.inf])
         self.written = 0
@@ -96,26 +100,61 @@ class ParquetLayerWriter:
         chunk: int = CHUNK,
     ) -> int:
         """Append the features of ``layer`` (cleaned, planar) in row groups of ``chunk``; return how many."""
+        batches = LayerBatches(layer, transform, grid, name=name, chunk=chunk, bbox=True)
+        n = self.write_batches(batches.schema(), batches, chunk=chunk)
+        if batches.written:
+            self.add_extent(batches.geometry_type, batches.bounds)
+        self.collapsed += batches.collapsed
+        return n
+
+    def write_batches(self, schema, batches, *, chunk: int = CHUNK) -> int:
+        """Append Arrow record batches (``schema``: attributes, WKB ``geometry``, ``bbox``); return the rows.
+
+        Rows are cut into row groups of exactly ``chunk`` rows across calls
+        (:func:`~sengine.nodes.export.table.rebatch`): a layer written in one
+        call and the same rows written shard after shard give the same file.
+        Say what the rows hold with :meth:`add_extent`.
+        """
+        import pyarrow as pa
         import pyarrow.parquet as pq
 
-        batches = LayerBatches(layer, transform, grid, name=name, chunk=chunk, bbox=True)
         if self._writer is None:
             # no ARROW:schema copy: the footer's "geo" key, written at close, is then the one every reader sees
-            self._writer = pq.ParquetWriter(self.path, batches.schema(), compression="zstd", store_schema=False)
+            self._writer = pq.ParquetWriter(self.path, schema, compression="zstd", store_schema=False)
+            self._schema = schema
+            self._chunk = max(int(chunk), 1)
+        n = 0
         for batch in batches:
             if batch.num_rows:
-                self._writer.write_batch(batch, row_group_size=max(int(chunk), 1))
-        if batches.written:
-            self._types.add(batches.geometry_type)
-            b = batches.bounds
+                self._pending.append(batch)
+                self._rows += batch.num_rows
+                n += batch.num_rows
+            if self._rows >= self._chunk:
+                table = pa.Table.from_batches(self._pending, schema=self._schema).combine_chunks()
+                full = (self._rows // self._chunk) * self._chunk
+                for lo in range(0, full, self._chunk):
+                    self._writer.write_table(table.slice(lo, self._chunk), row_group_size=self._chunk)
+                rest = table.slice(full)
+                self._pending, self._rows = rest.to_batches(), rest.num_rows
+        self.written += n
+        return n
+
+    def add_extent(self, geometry_type: str, bounds) -> None:
+        """Record the geometry type and output bounds of rows written (for the ``geo`` metadata)."""
+        self._types.add(geometry_type)
+        b = np.asarray(bounds, np.float64)
+        if len(b) == 4:
             self._bounds = np.concatenate([np.minimum(self._bounds[:2], b[:2]), np.maximum(self._bounds[2:], b[2:])])
-        self.written += batches.written
-        self.collapsed += batches.collapsed
-        return batches.written
 
     def close(self) -> None:
+        import pyarrow as pa
+
         if self._writer is None:
             return
+        if self._rows:
+            table = pa.Table.from_batches(self._pending, schema=self._schema).combine_chunks()
+            self._writer.write_table(table, row_group_size=self._chunk)
+            self._pending, self._rows = [], 0
         bbox = self._bounds.tolist() if self.written else None
         meta = {"geo": json.dumps(geo_metadata(self.crs, sorted(self._types), bbox), sort_keys=True)}
         if self.attribution:

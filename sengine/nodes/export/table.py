@@ -13,7 +13,7 @@ same way.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,7 +23,7 @@ from sengine.errors import SEngineError
 from sengine.geom.cleanup import GRID, layer_type, snap_to_type
 from sengine.layer import Layer
 
-__all__ = ["CHUNK", "OSM_ATTRIBUTION", "TYPE_IDS", "require", "attribute_arrays", "LayerBatches"]
+__all__ = ["CHUNK", "OSM_ATTRIBUTION", "TYPE_IDS", "require", "attribute_arrays", "LayerBatches", "rebatch"]
 
 log = logging.getLogger(__name__)
 
@@ -190,3 +190,36 @@ class LayerBatches:
 
 def _BBOX_TYPE(pa):
     return pa.struct([pa.field(k, pa.float64()) for k in ("xmin", "ymin", "xmax", "ymax")])
+
+
+def rebatch(batches: Iterable, schema, chunk: int = CHUNK) -> Iterator:
+    """The rows of ``batches`` again, in batches of exactly ``chunk`` rows (the last may be shorter).
+
+    The writers write one batch per row group or transaction: cut the same
+    way, a layer written in one go and the same rows written shard after
+    shard give the same file.
+    """
+    import pyarrow as pa
+
+    chunk = max(int(chunk), 1)
+    pending: list = []
+    rows = 0
+    for batch in batches:
+        if not batch.num_rows:
+            continue
+        pending.append(batch)
+        rows += batch.num_rows
+        while rows >= chunk:
+            table = pa.Table.from_batches(pending, schema=schema).combine_chunks()
+            yield _one_batch(table.slice(0, chunk), schema)
+            rest = table.slice(chunk)
+            pending, rows = rest.to_batches(), rest.num_rows
+    if rows:
+        yield _one_batch(pa.Table.from_batches(pending, schema=schema), schema)
+
+
+def _one_batch(table, schema):
+    import pyarrow as pa
+
+    batches = table.combine_chunks().to_batches()
+    return batches[0] if len(batches) == 1 else pa.RecordBatch.from_pylist([], schema=schema)

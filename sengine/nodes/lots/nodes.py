@@ -250,6 +250,30 @@ class _SegmentFlags:
         return out
 
 
+#: Lots a block may hold: a lot's id is ``block id x LOT_SPAN + its rank in the block``.
+LOT_SPAN = 10_000
+
+
+def lot_ids(block, *, where: str = "") -> np.ndarray:
+    """Ids of lots sorted by block: ``block id x LOT_SPAN + rank``, derived from the block, not the run's order.
+
+    The same lot has the same id whether its city runs whole, in chunks or
+    in shards (:mod:`sengine.shard`), and the buildings' random draws keyed
+    by it are the same too.
+    """
+    block = np.asarray(block, np.int64)
+    if not len(block):
+        return np.zeros(0, np.int64)
+    first = np.r_[True, block[1:] != block[:-1]]
+    rank = np.arange(len(block)) - np.maximum.accumulate(np.where(first, np.arange(len(block)), 0))
+    if rank.max() >= LOT_SPAN:
+        from sengine.errors import LimitError
+
+        b = int(block[int(np.argmax(rank))])
+        raise LimitError(f"block {b} makes more than {LOT_SPAN:,} lots; make the lots larger", where=where)
+    return block * LOT_SPAN + rank
+
+
 class _Lots(SENode):
     """Shared body of the lot nodes: attributes, partition check, layer."""
 
@@ -318,6 +342,7 @@ class _Lots(SENode):
         report["kinds"] = {k: int((kind == k).sum()) for k in ("street", "corner", "inner")}
         lay = Layer.from_geoms(
             lots,
+            ids=lot_ids(blocks.ids[owner], where=self.where),
             parent=blocks.ids[owner],
             meta=blocks.meta,
             block=blocks.ids[owner],
