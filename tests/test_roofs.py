@@ -135,10 +135,12 @@ def test_every_roof_is_a_closed_outward_solid(g, kind, height, base):
         assert len(np.unique(np.round(z, 6))) > 2, f"a {kind} roof is more than a box"
 
 
-def test_a_ring_collapsing_at_once_keeps_its_hip_roof():
+def test_a_ring_collapsing_at_once_keeps_its_hip_roof(capfd):
     """Simultaneous skeleton events: every face is there, drawn as asked, at the closed-form volume."""
     h, rh = 12.0, 2.0
     s = roofs.building_solids(np.array([RING], object), [h], roof=["hip"], roof_height=[rh])
+    # CGAL's own "Failed to triangulate skeleton face" is not printed: the face is rebuilt, nothing to tell
+    assert capfd.readouterr().err == ""
     (tm,) = solids_ok(s, 1)
     assert s.notes == {}
     # a ring of even width: the roof's mean rise is half of it (the footprint snapped to the millimetre for CGAL)

@@ -27,12 +27,34 @@ References
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
+
 import mapbox_earcut
 import numpy as np
 
 from .mesh import Rings, fill_skipped, split_t_junctions
 
 __all__ = ["skeleton_solids", "available"]
+
+
+@contextlib.contextmanager
+def _quiet_stderr():
+    """File descriptor 2 to /dev/null meanwhile: CGAL writes its warnings there, past Python's ``sys.stderr``."""
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError):  # no real descriptor 2 (an embedding host): nothing to silence
+        yield
+        return
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 def _extension():
@@ -79,17 +101,18 @@ def skeleton_solids(
     ext = _extension()
     vs, fs, vp, fk, failed = [], [], [], [], []
     off = 0
-    for p in np.asarray(polys, np.int64).tolist():
-        out = None if ext is None else _one(ext, rings, p, float(eave[p]), float(rise[p]), float(base[p]), gable[p])
-        if out is None:
-            failed.append(p)
-            continue
-        v, f, k = out
-        vs.append(v)
-        fs.append(f + off)
-        fk.append(k)
-        vp.append(np.full(len(v), p, np.int64))
-        off += len(v)
+    with _quiet_stderr():  # CGAL prints its refusals; they are counted here (failed) and fall back
+        for p in np.asarray(polys, np.int64).tolist():
+            out = None if ext is None else _one(ext, rings, p, float(eave[p]), float(rise[p]), float(base[p]), gable[p])
+            if out is None:
+                failed.append(p)
+                continue
+            v, f, k = out
+            vs.append(v)
+            fs.append(f + off)
+            fk.append(k)
+            vp.append(np.full(len(v), p, np.int64))
+            off += len(v)
     if not vs:
         e = np.empty(0, np.int64)
         return np.empty((0, 3)), np.empty((0, 3), np.int64), e, np.empty(0, np.uint8), np.asarray(failed, np.int64)
