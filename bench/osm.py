@@ -8,7 +8,7 @@ two ways, each in a fresh process so that peak memory is its own:
   ("file to blocks", which includes the sidewalk inset and the street and
   sidewalk polygons); and "file to faces", the same product as the library
   route: ``roads.clean`` traces the faces of its plane segment graph
-  (``meta["graph"]["blocks"]``, which ``blocks.circuits`` takes over), so
+  (on its ``graph`` port, which ``blocks.circuits`` takes over), so
   that is ``osm.read`` -> ``roads.clean`` (plus ``find_blocks`` on the
   graph when clean handed no faces on).
 * ``library``: what one writes with the libraries alone -- pyosmium with
@@ -89,17 +89,17 @@ def route_sengine(path: str) -> dict:
     cleaned = clean_out.layers["roads"]
     t2 = time.perf_counter()
     # the circuits alone (what polygonize gives): roads.clean traced them on its plane segment graph
-    g = cleaned.meta["graph"]
-    bf = g.get("blocks")
+    g = clean_out.layers["graph"]
+    bf = g.meta.get("faces")
     if bf is None:
         from sengine.nodes.blocks.circuits import find_blocks
 
-        bf = find_blocks((g["xy"], g["u"], g["v"]), node=False, decimals=None)
+        bf = find_blocks((g.meta["xy"], g["u"], g["v"]), node=False, decimals=None)
     circuits = bf.faces[shapely.area(bf.faces) >= MIN_AREA]
     c3, t3 = _cpu(), time.perf_counter()
     del bf
     blocks = get("blocks.circuits")("blocks", {**params["blocks"], "min_area": str(MIN_AREA)}, Context())
-    out = NodeResult.of(blocks, blocks.run(roads=cleaned)).layers
+    out = NodeResult.of(blocks, blocks.run(roads=cleaned, graph=clean_out.layers["graph"])).layers
     c4, t4 = _cpu(), time.perf_counter()
     faces = out["faces"].geometry
     box = cleaned.meta.get("bbox")

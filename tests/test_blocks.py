@@ -265,23 +265,22 @@ def test_faces_traced_by_clean_are_taken_over():
     from sengine import Context
 
     roads = get("osm.read")("r", {"path": str(MONACO), "extras": ""}, Context()).run()["roads"]
-    cleaned = get("roads.clean")("c", {}, Context()).run(roads=roads)["roads"]
-    graph = cleaned.meta["graph"]
-    assert isinstance(graph["blocks"], B.BlockFaces) and len(graph["row"]) == len(graph["u"])
-    assert graph["decimals"] == 6
+    ran = get("roads.clean")("c", {}, Context()).run(roads=roads)
+    cleaned, graph = ran["roads"], ran["graph"]
+    assert isinstance(graph.meta["faces"], B.BlockFaces) and len(graph["row"]) == len(graph["u"]) == len(graph)
+    assert graph.meta["decimals"] == 6 and "graph" not in cleaned.meta  # on its port, not behind it
     node = get("blocks.circuits")("b", {"node": "false"}, Context())
-    taken = node.run(roads=cleaned)
+    taken = node.run(roads=cleaned, graph=graph)
     rep_taken = dict(taken.report)
-    traced = node.run(roads=cleaned.with_meta(graph=None))  # no graph: traced from the lines
-    assert rep_taken == taken.report
+    traced = node.run(roads=cleaned)  # no graph: traced from the lines
+    assert rep_taken == traced.report
     for port in ("faces", "blocks", "streets", "sidewalks"):  # the same polygons in the same order
         a, b = taken[port].geometry, traced[port].geometry
         assert len(a) == len(b) and shapely.equals_exact(a, b, 0).all()
-    assert "graph" not in taken["blocks"].meta
     # taken over only for the rows and the node merge they were traced for
-    assert B.traced_faces(cleaned.meta, len(cleaned) - 1, decimals=6) is None
-    assert B.traced_faces(cleaned.meta, len(cleaned), decimals=5) is None
-    assert B.traced_faces(cleaned.meta, len(cleaned), decimals=6) is not None
+    assert B.traced_faces(graph, len(cleaned) - 1, decimals=6) is None
+    assert B.traced_faces(graph, len(cleaned), decimals=5) is None
+    assert B.traced_faces(graph, len(cleaned), decimals=6) is not None
 
 
 def test_clean_hands_no_faces_on_when_nodes_would_merge():
@@ -296,8 +295,9 @@ def test_clean_hands_no_faces_on_when_nodes_would_merge():
         [(50, 50 + 1e-8), (100, 100)],
     ]  # two ends 1e-8 m apart: one node at 6 decimals
     roads = _roads([shapely.LineString(c) for c in lines])
-    cleaned = get("roads.clean")("c", {"dead_ends": "false"}, Context()).run(roads=roads)["roads"]
-    assert cleaned.meta["graph"]["decimals"] is None
-    assert B.traced_faces(cleaned.meta, len(cleaned), decimals=6) is None
-    out = get("blocks.circuits")("b", {"node": "false", "min_area": "1"}, Context()).run(roads=cleaned)
+    ran = get("roads.clean")("c", {"dead_ends": "false"}, Context()).run(roads=roads)
+    cleaned, graph = ran["roads"], ran["graph"]
+    assert graph.meta["decimals"] is None
+    assert B.traced_faces(graph, len(cleaned), decimals=6) is None
+    out = get("blocks.circuits")("b", {"node": "false", "min_area": "1"}, Context()).run(roads=cleaned, graph=graph)
     assert len(out["faces"]) == 2  # the diagonal closes, as the lines entry merges the two ends

@@ -88,13 +88,14 @@ def test_graph_port_holds_the_faces_blocks_take_over():
     ends = shapely.get_coordinates(graph.geometry).reshape(-1, 2, 2)
     assert np.array_equal(ends[:, 0], xy[graph["u"]]) and np.array_equal(ends[:, 1], xy[graph["v"]])
     assert shapely.covers(out["roads"].geometry[graph["row"]], graph.geometry).all()
-    # blocks.circuits takes the same faces over (meta, during the transition)
-    taken = traced_faces(out["roads"].meta, len(out["roads"]), decimals=6)
+    # blocks.circuits takes the same faces over from the port; the roads carry no graph behind it
+    assert "graph" not in out["roads"].meta
+    taken = traced_faces(graph, len(out["roads"]), decimals=6)
     assert taken is not None and len(taken.faces) == 6
     # numbered for other decimals, the faces are not taken over by a blocks node that merges to 6
     other = get("roads.clean")("clean", {"decimals": "3"}).run(roads=roads)
     assert other["graph"].meta["decimals"] == 3
-    assert traced_faces(other["roads"].meta, len(other["roads"]), decimals=6) is None
+    assert traced_faces(other["graph"], len(other["roads"]), decimals=6) is None
 
 
 PLUGIN = '''

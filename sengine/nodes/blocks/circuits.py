@@ -18,7 +18,7 @@ becomes a hole of it.
 
 When the roads come from ``roads.clean``, which traces these faces on
 its plane segment graph anyway, the node takes them over from
-``meta["graph"]`` (:func:`traced_faces`: same faces, same order).
+its ``graph`` port (:func:`traced_faces`: same faces, same order).
 
 On a real map three more things hold (issue 11):
 
@@ -199,29 +199,40 @@ def find_blocks(streets, *, node: bool = True, decimals: int | None = 6) -> Bloc
     return BlockFaces(**{**vars(pf), "counts": counts}, xy=xy, u=u, v=v, src=src)
 
 
-def traced_faces(meta: dict, rows: int, *, decimals: int | None) -> BlockFaces | None:
-    """The faces a road layer already carries, when they are what :func:`find_blocks` would give.
+def traced_faces(graph, rows: int, *, decimals: int | None) -> BlockFaces | None:
+    """The faces ``roads.clean`` traced already, when they are what :func:`find_blocks` would give.
 
     ``roads.clean`` traces the faces of its plane segment graph once (to find
-    slivers) and hands them on in ``meta["graph"]``, its nodes numbered as
-    the lines entry numbers them after merging to ``graph["decimals"]``
-    (set only when that merges no two nodes).  They are taken over when the
-    graph belongs to exactly these ``rows`` and was numbered for these
-    ``decimals``: then they are the faces, in the order, that
+    slivers) and hands them on on its ``graph`` port (meta ``faces``), its
+    nodes numbered as the lines entry numbers them after merging to meta
+    ``decimals`` (set only when that merges no two nodes).  They are taken
+    over when the graph belongs to exactly these ``rows`` and was numbered
+    for these ``decimals``: then they are the faces, in the order, that
     ``find_blocks(lines, node=False, decimals=decimals)`` gives.
+
+    Parameters
+    ----------
+    graph : Layer or None
+        The ``graph`` layer (:func:`sengine.nodes.roads.clean.graph_layer`).
+    rows : int
+        The length of the roads layer being traced.
+    decimals : int or None
+        How the tracer would number the nodes.
 
     Returns
     -------
     BlockFaces or None
         With ``src`` indexing the rows, as the lines entry gives it.
     """
-    g = meta.get("graph")
-    if not isinstance(g, dict) or g.get("rows") != rows or not isinstance(g.get("blocks"), BlockFaces):
+    if graph is None:
         return None
-    if g.get("decimals") is None or g.get("decimals") != decimals:
+    meta = graph.meta
+    bf = meta.get("faces")
+    if meta.get("rows") != rows or not isinstance(bf, BlockFaces):
         return None
-    bf = g["blocks"]
-    return replace(bf, src=np.asarray(g["row"], np.int64)[bf.src], counts=dict(bf.counts))
+    if meta.get("decimals") is None or meta.get("decimals") != decimals:
+        return None
+    return replace(bf, src=np.asarray(graph["row"], np.int64)[bf.src], counts=dict(bf.counts))
 
 
 def face_half_widths(bf: BlockFaces, widths) -> np.ndarray:
@@ -878,6 +889,9 @@ class BlocksCircuits(SENode):
         "roads": Port("roads", "street centre lines with a width column"),
         "outline": Port("outline", "buildable city: faces outside it are dropped", required=False),
         "areas": Port("areas", "areas enclosed by major roads: give blocks their district", required=False),
+        "graph": Port(
+            "graph", "the plane graph roads.clean traced (its faces are taken over when they fit)", required=False
+        ),
     }
     outputs = {
         "blocks": Port("blocks", "blocks, shrunk for streets and sidewalks"),
@@ -941,9 +955,15 @@ class BlocksCircuits(SENode):
         keep = _select_lines(cache[1], rows)
         return {**inputs, "roads": roads.take(np.flatnonzero(keep)).with_meta(**{SHARD_KEY: rows})}
 
-    def run(self, *, roads: Layer, outline: Layer | None = None, areas: Layer | None = None):
-        # the roads' graph and shard, not the blocks'
-        meta = {k: v for k, v in roads.meta.items() if k not in ("graph", SHARD_KEY)}
+    def run(
+        self,
+        *,
+        roads: Layer,
+        outline: Layer | None = None,
+        areas: Layer | None = None,
+        graph: Layer | None = None,
+    ):
+        meta = {k: v for k, v in roads.meta.items() if k != SHARD_KEY}  # the roads' shard, not the blocks'
         report: dict = {}
         lines = roads.geometry
         n = len(roads)
@@ -955,7 +975,7 @@ class BlocksCircuits(SENode):
         ground = ground_level(roads) & keep
         bf = None
         if not self.p.node and keep.all():  # faces roads.clean traced already
-            bf = traced_faces(roads.meta, n, decimals=self.p.decimals)
+            bf = traced_faces(graph, n, decimals=self.p.decimals)
         if bf is None:
             rows = np.flatnonzero(ground)
             closing = roads.meta.get("closing")

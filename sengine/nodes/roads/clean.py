@@ -39,8 +39,7 @@ quite one.  This module prepares it, on whole numpy arrays:
    handed on as ``slivers`` (polygons of kind ``median`` / ``island``) to
    be drawn as street surface.  The faces are traced once: the plane
    segment graph and its faces go out on the ``graph`` port (kind
-   ``graph``; during the transition also in the roads' ``meta["graph"]``),
-   numbered as ``blocks.circuits`` would number them with ``decimals``,
+   ``graph``), numbered as ``blocks.circuits`` would number them with ``decimals``,
    which takes them over.  The graph keeps their edges, so the block
    faces still partition the city; the blocks node's street and sidewalk
    inset leaves nothing of them (``vanished_by_inset``).
@@ -557,11 +556,6 @@ class RoadsClean(SENode):
                 **meta,
                 "planar": True,
                 "nodes": nodes,
-                # the plane straight-segment graph of the ground-level rows, valid for exactly these
-                # rows (see find_blocks): segment k joins nodes u[k], v[k] (indices into graph xy) and
-                # lies on row[k] (-1: a closing edge); its traced faces when found; xy numbered as
-                # find_blocks(lines, decimals) would
-                "graph": graph,
                 # the edges closing the graph round the bounding box (no streets), and the box; or None
                 "closing": closing,
                 "bbox": bbox,
