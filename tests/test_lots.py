@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 import sengine.nodes.lots.nodes as LOTS
 from sengine import CityPlan, Context, Layer, Rule
 from sengine.errors import ParameterError
+from sengine.nodes.lots.paris import inscribed_radius
 from sengine.nodes.maps import plan_inputs
 from sengine.registry import get
 
@@ -47,6 +48,8 @@ def block_polygon(draw):
     return shapely.affinity.translate(poly, draw(st.floats(-1e4, 1e4)), draw(st.floats(-1e4, 1e4)))
 
 
+ROOMY_AREA = 2000.0  # m2: a block at least this large ...
+ROOMY_RADIUS = 10.0  # m: ... and at least twice this wide fits more than one lot with every method's defaults
 GRID = 1e-9  # m: snap-rounding overlay; the default overlay of GEOS 3.14 can return wrong
 # areas on pieces that share nearly collinear edges (seen: intersection of a lot with its
 # own block returning 0), so measurements use the robust snap-rounding mode.
@@ -60,7 +63,7 @@ def overlap_area(geoms) -> float:
     return float(shapely.area(shapely.intersection(geoms[i[sel]], geoms[j[sel]], grid_size=GRID)).sum())
 
 
-def check_lots(blocks: Layer, lots: Layer, name: str):
+def check_lots(blocks: Layer, lots: Layer, name: str, known_whole: int = 0):
     assert shapely.is_valid(lots.geometry).all()
     assert (shapely.get_type_id(lots.geometry) == 3).all()
     assert np.array_equal(lots.parent, lots["block"])
@@ -83,6 +86,12 @@ def check_lots(blocks: Layer, lots: Layer, name: str):
     ref = LOTS.lot_attributes(lots.geometry, owner, blocks.geometry)
     assert np.allclose(lots["frontage"], ref["frontage"], atol=1e-6), f"{name}: frontage differs from measured"
     assert np.array_equal(lots["street_edges"], ref["street_edges"]) and np.array_equal(lots["corner"], ref["corner"])
+    # a block that fits several lots gets several (a method that keeps blocks whole, or a split that
+    # refuses every cut, passes every check above: tests/test_stubs_fail.py)
+    roomy = (shapely.area(blocks.geometry) >= ROOMY_AREA) & (inscribed_radius(blocks.geometry) >= ROOMY_RADIUS)
+    per_block = np.bincount(owner, minlength=len(blocks))
+    whole = int((per_block[roomy] < 2).sum())
+    assert whole <= known_whole, f"{name}: {whole} roomy blocks kept whole"
     must_touch = ~lots["inner"]  # paris courtyards, and what lies behind the back-to-back rows of deep blocks
     if name == "lots.recursive":  # inner: cut off the street (less than min_frontage), never a whole block
         assert (lots["frontage"][lots["inner"]] < 4.0).all()
@@ -252,7 +261,9 @@ def test_real_blocks(monaco_blocks, name):
     node = get(name)("lots", {}, Context(seed=2))
     ran = node.run(blocks=monaco_blocks)
     lots = ran["lots"]
-    check_lots(monaco_blocks, lots, name)
+    # lots.recursive keeps one Monaco block whole: a curved strip 28 m wide, 4,622 m2 (its OBB cuts are
+    # refused: 'recursive_stuck'), a known weakness, counted here so that a regression still fails
+    check_lots(monaco_blocks, lots, name, known_whole=1 if name == "lots.recursive" else 0)
     assert ran.report.get("kept_whole", 0) == 0 and ran.report["no_frontage"] == 0
     assert len(lots) > 3 * len(monaco_blocks)
     # every other block alone: the same lots to the bit (as when the executor cuts the input in chunks)

@@ -49,6 +49,7 @@ skylineEngine §5.5, Fig. 9.
 from __future__ import annotations
 
 import logging
+from typing import NamedTuple
 
 import numpy as np
 import shapely
@@ -131,27 +132,63 @@ def _runs(flag, cp, ci, nseg):
     return run_p, np.mod(s_pos - cstart[run_p] + g0[run_p], nseg[run_p]), e_pos - s_pos + 1
 
 
-def _pass(rs, depth, segment, min_frontage, C):
-    """Paris lots of the polygons of ``rs`` that the certificate accepts.
+class _Candidates(NamedTuple):
+    """One perimeter candidate lot per contour segment of every polygon (ring order)."""
 
-    Returns lots, their polygon, inner flags, the accepted polygons and the
-    number of corner lots.
-    """
+    poly: np.ndarray  # polygon of each candidate
+    index: np.ndarray  # its index along its polygon's contour
+    start: np.ndarray  # its first sample (3 per segment)
+    lot: np.ndarray  # its polygon: contour segment, then the displaced points backwards
+    lot_area: np.ndarray  # signed area (m2): negative when it winds clockwise
+    marks: Marks  # its segment marks
+    core_part: np.ndarray  # no street (a cut edge), or its polygon has no candidate of min_frontage: joins the core
+    bad: np.ndarray  # not simple, overlapping a neighbour, or short of street: joins a corner lot
+
+
+class _Corners(NamedTuple):
+    """Runs of bad candidates merged into corner lots closed by a straight back edge."""
+
+    poly: np.ndarray  # polygon of each run
+    first: np.ndarray  # its first candidate
+    count: np.ndarray  # how many candidates it spans
+    lot: np.ndarray  # the corner lot
+    marks: Marks
+    refused: np.ndarray  # still not simple (or short of street) after growing twice: its polygon is cut
+
+
+class _Cores(NamedTuple):
+    """The inner lot of every polygon: the polygon through all its displaced points, or the whole polygon."""
+
+    lot: np.ndarray  # (P,) object: the core of each polygon (None where none was made)
+    mark: np.ndarray  # (P,) index into marks, -1: unknown
+    marks: Marks
+    done: np.ndarray  # (P,) the polygon's candidates, corners and core partition it: it is finished
+    all_merged: np.ndarray  # (P,) no street worth a lot: the polygon is one lot
+    whole_inner: np.ndarray  # (P,) ... and it has no street at all
+
+
+def _candidates(rs, C, min_frontage) -> _Candidates:
+    """The perimeter candidates, each tested alone (simple, counter-clockwise, enough street)."""
     P = rs.n
     nseg = C.nseg
     cp = np.repeat(np.arange(P), nseg)
     ci = ramp(nseg)
     ja = 3 * ci
-    one = np.ones(len(cp), np.int64)
-    q, qa, front, qm = C.chains(cp, ja, ja + 3, one)
+    q, qa, front, qm = C.chains(cp, ja, ja + 3, np.ones(len(cp), np.int64))
     merge = front < TOUCH  # no street (a cut edge): part of the core
     # no candidate with enough street: the polygon is one lot (inner if it has no street)
     merge |= (np.bincount(cp, weights=front >= min_frontage, minlength=P) == 0)[cp]
     short = (front < min_frontage) & ~merge  # too little street: joins a neighbour (a corner lot)
     bad = ~_clean(q, np.where(merge | short, 0.0, qa)) & ~merge  # short ones are bad untested
-    # windows of w consecutive candidates: their union must be simple too,
-    # otherwise two of them overlap (winding numbers add up)
-    # (only where the inner line folds or bunches up: elsewhere neighbours cannot meet)
+    return _Candidates(cp, ci, ja, q, qa, qm, merge, bad)
+
+
+def _overlapping_windows(C, cand: _Candidates) -> np.ndarray:
+    """Candidates of a window of three consecutive ones whose union is not simple (two of them overlap).
+
+    Tested only where the inner line folds or bunches up: elsewhere neighbours cannot meet.
+    """
+    cp, ci, ja, nseg = cand.poly, cand.index, cand.start, C.nseg
     w = np.minimum(3, nseg - 1)[cp]
     di = C.inner[C.mstart[C.sp] + np.mod(C.sj + 1, C.m[C.sp])] - C.inner
     dp = C.pts[C.mstart[C.sp] + np.mod(C.sj + 1, C.m[C.sp])] - C.pts
@@ -163,34 +200,49 @@ def _pass(rs, depth, segment, min_frontage, C):
     wsel = np.flatnonzero(near)
     bad_win = np.zeros(len(cp), bool)
     if len(wsel):
-        win, wa, _, _ = C.chains(cp[wsel], ja[wsel], ja[wsel] + 3 * w[wsel], one[wsel])
+        one = np.ones(len(wsel), np.int64)
+        win, wa, _, _ = C.chains(cp[wsel], ja[wsel], ja[wsel] + 3 * w[wsel], one)
         bad_win[wsel] = ~_clean(win, wa)
     cstart = np.cumsum(nseg) - nseg
+    overlapping = np.zeros(len(cp), bool)
     for k in range(3):
         sel = bad_win & (k < w)
-        bad[cstart[cp[sel]] + np.mod(ci[sel] + k, nseg[cp[sel]])] = True
-    bad &= ~merge
-    # runs of bad candidates become corner lots; a run whose corner lot is
-    # not simple (or has too little street) grows by one candidate on each
-    # side, twice; one still refused refuses its polygon (which is cut)
+        overlapping[cstart[cp[sel]] + np.mod(ci[sel] + k, nseg[cp[sel]])] = True
+    return overlapping
+
+
+def _corner_lots(C, cand: _Candidates, bad, min_frontage) -> tuple[_Corners, np.ndarray]:
+    """Runs of bad candidates become corner lots; returns them and the final bad flags.
+
+    A run whose corner lot is not simple (or has too little street) grows by
+    one candidate on each side, twice; one still refused refuses its polygon
+    (which is cut).
+    """
+    cp, ci, nseg, merge = cand.poly, cand.index, C.nseg, cand.core_part
+    cstart = np.cumsum(nseg) - nseg
+    bad = bad.copy()
     for it in range(3):
         run_p, s_i, n_i = _runs(bad, cp, ci, nseg)
         corner, ca, cfront, cm = C.chains(run_p, 3 * s_i, 3 * (s_i + n_i), 3 * n_i)
-        f = ~(_clean(corner, ca) & (cfront >= min_frontage))
-        if not f.any() or it == 2:
+        refused = ~(_clean(corner, ca) & (cfront >= min_frontage))
+        if not refused.any() or it == 2:
             break
-        base, first, cnt, nn = cstart[run_p[f]], s_i[f], n_i[f], nseg[run_p[f]]
+        base, first, cnt, nn = cstart[run_p[refused]], s_i[refused], n_i[refused], nseg[run_p[refused]]
         for at in (base + np.mod(first - 1, nn), base + np.mod(first + cnt, nn)):
             bad[at] |= ~merge[at]
-    merge_runs = _runs(merge, cp, ci, nseg)
-    good = ~bad & ~merge
-    # the core, unit after unit in ring order
+    return _Corners(run_p, s_i, n_i, corner, cm, refused), bad
+
+
+def _cores(rs, C, cand: _Candidates, good, corners: _Corners) -> _Cores:
+    """The core of each polygon, unit after unit in ring order (good candidates, corner lots, core runs)."""
+    P = rs.n
+    cp, ja, merge = cand.poly, cand.start, cand.core_part
+    mp, ms_, mn = _runs(merge, cp, cand.index, C.nseg)
     gi = np.flatnonzero(good)
-    mp, ms_, mn = merge_runs
-    up = np.r_[cp[gi], run_p, mp]
-    ua = np.r_[ja[gi], 3 * s_i, 3 * ms_]
-    ub = np.r_[ja[gi] + 3, 3 * (s_i + n_i), 3 * (ms_ + mn)]
-    uk = np.r_[np.zeros(len(gi), np.int64), np.ones(len(run_p), np.int64), np.full(len(mp), 2, np.int64)]
+    up = np.r_[cp[gi], corners.poly, mp]
+    ua = np.r_[ja[gi], 3 * corners.first, 3 * ms_]
+    ub = np.r_[ja[gi] + 3, 3 * (corners.first + corners.count), 3 * (ms_ + mn)]
+    uk = np.r_[np.zeros(len(gi), np.int64), np.ones(len(corners.poly), np.int64), np.full(len(mp), 2, np.int64)]
     o = np.lexsort((np.mod(ua, C.m[up]), up))
     core, core_a, cpoly, corem = C.core(up[o], ua[o], ub[o], uk[o])
     all_merged = np.bincount(cp, weights=~merge, minlength=P) == 0
@@ -200,7 +252,7 @@ def _pass(rs, depth, segment, min_frontage, C):
     core_of[cpoly] = core
     core_mark = np.full(P, -1, np.int64)  # index into corem, -1: unknown marks
     core_mark[cpoly] = np.arange(len(cpoly))
-    done &= np.bincount(run_p, weights=f, minlength=P) == 0
+    done &= np.bincount(corners.poly, weights=corners.refused, minlength=P) == 0
     # holes must lie inside the core
     nring = np.bincount(rs.poly, minlength=P)
     holed = np.flatnonzero(done & (nring > 1))
@@ -222,11 +274,29 @@ def _pass(rs, depth, segment, min_frontage, C):
     if len(whole):
         core_of[whole] = wsub.polygons()
         core_mark[whole] = len(cpoly) + np.arange(len(whole))
-    corem = Marks.concat([corem, whole_m])
+    return _Cores(core_of, core_mark, Marks.concat([corem, whole_m]), done, all_merged, whole_inner)
+
+
+def _pass(rs, depth, segment, min_frontage, C):
+    """Paris lots of the polygons of ``rs`` that the certificate accepts.
+
+    Returns lots, their polygon, inner flags, the accepted polygons, the
+    number of corner lots, the lots' segment marks and whether each lot's
+    marks are known.
+    """
+    P = rs.n
+    cand = _candidates(rs, C, min_frontage)
+    bad = (cand.bad | _overlapping_windows(C, cand)) & ~cand.core_part
+    corners, bad = _corner_lots(C, cand, bad, min_frontage)
+    good = ~bad & ~cand.core_part
+    cores = _cores(rs, C, cand, good, corners)
+    done, core_of, all_merged = cores.done, cores.lot, cores.all_merged
+    cp, ja = cand.poly, cand.start
+    run_p, s_i, n_i = corners.poly, corners.first, corners.count
     # lots: good candidates, corner lots, cores (small cores join their longest neighbour)
     gsel = good & done[cp]
     csel = done[run_p]
-    lots = np.r_[q[gsel], corner[csel]]
+    lots = np.r_[cand.lot[gsel], corners.lot[csel]]
     lpoly = np.r_[cp[gsel], run_p[csel]]
     shared = np.r_[
         _back_length(C, cp[gsel], ja[gsel], ja[gsel] + 3, 1),
@@ -237,10 +307,10 @@ def _pass(rs, depth, segment, min_frontage, C):
     small[has_core] = shapely.area(core_of[has_core]) < 0.5 * depth * segment
     small &= ~all_merged
     merged = np.zeros(P, bool)
-    cand = np.flatnonzero(small[lpoly])
-    if len(cand):
-        o = np.lexsort((-shared[cand], lpoly[cand]))
-        j = cand[o[np.r_[True, lpoly[cand][o][1:] != lpoly[cand][o][:-1]]]]
+    cand_j = np.flatnonzero(small[lpoly])
+    if len(cand_j):
+        o = np.lexsort((-shared[cand_j], lpoly[cand_j]))
+        j = cand_j[o[np.r_[True, lpoly[cand_j][o][1:] != lpoly[cand_j][o][:-1]]]]
         u = _union(lots[j], core_of[lpoly[j]])
         a_sum = shapely.area(lots[j]) + shapely.area(core_of[lpoly[j]])
         oku = (shapely.get_type_id(u) == 3) & (np.abs(shapely.area(u) - a_sum) <= 1e-6 * a_sum)
@@ -253,12 +323,12 @@ def _pass(rs, depth, segment, min_frontage, C):
     kc = np.flatnonzero(done & ~merged)
     lots = np.r_[lots, core_of[kc]]
     lpoly = np.r_[lpoly, kc]
-    inner = np.r_[np.zeros(len(lots) - len(kc), bool), ~all_merged[kc] | whole_inner[kc]]
+    inner = np.r_[np.zeros(len(lots) - len(kc), bool), ~all_merged[kc] | cores.whole_inner[kc]]
     # segment marks, where the construction knows them (not for GEOS-made lots)
     nq, nc = int(gsel.sum()), int(csel.sum())
-    src = Marks.concat([qm.take(np.flatnonzero(gsel)), cm.take(np.flatnonzero(csel)), corem])
-    pick = np.r_[np.arange(nq + nc), nq + nc + core_mark[kc]]
-    known = np.r_[np.ones(nq + nc, bool), core_mark[kc] >= 0]
+    src = Marks.concat([cand.marks.take(np.flatnonzero(gsel)), corners.marks.take(np.flatnonzero(csel)), cores.marks])
+    pick = np.r_[np.arange(nq + nc), nq + nc + cores.mark[kc]]
+    known = np.r_[np.ones(nq + nc, bool), cores.mark[kc] >= 0]
     known[replaced] = False
     unk = np.flatnonzero(~known)
     src = Marks.concat([src, Marks.unknown(lots[unk])])

@@ -1,0 +1,571 @@
+"""Every declared parameter moves the output (issue 15 part 7).
+
+For each built-in node's declared parameter, :data:`CASES` runs the node on a
+small real input (the Monaco extract of configs/data: its roads, blocks, lots
+and buildings; the districts demo's plan for the map-driven nodes) at two
+values and asserts that a measure of the output moves in the documented
+direction: ``+1`` the measure grows from the first value to the second, ``-1``
+it shrinks, ``0`` it changes (a choice with no order).  A parameter that cannot
+move the output on such an input is listed in :data:`ALLOWED` with the reason.
+A parameter in neither fails :func:`test_every_parameter_is_covered`, so a new
+parameter comes with its test.
+
+This is the test that catches a parameter hard-wired to its default (issue 15:
+Paris ``depth``) or wired to another parameter.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import shapely
+
+from sengine import Context, Layer
+from sengine.nodes.maps import plan_inputs
+from sengine.registry import REGISTRY, get, load_entry_points
+from sengine.xmlconfig import load_config
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT / "configs" / "data"
+MONACO = DATA / "monaco.osm.pbf"
+
+
+# ---------------------------------------------------------------------------
+# inputs, built once per module from the Monaco extract
+# ---------------------------------------------------------------------------
+
+
+def run(name: str, params: dict, plan=None, **inputs: Layer):
+    """Run node ``name`` with ``params`` on ``inputs`` (and the plan's source layers)."""
+    node = get(name)("node", params, Context(seed=4, plan=plan, base_dir=ROOT / "configs"))
+    if plan is not None:
+        inputs = {**plan_inputs(plan, node, base_dir=ROOT / "configs"), **inputs}
+    return node.run(**inputs)
+
+
+@cache
+def osm() -> dict:
+    return dict(run("osm.read", {"path": str(MONACO), "extras": "water,parks,buildings,landuse"}))
+
+
+@cache
+def roads() -> Layer:
+    return run("roads.clean", {"sliver_width": 6}, roads=osm()["roads"])["roads"]
+
+
+@cache
+def city_blocks() -> dict:
+    return dict(run("blocks.circuits", {}, roads=roads()))
+
+
+def blocks() -> Layer:
+    return city_blocks()["blocks"]
+
+
+@cache
+def lots(method: str = "lots.recursive") -> Layer:
+    return run(method, {}, blocks=blocks())["lots"]
+
+
+@cache
+def buildings() -> Layer:
+    return run("buildings.massing", {}, lots=lots(), blocks=blocks())["buildings"]
+
+
+@cache
+def parks() -> Layer:
+    return run("parks.block", {"mode": "every", "every": 4}, blocks=blocks())["parks"]
+
+
+@cache
+def districts_plan():
+    load_entry_points()
+    return load_config(ROOT / "configs" / "districts.xml").plan
+
+
+@cache
+def manhattan_plan():
+    load_entry_points()
+    return load_config(ROOT / "configs" / "manhattan.xml").plan
+
+
+def hash_grid() -> Layer:
+    """Four 300 m streets crossing in a '#' with no vertex at their crossings (a plane graph needs noding)."""
+    lines = [((0, 100), (300, 100)), ((0, 200), (300, 200)), ((100, 0), (100, 300)), ((200, 0), (200, 300))]
+    return Layer.from_geoms(shapely.linestrings(lines), width=np.full(4, 10.0), major=np.zeros(4, bool))
+
+
+# ---------------------------------------------------------------------------
+# measures of an output
+# ---------------------------------------------------------------------------
+
+
+def count(port: str) -> Callable:
+    def f(out):
+        return len(out[port])
+
+    f.__name__ = f"count({port})"
+    return f
+
+
+def area(port: str) -> Callable:
+    def f(out):
+        return float(shapely.area(out[port].geometry).sum())
+
+    f.__name__ = f"area({port})"
+    return f
+
+
+def length(port: str) -> Callable:
+    def f(out):
+        return float(shapely.length(out[port].geometry).sum())
+
+    f.__name__ = f"length({port})"
+    return f
+
+
+def mean(port: str, column: str) -> Callable:
+    def f(out):
+        return float(np.mean(np.asarray(out[port][column], dtype=float)))
+
+    f.__name__ = f"mean({port}.{column})"
+    return f
+
+
+def std(port: str, column: str) -> Callable:
+    def f(out):
+        return float(np.std(np.asarray(out[port][column], dtype=float)))
+
+    f.__name__ = f"std({port}.{column})"
+    return f
+
+
+def maximum(port: str, column: str) -> Callable:
+    def f(out):
+        return float(np.max(np.asarray(out[port][column], dtype=float)))
+
+    f.__name__ = f"max({port}.{column})"
+    return f
+
+
+def floor_area(port: str = "buildings") -> Callable:
+    def f(out):
+        b = out[port]
+        return float((shapely.area(b.geometry) * np.asarray(b["floors"], dtype=float)).sum())
+
+    f.__name__ = f"floor_area({port})"
+    return f
+
+
+def ratio(port: str, num: str, den: str) -> Callable:
+    def f(out):
+        b = out[port]
+        return float(np.mean(np.asarray(b[num], float) / np.maximum(np.asarray(b[den], float), 1)))
+
+    f.__name__ = f"mean({port}.{num}/{den})"
+    return f
+
+
+def podium(what: str) -> Callable:
+    """Total area, or mean height, of the podium parts of the buildings."""
+
+    def f(out):
+        b = out["buildings"]
+        sel = np.asarray(b["part"]) == "podium"
+        assert sel.any(), "no podium"
+        if what == "area":
+            return float(shapely.area(b.geometry[sel]).sum())
+        return float(np.mean(np.asarray(b["height"], float)[sel]))
+
+    f.__name__ = f"podium {what}"
+    return f
+
+
+def inner_area(out) -> float:
+    """Area of the lots with no street frontage (Paris courtyards)."""
+    lots = out["lots"]
+    return float(shapely.area(lots.geometry[np.asarray(lots["inner"], bool)]).sum())
+
+
+def report(key: str) -> Callable:
+    def f(out):
+        return out.report[key]
+
+    f.__name__ = f"report[{key}]"
+    return f
+
+
+def content(port: str) -> Callable:
+    """The whole layer: geometry bytes and every column (for ``0``: it changes)."""
+
+    def f(out):
+        layer = out[port]
+        digest = hashlib.sha256(b"".join(shapely.to_wkb(layer.geometry).tolist()))
+        for c in sorted(layer.columns):
+            digest.update(c.encode() + repr(np.asarray(layer[c]).tolist()).encode())
+        return digest.hexdigest()[:16]
+
+    f.__name__ = f"content({port})"
+    return f
+
+
+# ---------------------------------------------------------------------------
+# the cases
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Case:
+    """Node ``node`` run with ``param`` at ``lo`` then ``hi`` (other parameters ``base``)."""
+
+    node: str
+    param: str
+    lo: Any
+    hi: Any
+    measure: Callable
+    sign: int  # +1 grows lo -> hi, -1 shrinks, 0 changes
+    inputs: Callable[[], dict] = field(default=lambda: {})
+    base: tuple = ()
+    plan: Callable | None = None
+
+    @property
+    def id(self) -> str:
+        return f"{self.node}.{self.param}"
+
+
+def on_roads():
+    return {"roads": roads()}
+
+
+def on_raw_roads():
+    return {"roads": osm()["roads"]}
+
+
+def on_blocks():
+    return {"blocks": blocks()}
+
+
+def on_lots():
+    return {"lots": lots(), "blocks": blocks()}
+
+
+def on_paris_lots():
+    return {"lots": lots("lots.paris"), "blocks": blocks()}
+
+
+def on_lots_only():
+    return {"lots": lots()}
+
+
+def on_paris_lots_only():
+    return {"lots": lots("lots.paris")}
+
+
+def on_landuse():
+    return {"blocks": blocks(), "water": osm()["water"], "parks": osm()["parks"]}
+
+
+def on_check():
+    return {"buildings": buildings(), "blocks": blocks(), "roads": roads()}
+
+
+def on_existing():
+    return {"buildings": buildings(), "existing": osm()["buildings"], "lots": lots()}
+
+
+def on_stats():
+    return {"lots": lots(), "buildings": buildings(), "blocks": blocks()}
+
+
+B = "buildings"
+MASSING = []
+for _node, _extra in (("buildings.massing", ()), ("buildings.far", (("loc", 1), ("far", 0.0)))):
+    MASSING += [
+        Case(_node, "loc", 0, 1, content(B), 0, on_lots, (("far", 2.0),)),
+        Case(_node, "far", 1.0, 3.0, floor_area(), +1, on_lots, (("loc", 0),)),
+        Case(_node, "use", "residential", "industrial", content(B), 0, on_lots, _extra),
+        Case(_node, "typology", "I", "tower", content(B), 0, on_lots, _extra),
+        Case(_node, "siting", "attached", "detached", area(B), -1, on_lots, _extra + (("typology", "I"),)),
+        Case(_node, "setback_front", 0.0, 6.0, area(B), -1, on_lots, _extra),
+        Case(_node, "setback_side", 2.0, 8.0, area(B), -1, on_lots, _extra + (("siting", "detached"),)),
+        Case(_node, "setback_rear", 2.0, 12.0, area(B), -1, on_lots, _extra + (("depth", 60.0),)),
+        Case(_node, "depth", 8.0, 20.0, area(B), +1, on_lots, _extra + (("typology", "I"),)),
+        Case(_node, "tower", 12.0, 24.0, area(B), +1, on_lots, _extra + (("typology", "tower"),)),
+        Case(_node, "podium_floors", 1, 4, podium("height"), +1, on_lots, _extra + (("typology", "towers"),)),
+        Case(_node, "podium_depth", 8.0, 24.0, podium("area"), +1, on_lots, _extra + (("typology", "towers"),)),
+        Case(_node, "floors", 3, 6, mean(B, "height"), +1, on_lots, _extra),
+        Case(_node, "height", 10.0, 40.0, mean(B, "height"), +1, on_lots, _extra),
+        Case(_node, "variation", 0.0, 0.5, std(B, "height"), +1, on_lots, _extra + (("height", 40.0),)),
+        Case(_node, "height_class", "", "II", maximum(B, "height"), -1, on_lots, _extra + (("height", 100.0),)),
+        Case(_node, "floor_height", 3.0, 4.0, mean(B, "height"), +1, on_lots, _extra + (("floors", 5),)),
+        Case(_node, "roof", "flat", "gable", content(B), 0, on_lots, _extra),
+        Case(_node, "min_area", 20.0, 400.0, count(B), -1, on_lots, _extra),
+        Case(_node, "courtyards", False, True, count(B), +1, on_paris_lots, _extra),
+    ]
+
+CASES: list[Case] = [
+    # blocks
+    Case("blocks.circuits", "sidewalk", 1.0, 5.0, area("blocks"), -1, on_roads),
+    Case("blocks.circuits", "street_width", 6.0, 16.0, area("blocks"), -1, on_roads, (("width_from", "param"),)),
+    Case("blocks.circuits", "width_from", "roads", "param", area("blocks"), -1, on_roads, (("street_width", 30.0),)),
+    Case("blocks.circuits", "inset", "mean", "street", content("blocks"), 0, on_roads),
+    Case("blocks.circuits", "min_area", 50.0, 5000.0, count("blocks"), -1, on_roads),
+    Case("blocks.circuits", "node", False, True, count("blocks"), +1, lambda: {"roads": hash_grid()}),
+    Case("blocks.circuits", "dead_ends", "over", "cut", area("blocks"), -1, on_raw_roads),
+    Case("blocks.circuits", "bridges", "over", "cut", area("blocks"), -1, on_raw_roads),
+    Case("blocks.circuits", "decimals", 0, 6, content("blocks"), 0, on_roads),
+    Case("blocks.landuse", "max_block_area", 1e6, 2000.0, area("blocks"), -1, on_landuse, (("max_depth", 10.0),)),
+    Case("blocks.landuse", "max_depth", 10.0, 40.0, area("blocks"), +1, on_landuse, (("max_block_area", 2000.0),)),
+    Case("blocks.landuse", "min_area", 50.0, 3000.0, count("blocks"), -1, on_landuse),
+    Case("blocks.landuse", "min_width", 4.0, 40.0, count("blocks"), -1, on_landuse),
+    # lots
+    Case("lots.manhattan", "count", 2, 6, count("lots"), +1, on_blocks),
+    Case("lots.manhattan", "width", 20.0, 60.0, count("lots"), -1, on_blocks),
+    Case("lots.manhattan", "min_depth", 5.0, 60.0, count("lots"), -1, on_blocks),
+    Case("lots.manhattan", "row_depth", 5.0, 60.0, count("lots"), -1, on_blocks),
+    Case("lots.manhattan", "min_area", 50.0, 1500.0, count("lots"), -1, on_blocks, (("width", 15.0),)),
+    Case("lots.paris", "segment", 10.0, 30.0, count("lots"), -1, on_blocks),
+    Case("lots.paris", "depth", 12.0, 30.0, inner_area, -1, on_blocks),
+    Case("lots.paris", "deviation", 0.0, 6.0, content("lots"), 0, on_blocks),
+    Case("lots.paris", "min_frontage", 1.0, 12.0, count("lots"), -1, on_blocks),
+    Case("lots.recursive", "max_area", 400.0, 2000.0, count("lots"), -1, on_blocks),
+    Case("lots.recursive", "min_area", 50.0, 400.0, count("lots"), -1, on_blocks),
+    Case("lots.recursive", "min_frontage", 2.0, 15.0, count("lots"), -1, on_blocks),
+    Case("lots.recursive", "row_depth", 15.0, 60.0, count("lots"), -1, on_blocks),
+    Case("lots.recursive", "max_aspect", 1.5, 6.0, content("lots"), 0, on_blocks),
+    Case("lots.recursive", "jitter", 0.0, 0.5, content("lots"), 0, on_blocks),
+    Case("lots.recursive", "inner_lots", "compact", "split", count("lots"), +1, on_blocks, (("row_depth", 10.0),)),
+    Case("lots.skeleton", "depth", 12.0, 35.0, count("lots"), 0, on_blocks),
+    Case("lots.skeleton", "width", 8.0, 30.0, count("lots"), -1, on_blocks),
+    Case("lots.skeleton", "lot_width_min", 2.0, 12.0, count("lots"), -1, on_blocks),
+    Case("lots.skeleton", "lot_area_min", 20.0, 600.0, count("lots"), -1, on_blocks),
+    Case("lots.skeleton", "lot_area_max", 300.0, 5000.0, count("lots"), -1, on_blocks, (("interior", "split"),)),
+    Case("lots.skeleton", "irregularity", 0.0, 0.8, content("lots"), 0, on_blocks),
+    Case("lots.skeleton", "corner", "merge", "split", count("lots"), +1, on_blocks),
+    Case("lots.skeleton", "interior", "inner", "merge", count("lots"), -1, on_blocks),
+    Case(
+        "lots.skeleton",
+        "force_street_access",
+        False,
+        True,
+        count("lots"),
+        -1,
+        on_blocks,
+        (("lot_width_min", 15.0), ("width", 30.0)),
+    ),
+    Case("lots.skeleton", "corner_angle", 10.0, 120.0, content("lots"), 0, on_blocks),
+    Case("lots.partition", "mode", "size", "count", content("lots"), 0, on_blocks),
+    Case("lots.partition", "size", (20.0, 30.0), (40.0, 60.0), count("lots"), -1, on_blocks),
+    Case("lots.partition", "count", (2, 1), (6, 2), count("lots"), +1, on_blocks, (("mode", "count"),)),
+    Case("lots.partition", "ratio", "1 2", "1 1 3", content("lots"), 0, on_blocks, (("mode", "ratio"),)),
+    Case("lots.partition", "cluster", (1, 1), (2, 1), count("lots"), -1, on_blocks),
+    Case("lots.partition", "min_area", 1.0, 300.0, count("lots"), -1, on_blocks),
+    Case("lots.partition", "max_aspect", 0.0, 2.0, count("lots"), -1, on_blocks),
+    # buildings
+    Case("buildings.extrude", "setback", 1.0, 4.0, area(B), -1, on_lots_only),
+    Case("buildings.extrude", "height", 10.0, 30.0, mean(B, "height"), +1, on_lots_only),
+    Case("buildings.extrude", "variation", 0.0, 0.5, std(B, "height"), +1, on_lots_only, (("height", 40.0),)),
+    Case("buildings.extrude", "floor_height", 3.0, 4.0, ratio(B, "height", "floors"), +1, on_lots_only),
+    Case("buildings.extrude", "min_area", 20.0, 400.0, count(B), -1, on_lots_only),
+    Case("buildings.extrude", "courtyards", False, True, count(B), +1, on_paris_lots_only),
+    *MASSING,
+    Case("buildings.check", "structure", "grown", "garden-city", mean("blocks", "zb"), -1, on_check),
+    Case("buildings.check", "height_class", "", "I", content(B), 0, on_check),
+    Case("buildings.existing", "keep", "both", "generated", count(B), -1, on_existing),
+    Case("buildings.existing", "overlap", 1.0, 1e6, count(B), +1, on_existing),
+    # stats and filters
+    Case("stats.planning", "m2_per_resident", 25.0, 100.0, lambda out: out.report["city"]["residents"], -1, on_stats),
+    Case("stats.planning", "walls", False, True, lambda out: len(out.report), +1, on_stats),
+    Case("filter.area", "min_area", 0.0, 500.0, count("output"), -1, lambda: {"input": blocks()}),
+    Case("filter.area", "max_area", 1e12, 5000.0, count("output"), -1, lambda: {"input": blocks()}),
+    Case("filter.area", "min_width", 0.0, 20.0, count("output"), -1, lambda: {"input": blocks()}),
+    Case("filter.area", "max_width", 1e9, 30.0, count("output"), -1, lambda: {"input": blocks()}),
+    # roads
+    Case("roads.clean", "tunnels", "drop", "keep", count("roads"), +1, on_raw_roads),
+    Case("roads.clean", "dup_tol", 0.0, 20.0, count("roads"), -1, on_raw_roads),
+    Case("roads.clean", "dead_ends", False, True, count("roads"), -1, on_raw_roads),
+    Case("roads.clean", "close", "none", "bbox", report("closing_edges"), +1, on_raw_roads),
+    Case("roads.clean", "sliver_width", 2.0, 12.0, count("slivers"), +1, on_raw_roads),
+    Case("roads.clean", "island_area", 10.0, 1000.0, report("islands"), +1, on_raw_roads),
+    Case("roads.clean", "find_slivers", False, True, count("slivers"), +1, on_raw_roads),
+    Case("roads.clean", "decimals", 0, 6, content("graph"), 0, on_raw_roads),
+    # osm
+    Case(
+        "osm.read",
+        "major",
+        "motorway",
+        "primary,secondary,tertiary",
+        lambda o: int(o["roads"]["major"].sum()),
+        +1,
+        base=(("path", str(MONACO)),),
+    ),
+    Case("osm.read", "minor", "residential", "*", count("roads"), +1, base=(("path", str(MONACO)),)),
+    Case(
+        "osm.read",
+        "extras",
+        "water",
+        "water,buildings",
+        lambda o: len(o["buildings"]),
+        +1,
+        base=(("path", str(MONACO)),),
+    ),
+    Case(
+        "osm.read",
+        "node_ids",
+        False,
+        True,
+        lambda o: len(o["roads"].meta.get("node_ids", ())),
+        +1,
+        base=(("path", str(MONACO)),),
+    ),
+    Case(
+        "osm.read",
+        "floor_height",
+        2.5,
+        4.0,
+        lambda o: float(o["buildings"]["height"].sum()),
+        +1,
+        base=(("path", str(MONACO)), ("extras", "buildings")),
+    ),
+    Case(
+        "osm.read",
+        "default_height",
+        5.0,
+        20.0,
+        lambda o: float(o["buildings"]["height"].sum()),
+        +1,
+        base=(("path", str(MONACO)), ("extras", "buildings")),
+    ),
+]
+
+# lots.district hands each parameter to the method it picks: the same cases, through it (the first
+# method declaring a parameter; 'width' is manhattan's: skeleton blocks take theirs from a district rule)
+_district: dict[str, Case] = {}
+for c in CASES:
+    if c.node in ("lots.manhattan", "lots.paris", "lots.recursive", "lots.skeleton"):
+        if c.param in get("lots.district").params and c.param not in _district:
+            _district[c.param] = Case(
+                "lots.district", c.param, c.lo, c.hi, c.measure, c.sign, c.inputs, c.base + (("default", c.node[5:]),)
+            )
+CASES += _district.values()
+CASES.append(Case("lots.district", "default", "manhattan", "paris", count("lots"), +1, on_blocks))
+
+ALLOWED: dict[str, str] = {
+    "maps.file.kind": "names what the file is; another kind is another source node type, not another output",
+    "maps.file.src": "the input file itself",
+    "maps.image.kind": "names what the image is; the map's port kind follows it",
+    "maps.image.src": "the input file itself",
+    "plan.rules.tag": "selects which rule elements are read; another tag reads other rules",
+    "obj.lots.path": "the input file itself",
+    "obj.roads.path": "the input file itself",
+    "osm.read.path": "the input file itself",
+    "roads.image.path": "the input file itself",
+    "export.city.line_width": "export.city writes files and returns no layer (tests/test_export.py checks its files)",
+    "export.city.preview_size": "export.city writes files and returns no layer (tests/test_export.py checks its files)",
+    "export.city.lod": "export.city writes files and returns no layer (tests/test_export.py checks its files)",
+}
+
+# Not yet covered here (each has tests of its own behaviour elsewhere, but no two-value test yet): listed so
+# that the gap is visible and a new parameter still fails the module.  To be moved into CASES.
+PENDING: dict[str, str] = {
+    **{
+        f"maps.image.{p}": "needs an image fixture per kind (tests/test_maps.py)"
+        for p in ("min", "max", "tolerance", "color")
+    },
+    **{f"obj.lots.{p}": "needs an OBJ fixture (tests/test_objimport.py)" for p in ("up", "scale", "min_area")},
+    **{
+        f"obj.roads.{p}": "needs an OBJ fixture (tests/test_objimport.py)"
+        for p in ("up", "scale", "width", "road_class")
+    },
+    **{f"parks.block.{p}": "open space (tests/test_openspace.py)" for p in ("mode", "every", "share", "min_area")},
+    **{f"parks.district.{p}": "open space (tests/test_openspace.py)" for p in ("mode", "min_area")},
+    **{
+        f"parks.lot.{p}": "open space (tests/test_openspace.py)"
+        for p in ("mode", "every", "share", "ids", "use", "min_area")
+    },
+    **{
+        f"parks.patio.{p}": "open space (tests/test_openspace.py)"
+        for p in ("mode", "gap", "front", "min_area", "min_width")
+    },
+    **{
+        f"roads.bridges.{p}": "needs a river crossing (paris demo; tests/test_openspace.py)"
+        for p in ("max_span", "crossings", "min_gap", "snap", "thickness")
+    },
+    **{
+        f"roads.districts.{p}": "needs the districts plan (tests/test_districts.py)"
+        for p in ("merge", "simplify", "grid")
+    },
+    **{f"roads.minor.{p}": "needs the districts plan (tests/test_districts.py)" for p in ("merge", "grid")},
+    **{
+        f"roads.image.{p}": "needs the road-map image (tests/test_roadimage.py)"
+        for p in ("size", "color", "tolerance", "simplify", "min_length", "width", "road_class")
+    },
+    **{
+        f"vegetation.trees.{p}": "open space (tests/test_openspace.py)"
+        for p in (
+            "spacing",
+            "avenue_spacing",
+            "avenue_offset",
+            "avenue_clear",
+            "corner",
+            "district_density",
+            "block_density",
+            "lot_density",
+            "patio_density",
+            "region_density",
+            "deviation",
+            "clearance",
+            "avenue_plants",
+            "park_plants",
+            "patio_plants",
+            "region_plants",
+            "instances",
+            "region_pattern",
+            "versailles_depth",
+        )
+    },
+    "water.landuse.kind": "open space (tests/test_openspace.py)",
+}
+
+
+def all_params() -> set[str]:
+    load_entry_points()
+    return {
+        f"{name}.{p}"
+        for name, cls in REGISTRY.items()
+        if cls.__module__.startswith("sengine.nodes")
+        for p in cls.params
+    }
+
+
+def test_every_parameter_is_covered():
+    covered = {c.id for c in CASES}
+    assert len(covered) == len(CASES), "a parameter has two cases"
+    missing = sorted(all_params() - covered - set(ALLOWED) - set(PENDING))
+    assert not missing, f"parameters with no test that they move the output, nor a reason in ALLOWED: {missing}"
+    assert not covered & (set(ALLOWED) | set(PENDING)), sorted(covered & (set(ALLOWED) | set(PENDING)))
+    stale = sorted((covered | set(ALLOWED) | set(PENDING)) - all_params())
+    assert not stale, f"cases of parameters no node declares: {stale}"
+
+
+@pytest.mark.parametrize("case", CASES, ids=lambda c: c.id)
+def test_parameter_moves_the_output(case: Case):
+    plan = case.plan() if case.plan else None
+    inputs = case.inputs()
+    base = dict(case.base)
+    a = case.measure(run(case.node, {**base, case.param: case.lo}, plan, **inputs))
+    b = case.measure(run(case.node, {**base, case.param: case.hi}, plan, **inputs))
+    what = f"{case.node} {case.param}: {case.measure.__name__} {a!r} at {case.lo!r} -> {b!r} at {case.hi!r}"
+    if case.sign > 0:
+        assert b > a, what
+    elif case.sign < 0:
+        assert b < a, what
+    else:
+        assert a != b, what
