@@ -1,4 +1,4 @@
-"""The ``sengine`` command: run | batch | validate | nodes | graph | osm.
+"""The ``sengine`` command: run | batch | validate | nodes | graph | osm | view.
 
 A user mistake prints one line (``sengine: error: WHERE: WHAT``) and exits
 with status 2; ``--debug`` shows the traceback instead.
@@ -12,6 +12,7 @@ import logging
 import signal
 import sys
 import tempfile
+import threading
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -68,7 +69,8 @@ def _run_options(p: argparse.ArgumentParser) -> None:
         "--format",
         dest="formats",
         default="",
-        help="comma list of outputs: glb,geojson,osm,png,obj,cityjson,gpkg,parquet (default: the exporter's)",
+        help="comma list of outputs: glb,geojson,osm,png,obj,cityjson,gpkg,parquet,html "
+        "(default: the exporter's, glb,geojson,osm,png,html for export.city)",
     )
     p.add_argument(
         "--crs",
@@ -185,6 +187,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _common(p)
 
+    p = sub.add_parser("view", help="write OUT/index.html, the city in 3D in a browser (--serve: on localhost)")
+    p.add_argument("out", type=Path, help="an output folder of a run that wrote html (a default format)")
+    p.add_argument("--serve", action="store_true", help="serve the folder on 127.0.0.1 until Ctrl-C")
+    p.add_argument("--port", type=_port, default=0, help="port for --serve (default: a free one)")
+    _common(p)
+
     p = sub.add_parser("graph", help="draw a config's network (.dot, .svg or .png)")
     p.add_argument("config", type=Path)
     p.add_argument("-o", "--out", required=True, type=Path, help="output file: .dot, .svg or .png")
@@ -193,11 +201,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _progress(args: argparse.Namespace):
+    """A progress display on stderr when it is a terminal and ``--quiet`` is not given."""
     if args.quiet or not sys.stderr.isatty():
         return None
-    from .network import _stderr_progress
+    from .progress import TerminalProgress
 
-    return _stderr_progress
+    return TerminalProgress(sys.stderr)
 
 
 def _formats(text: str) -> frozenset[str]:
@@ -218,6 +227,17 @@ def _crs(text: str) -> str:
 def _options(args: argparse.Namespace) -> dict:
     """The exporters' options of a run command (``--crs``, ``--origin``)."""
     return {"crs": args.crs, "origin": args.origin}
+
+
+def _port(text: str) -> int:
+    """``--port``: 0 (a free one) to 65535."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 0 <= n <= 65535:
+        raise argparse.ArgumentTypeError(f"{n} is not a port (0 to 65535)")
+    return n
 
 
 def _workers(text: str) -> int:
@@ -498,6 +518,36 @@ def cmd_nodes(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_view(args: argparse.Namespace) -> int:
+    """(Re)write the page of an output folder (the viewer of this sengine) and serve it with ``--serve``."""
+    from . import viewer
+
+    out = args.out
+    if not out.is_dir():
+        raise SEngineError(f"{out}: no such output folder")
+    if not (out / viewer.DATA_FILE).is_file():
+        raise SEngineError(
+            f"{out}: holds no {viewer.DATA_FILE} (the city for the page): run sengine again with --format html"
+            " (or with html among the --format list)"
+        )
+    try:
+        page = viewer.write_page(out)
+    except OSError as err:
+        raise SEngineError(f"{out}: cannot write the page: {err.strerror or err}") from None
+    if not args.serve:
+        print(page.resolve().as_uri())
+        return 0
+    server = viewer.serve(out, port=args.port)
+    host, port = server.server_address[:2]
+    print(f"serving {out} on http://{host}:{port}/ (Ctrl-C to stop)", flush=True)
+    try:
+        threading.Event().wait()
+    finally:
+        server.shutdown()
+        server.server_close()
+    return 0
+
+
 def cmd_graph(args: argparse.Namespace) -> int:
     """``sengine graph``: draw a config's network, the plan's inputs included."""
     from .graphview import write_graph
@@ -520,6 +570,7 @@ COMMANDS = {
     "validate": cmd_validate,
     "nodes": cmd_nodes,
     "graph": cmd_graph,
+    "view": cmd_view,
 }
 
 
