@@ -64,7 +64,9 @@ def read_view(path: Path) -> dict:
 @pytest.fixture(scope="module")
 def manhattan(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("view") / "manhattan"
-    r = run_cli("run", ROOT / "configs" / "manhattan.xml", "-o", out, "--format", "html,png,geojson", "--workers", "1")
+    r = run_cli(
+        "run", ROOT / "configs" / "manhattan.xml", "-o", out, "--format", "html,png,geojson,glb", "--workers", "1"
+    )
     assert r.returncode == 0, r.stderr
     return out
 
@@ -72,7 +74,7 @@ def manhattan(tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def monaco(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("view") / "monaco"
-    r = run_cli("osm", DATA / "monaco.osm.pbf", "-o", out, "--format", "html,png,geojson", "--workers", "2")
+    r = run_cli("osm", DATA / "monaco.osm.pbf", "-o", out, "--format", "html,png,geojson,glb", "--workers", "2")
     assert r.returncode == 0, r.stderr
     return out
 
@@ -136,12 +138,73 @@ def test_view_data_holds_every_feature(city, request):
     top = np.zeros(b["features"])
     np.maximum.at(top, b["feature_"].astype(int), b["position_"][:, 1])
     assert np.allclose(top, heights, atol=1e-3)
-    # every building of a lot with a FAR shows that FAR
+    # every building of a lot with a FAR shows that FAR (map buildings too, which have no far of their own)
     lots = {f["id"]: f["properties"].get("far") for f in written["lots"]}
     expect = [lots.get(f["properties"].get("lot")) for f in written["buildings"]]
     expect = np.array([np.nan if v is None else v for v in expect], float)
     assert np.allclose(b["columns_"]["lot_far"], expect, equal_nan=True)
     assert np.isfinite(b["columns_"]["lot_far"]).mean() > 0.4
+    # the page's buildings are the glb's solids (roofs at lod 2): the same triangles but the floors, the same top
+    glb = glb_buildings(out / "city.glb")
+    floors = glb["down"].sum()
+    assert floors >= b["features"]
+    # (the glb drops the few triangles that collapse once its vertices are welded in float32)
+    assert 0 <= b["triangles"] - (len(glb["index"]) - floors) <= 0.005 * len(glb["index"])
+    # no floors: nothing faces down but slivers of float32 rounding (those the glb drops), under 0.1 m2
+    p, i = b["position_"].astype(np.float64), b["index_"]
+    area = 0.5 * np.linalg.norm(np.cross(p[i[:, 1]] - p[i[:, 0]], p[i[:, 2]] - p[i[:, 0]]), axis=1)
+    assert not ((_normals_y(p, i) < -0.999) & (area > 0.1)).any(), "a floor in the page"
+    assert abs(b["position_"][:, 1].max() - glb["position"][:, 1].max()) < 0.01
+
+
+def read_glb(path: Path) -> tuple[dict, bytes]:
+    """The JSON chunk and the binary chunk of a glb."""
+    import struct
+
+    data = path.read_bytes()
+    n = struct.unpack_from("<I", data, 12)[0]
+    m = struct.unpack_from("<I", data, 20 + n)[0]
+    return json.loads(data[20 : 20 + n]), data[28 + n : 28 + n + m]
+
+
+def _buffer_view(doc: dict, binary: bytes, i: int, dtype) -> np.ndarray:
+    bv = doc["bufferViews"][i]
+    return np.frombuffer(binary, dtype, count=bv["byteLength"] // np.dtype(dtype).itemsize, offset=bv["byteOffset"])
+
+
+def glb_buildings(path: Path) -> dict:
+    """The glb's buildings mesh (positions, triangles) and its property table (``EXT_structural_metadata``)."""
+    doc, binary = read_glb(path)
+    mesh = next(m for m in doc["meshes"] if m["name"] == "buildings")
+    (prim,) = mesh["primitives"]
+    pos = doc["accessors"][prim["attributes"]["POSITION"]]
+    ext = prim["extensions"]["EXT_mesh_features"]["featureIds"][0]
+    meta = doc["extensions"]["EXT_structural_metadata"]
+    table = meta["propertyTables"][ext["propertyTable"]]
+    props = meta["schema"]["classes"][table["class"]]["properties"]
+    columns = {}
+    for pid, spec in props.items():
+        values = table["properties"][pid]
+        if spec["type"] == "STRING":
+            offs = _buffer_view(doc, binary, values["stringOffsets"], "<u4")
+            raw = _buffer_view(doc, binary, values["values"], "u1").tobytes()
+            col = [raw[a:b].decode() for a, b in zip(offs[:-1], offs[1:])]
+        else:
+            dtype = {"INT64": "<i8", "FLOAT64": "<f8", "UINT8": "u1"}[spec["componentType"]]
+            col = _buffer_view(doc, binary, values["values"], dtype).tolist()
+        columns[spec.get("name", pid)] = col
+    position = _buffer_view(doc, binary, pos["bufferView"], "<f4").reshape(-1, 3)
+    acc = doc["accessors"][prim["indices"]]
+    dtype = {5125: "<u4", 5123: "<u2"}[acc["componentType"]]
+    index = _buffer_view(doc, binary, acc["bufferView"], dtype)[: acc["count"]].reshape(-1, 3)
+    return {"position": position, "index": index, "down": _normals_y(position, index) < -0.999, "columns": columns}
+
+
+def _normals_y(position: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """The y (up) component of each triangle's unit normal."""
+    p = np.asarray(position, np.float64)
+    n = np.cross(p[index[:, 1]] - p[index[:, 0]], p[index[:, 2]] - p[index[:, 0]])
+    return n[:, 1] / np.maximum(np.linalg.norm(n, axis=1), 1e-12)
 
 
 def test_view_text_same_layers_same_bytes_and_columns():
@@ -262,6 +325,16 @@ def test_page_shows_the_city_and_answers(city, request):
         page.wait_for_timeout(200)
         assert changed(plain, canvas_image(page)) > 0.01
         assert "lot_far" in page.inner_text("#legend")
+        # the planner's columns of today's buildings are colour modes: floors, use, building type
+        modes = page.evaluate("[...document.querySelectorAll('#colour option')].map((o) => o.value)")
+        assert {"height", "floors", "use", "far"} <= set(modes)
+        if city == "manhattan":  # (Monaco's map buildings have no type; its generated ones do)
+            assert "typology" in modes
+            page.select_option("#colour", "typology")
+            page.wait_for_timeout(200)
+            legend = page.inner_text("#legend")
+            assert "buildings: typology" in legend and "towers" in legend, legend
+        page.select_option("#colour", "far")
         # a click on a building shows its id and attributes
         bid = tallest(out)
         at = page.evaluate("([id]) => window.sengineViewer.focus('buildings', id)", [bid])
@@ -274,6 +347,29 @@ def test_page_shows_the_city_and_answers(city, request):
         height = next(f for f in feats if f["id"] == bid)["properties"]["height"]
         info = page.inner_text("#info")
         assert re.search(rf"height\s+{re.escape(format(height, 'g'))}\b", info), info
+        # its attributes are the glb's property table row (EXT_structural_metadata), plus the page's lot_far
+        shown = page.evaluate(
+            """() => {
+              const s = window.sengineViewer.selected();
+              const layer = window.sengineViewer.view.layers.find((l) => l.name === s.layer);
+              return Object.fromEntries(Object.entries(layer.columns).map(([k, c]) => [k, c.get(s.row)]));
+            }"""
+        )
+        names = page.evaluate("[...document.querySelectorAll('#info th')].map((th) => th.textContent)")
+        assert names == list(shown)
+        table = glb_buildings(out / "city.glb")["columns"]
+        row = table["id"].index(bid)
+        assert set(shown) - {"lot_far"} == set(table)
+        for key, values in table.items():
+            want, got = values[row], shown[key]
+            if isinstance(want, str):
+                assert got == (want or None), key
+            elif isinstance(want, float) and not np.isfinite(want):
+                assert got is None, key
+            elif isinstance(want, int) and want < 0 and got is None:  # a reference to none (-1): null, as in GeoJSON
+                assert key in ("district", "lot", "block", "parent_id"), key
+            else:
+                assert got == pytest.approx(want, rel=1e-9), key
         # with the buildings off, a click there shows the lot beneath
         box.click()
         lot = next(f for f in feats if f["id"] == bid)["properties"].get("lot")

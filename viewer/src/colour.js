@@ -36,11 +36,15 @@ export function rampCss(steps = 8) {
   return `linear-gradient(to right, ${stops.join(",")})`;
 }
 
-// The colour modes: which column each names, in order of preference.
+// The colour modes: which column each names, in order of preference (the first that tells a layer's features apart).
+// Buildings carry height, floors, use, typology and far (their lot's, generated ones only); the page adds lot_far,
+// the FAR of the lot each building stands on, which map buildings have too; lots carry far.
 export const MODES = {
   height: { label: "height", columns: ["height"], numeric: true, unit: "m" },
+  floors: { label: "floors", columns: ["floors"], numeric: true, unit: "" },
   use: { label: "use", columns: ["use", "landuse", "building", "district_name", "district", "source"], numeric: false },
-  far: { label: "FAR", columns: ["far", "lot_far"], numeric: true, unit: "" },
+  typology: { label: "building type", columns: ["typology"], numeric: false },
+  far: { label: "FAR", columns: ["lot_far", "far"], numeric: true, unit: "" },
 };
 
 function quantile(sorted, q) {

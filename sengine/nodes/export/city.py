@@ -20,7 +20,7 @@ html       ``index.html`` + ``city.view.js`` (3D)  :mod:`sengine.nodes.export.ht
 ========== ======================================= ========================
 
 ``lod`` (``--lod``) chooses the buildings of the 3D formats (glb, obj,
-cityjson): 1 flat-roofed boxes, 2 with their roofs
+cityjson, html): 1 flat-roofed boxes, 2 with their roofs
 (:mod:`sengine.nodes.export.roofs`).
 
 Every layer is first made fit to open (:mod:`sengine.nodes.export.prepare`:
@@ -60,6 +60,7 @@ References
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 from collections.abc import Callable
@@ -187,7 +188,7 @@ def export_layers(
         The data's licence notice; default :data:`OSM_ATTRIBUTION` when a
         layer (or the plan) comes from OpenStreetMap.
     lod : int
-        Buildings in glb, obj and cityjson: 1 boxes, 2 with roofs.
+        Buildings in glb, obj, cityjson and html: 1 boxes, 2 with roofs.
     city_name : str
         The city's name (``<city name>``; a file name loses its extensions):
         the title of ``preview.png`` and of the html page.
@@ -200,7 +201,7 @@ def export_layers(
     """
     from sengine.io import geojson
 
-    from . import cityjson, gltf, gpkg, html, obj, osmxml, parquet, preview
+    from . import cityjson, gltf, gpkg, html, obj, osmxml, parquet, preview, roofs
 
     out = Path(out)
     asked = {str(f).strip().lower() for f in formats or ()} - {""}
@@ -270,6 +271,7 @@ def export_layers(
                     attribution=attribution,
                     crs=any_crs,
                     origin={"lat": centre_ll[0], "lon": centre_ll[1], "planar": [float(c) for c in centre]},
+                    lod=lod,
                 ),
             )
         )
@@ -378,12 +380,18 @@ def export_layers(
                 ),
             )
         )
+    # the buildings' roofs, which several 3D writers draw alike, are made once before the writers start
+    b = layers.get("buildings")
+    solid_writers = {"glb", "obj", "cityjson", "html"} & {fmt for fmt, _, _ in jobs}
+    share = lod >= 2 and len(solid_writers) >= 2 and b is not None and len(b) and "height" in b.attrs
     # progress: every job counts the features it writes, the chunked writers chunk by chunk
     weights = [_weight(layers, fmt, name) for fmt, name, _ in jobs]
     progress.expect(sum(weights), "features")
-    done = run_jobs(
-        [partial(_timed, write, 0 if fmt in _CHUNKED else w) for (fmt, _, write), w in zip(jobs, weights)], workers
-    )
+    with roofs.shared_solids(b, lod) if share else contextlib.nullcontext():
+        done = run_jobs(
+            [partial(_timed, write, 0 if fmt in _CHUNKED else w) for (fmt, _, write), w in zip(jobs, weights)],
+            workers,
+        )
     report: dict = {fmt: {} for fmt in FORMATS if any(f == fmt for f, _, _ in jobs)}
     seconds = dict.fromkeys(report, 0.0)
     for (fmt, name, _), (result, dt) in zip(jobs, done, strict=True):
@@ -496,7 +504,7 @@ class ExportCity(SENode):
             min=1,
             max=2,
             unit="1",
-            doc="buildings in glb, obj and cityjson: 1 flat-roofed boxes, 2 with their roofs (--lod)",
+            doc="buildings in glb, obj, cityjson and html: 1 flat-roofed boxes, 2 with their roofs (--lod)",
         ),
     }
 
