@@ -25,10 +25,13 @@ function el(tag, attrs = {}, ...children) {
   return e;
 }
 
-function fmt(v) {
+// identifiers and references (id, osm_id, lot, block, district ...) are shown as written, without thousands separators
+const IDENTIFIER = /(^|_)id$|^(lot|block|district|face|parent)$/;
+
+function fmt(v, name = "") {
   if (v === null || v === undefined) return "–";
   if (typeof v === "number") {
-    if (Number.isInteger(v)) return v.toLocaleString("en");
+    if (Number.isInteger(v)) return IDENTIFIER.test(name) ? String(v) : v.toLocaleString("en");
     return String(Number(v.toPrecision(7)));
   }
   return String(v);
@@ -320,9 +323,9 @@ function start() {
     const layer = view.layers.find((l) => l.name === hit.layer);
     const idCol = layer.columns.id;
     const id = idCol ? idCol.get(hit.row) : hit.row;
-    info.append(el("h3", { id: "picked", "data-layer": hit.layer, "data-id": String(id) }, `${hit.layer} ${fmt(id)}`));
+    info.append(el("h3", { id: "picked", "data-layer": hit.layer, "data-id": String(id) }, `${hit.layer} ${fmt(id, "id")}`));
     const table = el("table");
-    for (const [k, v] of rowsOf(layer, hit.row)) table.append(el("tr", {}, el("th", {}, k), el("td", {}, fmt(v))));
+    for (const [k, v] of rowsOf(layer, hit.row)) table.append(el("tr", {}, el("th", {}, k), el("td", {}, fmt(v, k))));
     info.append(table);
     highlight = picker.highlightMesh(meshes.get(hit.layer), hit.row);
     highlight.visible = meshes.get(hit.layer).group.visible;
