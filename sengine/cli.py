@@ -366,14 +366,33 @@ def cmd_batch(args: argparse.Namespace) -> int:
         fixed_sets=spec.fixed_sets,
     )
 
+    # on a terminal, one bar over the variants (count, rate, time left) with a line above it for each variant;
+    # the variants' own runs draw nothing (they may run in other processes): the two never draw over each other
+    display = _progress(args)
+    tally = {"done": 0, "total": 0}
+
+    def started(n: int, scheduler: str) -> None:
+        tally["total"] = n
+        if display is not None:
+            display.begin(f"batch: {n} variant{'' if n == 1 else 's'} ({scheduler})")
+            display.advance(0, n, "variants")
+
+    def say(line: str, file=None) -> None:
+        if display is not None:
+            display.write(line, file or sys.stdout)
+            tally["done"] += 1
+            display.advance(tally["done"], tally["total"], "variants")
+        else:
+            print(line, file=file or sys.stdout, flush=True)
+
     def done(k: int, n: int, row: dict) -> None:
         if not args.quiet:
             counts = ", ".join(f"{c[2:]} {row[c]:,}" for c in row if c.startswith("n_") and row[c] is not None)
             far = f", FAR {row['far']:.2f}" if row.get("far") is not None else ""
-            print(f"[{k}/{n}] {row['id']}: {counts}{far} in {row['seconds']:.1f} s", flush=True)
+            say(f"[{k}/{n}] {row['id']}: {counts}{far} in {row['seconds']:.1f} s")
 
     def failed(variant, exc: BaseException) -> None:
-        print(f"sengine: error: variant {variant.id}: {_one_line(str(exc))}", file=sys.stderr, flush=True)
+        say(f"sengine: error: variant {variant.id}: {_one_line(str(exc))}", sys.stderr)
 
     if not args.debug:  # Dask's logs (its loggers set their own levels, in every worker) only with --debug
         for handler in logging.getLogger().handlers:
@@ -387,10 +406,16 @@ def cmd_batch(args: argparse.Namespace) -> int:
             force=args.force,
             on_done=done,
             on_failed=failed,
+            on_start=started,
         )
     except BatchInterrupted as stop:
+        if display is not None:
+            display.close()
         print(f"sengine: {stop}", file=sys.stderr)
         return 128 + int(stop.signum)
+    finally:
+        if display is not None:
+            display.close()
     if not args.quiet:
         made = len(report.made)
         already = f", {len(report.skipped)} already made" if report.skipped else ""

@@ -217,7 +217,9 @@ class TerminalProgress(Progress):
     The running step is a line that names it (``[7/12] lots (lots.paris)``)
     with its clock, redrawn every ``tick`` seconds; once it counts its work the line becomes a bar
     with the count, rate and time left.  Each finished step leaves one line:
-    its count and seconds.
+    its count and seconds.  :meth:`begin` and :meth:`write` serve any other
+    long count the same way (``sengine batch``: one bar over the variants,
+    a line above it for each one made).
 
     Parameters
     ----------
@@ -249,6 +251,10 @@ class TerminalProgress(Progress):
 
     def start(self, i: int, n: int, node_id: str, type_: str) -> None:
         """A line for the running step, its clock ticking (a thread of this process redraws it)."""
+        self.begin(f"[{i}/{n}] {node_id} ({type_})")
+
+    def begin(self, desc: str) -> None:
+        """A line named ``desc`` with its clock ticking, until :meth:`advance` gives it a count."""
         from tqdm import tqdm
 
         self._close_bar()
@@ -259,7 +265,7 @@ class TerminalProgress(Progress):
         sized = min(self._size()) > 0
         self._bar = tqdm(
             total=None,
-            desc=f"[{i}/{n}] {node_id} ({type_})",
+            desc=desc,
             file=self.file,
             leave=False,
             # a terminal that tells no size (a bare pty, some CI consoles) is taken as 100 x 24
@@ -278,12 +284,15 @@ class TerminalProgress(Progress):
         if bar is None:
             return
         if bar.unit != f" {unit}" or bar.total != total:
+            if bar.total is not None or bar.n:  # a step's second count (roofs, then features): rate and clock anew
+                bar.reset(total=total)
             bar.unit = f" {unit}"
             bar.total = total
+            bar.unit_scale = (total or 0) >= 1000  # 85.9k features, but 3/12 variants
             bar.bar_format = (
-                "{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt}{unit} [{elapsed}<{remaining}, {rate_fmt}]"
+                "{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt}{unit} [{elapsed}<{remaining}, {rate_noinv_fmt}]"
                 if total
-                else "{desc}: {n_fmt}{unit} [{elapsed}, {rate_fmt}]"
+                else "{desc}: {n_fmt}{unit} [{elapsed}, {rate_noinv_fmt}]"
             )
         bar.update(done - bar.n)
 
@@ -292,8 +301,14 @@ class TerminalProgress(Progress):
         from tqdm import tqdm
 
         self._close_bar()
-        what = f"{count:,} features" if count else "done"
+        what = f"{count:,} feature{'' if count == 1 else 's'}" if count else "done"
         tqdm.write(f"[{i}/{n}] {node_id} ({type_}): {what}, {seconds:.2f} s", file=self.file)
+
+    def write(self, line: str, file: IO[str] | None = None) -> None:
+        """Print ``line`` on ``file`` (default: the display's) above the bar, which is drawn again below it."""
+        from tqdm import tqdm
+
+        tqdm.write(line, file=file if file is not None else self.file)
 
     def close(self) -> None:
         """Stop the clock and clear the bar."""

@@ -180,18 +180,46 @@ def test_terminal_names_the_running_step_with_a_bar(tmp_path):
     )
     assert code == 0, text
     lines = _screens(text)
+    n = int(re.search(r"^\[1/(\d+)\] ", lines[0]).group(1))  # the plan's maps and rules, then the city's nodes
     names = ["majorRoads", "minorRoads", "blocks", "lots", "buildings", "planning", "export"]
-    for k, node in enumerate(names, 1):
-        running = next(j for j, s in enumerate(lines) if s.startswith(f"[{k}/7] {node} (") and "running" in s)
+    ks = []
+    for node in names:
+        running = next(j for j, s in enumerate(lines) if re.match(rf"\[\d+/{n}\] {node} \(.*\): running", s))
+        k = int(re.match(r"\[(\d+)/", lines[running]).group(1))
         done = next(
-            j for j, s in enumerate(lines) if re.match(rf"\[{k}/7\] {node} \(.*\): ([\d,]+ features|done), ", s)
+            j for j, s in enumerate(lines) if re.match(rf"\[{k}/{n}\] {node} \(.*\): ([\d,]+ features?|done), ", s)
         )
         assert running < done, f"{node}: named only after it finished"
+        ks.append(k)
+    assert ks == sorted(ks) and ks[-1] == n
+    # chunked nodes count their input's features in the workers (--workers 2), with a rate
+    assert any(re.search(rf"\[{ks[4]}/{n}\] buildings .*\| [\d.]+k?/[\d.]+k? lots \[", s) for s in lines), lines
     # the export counts its features with a bar, a rate and the time left
-    bars = [s for s in lines if s.startswith("[7/7] export (export.city):") and "%|" in s]
+    bars = [s for s in lines if s.startswith(f"[{n}/{n}] export (export.city):") and "%|" in s]
     assert bars, lines
     assert re.search(r"100%\|.*\| [\d.]+k?/[\d.]+k? features \[\d\d:\d\d<\d\d:\d\d, +[\d.]+k? features/s\]", bars[-1])
-    assert lines[-1].startswith(f"{tmp_path / 'm'}: majorRoads 92")
+    assert lines[-1].startswith(f"{tmp_path / 'm'}: majorRoads 91")
+
+
+@pytest.mark.slow
+def test_batch_draws_one_bar_over_its_variants(tmp_path, fixtures):
+    """``sengine batch`` on a terminal: one bar counting variants, each variant's line above it, never drawn over."""
+    out = tmp_path / "b"
+    code, text = run_in_pty(["batch", fixtures / "squares.xml", "-o", out, "--seeds", "1-3", "--workers", "2"])
+    assert code == 0, text
+    lines = _screens(text)
+    made = [s for s in lines if re.fullmatch(r"\[\d/3\] s\d: source 7, inset 7 in [\d.]+ s", s)]
+    assert sorted(s[:5] for s in made) == ["[1/3]", "[2/3]", "[3/3]"], lines
+    bars = [s for s in lines if s.startswith("batch: 3 variants (local)")]
+    assert any(re.search(r"100%\|.*\| 3/3 variants \[", s) for s in bars), bars
+    # a line is a variant's, the bar, or the summary: none drawn over another
+    assert all(s in made or s in bars or s.startswith(f"{out}: 3 variants made") for s in lines), lines
+    assert lines[-1].startswith(f"{out}: 3 variants made")
+    # off a terminal the lines are the same, without the bar
+    r = run_cli("batch", fixtures / "squares.xml", "-o", tmp_path / "c", "--seeds", "1-3", "--workers", "2")
+    assert r.returncode == 0 and r.stderr == ""
+    plain = [s for s in r.stdout.splitlines() if re.fullmatch(r"\[\d/3\] s\d: source 7, inset 7 in [\d.]+ s", s)]
+    assert sorted(s.split(" in ")[0][6:] for s in plain) == sorted(s.split(" in ")[0][6:] for s in made)
 
 
 @pytest.mark.slow
@@ -233,3 +261,13 @@ def test_terminal_progress_draws_a_bar(tmp_path):
     assert any(re.search(r"25%\|.*\| 500/2\.00k blocks \[", s) for s in lines)
     assert any(re.search(r"100%\|.*\| 2\.00k/2\.00k blocks \[.*blocks/s\]", s) for s in lines)
     assert lines[-1] == "[2/5] lots (lots.paris): 12,345 features, 1.50 s"
+    # a few items are counted as they are (3/12, not 3.00/12.0)
+    with open(path, "w") as f:
+        p = TerminalProgress(f, tick=0)
+        p.begin("batch: 12 variants (local)")
+        p.advance(3, 12, "variants")
+        p.write("[3/12] s3: done", f)
+        p.close()
+    lines = _screens(path.read_text())
+    assert any(re.search(r"25%\|.*\| 3/12 variants \[\d\d:\d\d<", s) for s in lines), lines
+    assert "[3/12] s3: done" in lines

@@ -384,10 +384,13 @@ def export_layers(
     b = layers.get("buildings")
     solid_writers = {"glb", "obj", "cityjson", "html"} & {fmt for fmt, _, _ in jobs}
     share = lod >= 2 and len(solid_writers) >= 2 and b is not None and len(b) and "height" in b.attrs
+    if share:
+        progress.expect(len(b), "roofs")
     # progress: every job counts the features it writes, the chunked writers chunk by chunk
     weights = [_weight(layers, fmt, name) for fmt, name, _ in jobs]
-    progress.expect(sum(weights), "features")
     with roofs.shared_solids(b, lod) if share else contextlib.nullcontext():
+        progress.advance(len(b) if share else 0)
+        progress.expect(sum(weights), "features")
         done = run_jobs(
             [partial(_timed, write, 0 if fmt in _CHUNKED else w) for (fmt, _, write), w in zip(jobs, weights)],
             workers,
