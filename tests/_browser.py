@@ -2,8 +2,10 @@
 
 Playwright's own browsers are never installed (``playwright install``
 downloads a build of its own); the system's ``/usr/bin/chromium`` is used
-through ``executable_path``.  Under ``CI=true`` a missing browser or
-Playwright fails the test (``.ci/run`` installs both); elsewhere it skips.
+through ``executable_path``.  A test skips only when Chromium truly cannot
+run here (Playwright or Chromium not installed, or Chromium failing to
+start), and says why; under ``CI=true`` each of those fails the test
+instead (``.ci/run`` installs both).
 """
 
 from __future__ import annotations
@@ -40,10 +42,10 @@ def chromium_path() -> str | None:
     return None
 
 
-def _missing(what: str):
+def _missing(what: str, why: str = "is not installed here"):
     if os.environ.get("CI") == "true":
-        pytest.fail(f"{what} is missing: CI must have it (.ci/run installs it)")
-    pytest.skip(f"{what} is not installed here")
+        pytest.fail(f"{what} {why}: CI must run the browser tests (.ci/run installs it)")
+    pytest.skip(f"{what} {why}")
 
 
 @contextlib.contextmanager
@@ -57,13 +59,18 @@ def browser(viewport=(1280, 800)) -> Iterator:
     if path is None:
         _missing("chromium (/usr/bin/chromium)")
     with sync_playwright() as p, tempfile.TemporaryDirectory(prefix="sengine-chromium-") as profile:
-        ctx = p.chromium.launch_persistent_context(
-            profile,
-            executable_path=path,
-            args=list(FLAGS),
-            headless=True,
-            viewport={"width": viewport[0], "height": viewport[1]},
-        )
+        try:
+            ctx = p.chromium.launch_persistent_context(
+                profile,
+                executable_path=path,
+                args=list(FLAGS),
+                headless=True,
+                viewport={"width": viewport[0], "height": viewport[1]},
+                timeout=120_000,
+            )
+        except Exception as exc:  # noqa: BLE001 (Playwright's errors: the browser would not start)
+            first = next((line for line in str(exc).splitlines() if line.strip()), type(exc).__name__)
+            _missing(f"chromium ({path})", f"does not start: {first}")
         try:
             yield ctx
         finally:
