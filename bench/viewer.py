@@ -5,7 +5,10 @@ opened from ``file://`` in Debian's Chromium (headless, ``--disable-gpu``:
 WebGL on the CPU through SwiftShader, the only GL this machine has) at
 1280 x 800, and the bench records:
 
-* ``load_seconds``: from ``goto`` to the viewer's first frame drawn;
+* ``load_seconds``: from ``goto`` to the viewer's first frame drawn, and
+  ``load_ms`` where it goes: ``scripts`` (reading and parsing ``city.view.js``
+  and ``viewer.js``), ``decode`` (the base64 into arrays), ``build`` (meshes
+  and tiles), ``colour`` (the first colouring), ``first_frame``;
 * ``fps_orbit``: frames drawn per second while the camera circles the
   whole city (``window.sengineViewer.measureFps``: one render per
   ``requestAnimationFrame``, every frame drawn), and ``fps_street``: the
@@ -44,17 +47,23 @@ def measure(out: Path, seconds: float) -> dict:
         if page.evaluate("document.body.dataset.ready") != "1":
             raise SystemExit(f"{out}: the viewer did not start: {page.inner_text('#error')}")
         tris = page.evaluate("window.sengineViewer.triangles")
+        timings = page.evaluate("window.sengineViewer.timings")
         orbit = page.evaluate("(s) => window.sengineViewer.measureFps(s)", seconds)
         t = time.perf_counter()
         page.mouse.click(640, 400)
         pick = time.perf_counter() - t
-        page.evaluate("window.sengineViewer.focus('buildings', 0, 300)")
+        page.evaluate(  # 300 m above the first building (ids need not start at 0)
+            """() => { const s = window.sengineViewer;
+                       const b = s.view.layers.find((l) => l.name === "buildings");
+                       return s.focus("buildings", b.columns.id.get(0), 300); }"""
+        )
         street = page.evaluate("(s) => window.sengineViewer.measureFps(s)", seconds)
     return {
         "folder": str(out),
         "view_js_mb": round((out / "city.view.js").stat().st_size / 1e6, 1),
         "triangles": tris,
         "load_seconds": round(load, 2),
+        "load_ms": timings,
         "fps_orbit": round(orbit["fps"], 2),
         "frames_orbit": orbit["frames"],
         "fps_street": round(street["fps"], 2),

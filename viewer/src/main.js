@@ -50,7 +50,16 @@ function isSoftware() {
 }
 
 function start() {
+  // where the time to open a city goes (ms): reading and parsing the scripts, decoding, building, colouring, a frame
+  const timings = { scripts: Math.round(performance.now()) };
+  let mark = performance.now();
+  const lap = (name) => {
+    const now = performance.now();
+    timings[name] = Math.round(now - mark);
+    mark = now;
+  };
   const view = readView(window.SENGINE_VIEW);
+  lap("decode");
   const host = $("#view");
   // a software rasteriser draws without multisampling (it costs it 2.5 times the time of a frame)
   const software = isSoftware();
@@ -444,11 +453,15 @@ function start() {
     img.src = view.plan;
   }
 
+  lap("build");
   resize();
   home();
   setColourMode(select.querySelector('option[value="height"]') ? "height" : "layer");
   select_(null);
+  lap("colour");
   render();
+  renderer.getContext().finish();
+  lap("first_frame");
   needsRender = false;
   loop();
 
@@ -467,6 +480,7 @@ function start() {
     drawn: () => ({ ...renderer.info.render }), // the last frame's draw calls and triangles
     selected: () => selected,
     triangles: view.layers.reduce((s, l) => s + l.triangles, 0),
+    timings,
   };
   document.body.dataset.ready = "1";
 }
