@@ -378,6 +378,7 @@ def run_batch(
     force: bool = False,
     on_done: Callable[[int, int, dict], None] | None = None,
     on_failed: Callable[[Variant, BaseException], None] | None = None,
+    on_start: Callable[[int, str], None] | None = None,
 ) -> BatchReport:
     """Make every variant into ``spec.out``; skip the ones already made with the same inputs.
 
@@ -396,6 +397,10 @@ def run_batch(
     on_done, on_failed : callable, optional
         Called in this process as ``on_done(k, n, row)`` for each variant made
         (k of the n to make), ``on_failed(variant, error)`` for each that failed.
+    on_start : callable, optional
+        Called in this process as ``on_start(n, scheduler)`` once the ``n``
+        variants to make (those not already made) are handed to the
+        scheduler (a progress display's total).
 
     Returns
     -------
@@ -454,6 +459,8 @@ def run_batch(
                     sched = make_scheduler(scheduler, workers, len(todo))
                     report.scheduler = sched.name
                     tasks = [_Task(spec, v, digests[v.id], sched.task_workers) for v in todo]
+                    if on_start is not None:
+                        on_start(len(todo), sched.name)
                     with sched, open(out / "batch.csv", "a", newline="") as table:
                         for i, ok, value in sched.run(run_variant, tasks):
                             v = todo[i]

@@ -1,4 +1,4 @@
-"""The ``sengine`` command: run | batch | validate | nodes | graph | osm.
+"""The ``sengine`` command: run | batch | validate | nodes | graph | osm | view.
 
 A user mistake prints one line (``sengine: error: WHERE: WHAT``) and exits
 with status 2; ``--debug`` shows the traceback instead.
@@ -12,6 +12,7 @@ import logging
 import signal
 import sys
 import tempfile
+import threading
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -68,7 +69,8 @@ def _run_options(p: argparse.ArgumentParser) -> None:
         "--format",
         dest="formats",
         default="",
-        help="comma list of outputs: glb,geojson,osm,png,obj,cityjson,gpkg,parquet (default: the exporter's)",
+        help="comma list of outputs: glb,geojson,osm,png,obj,cityjson,gpkg,parquet,html "
+        "(default: the exporter's, glb,geojson,osm,png,html for export.city)",
     )
     p.add_argument(
         "--crs",
@@ -209,6 +211,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _common(p)
 
+    p = sub.add_parser("view", help="write OUT/index.html, the city in 3D in a browser (--serve: on localhost)")
+    p.add_argument("out", type=Path, help="an output folder of a run that wrote html (a default format)")
+    p.add_argument("--serve", action="store_true", help="serve the folder on 127.0.0.1 until Ctrl-C")
+    p.add_argument("--port", type=_port, default=0, help="port for --serve (default: a free one)")
+    _common(p)
+
     p = sub.add_parser("graph", help="draw a config's network (.dot, .svg or .png)")
     p.add_argument("config", type=Path)
     p.add_argument("-o", "--out", required=True, type=Path, help="output file: .dot, .svg or .png")
@@ -217,11 +225,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _progress(args: argparse.Namespace):
+    """A progress display on stderr when it is a terminal and ``--quiet`` is not given."""
     if args.quiet or not sys.stderr.isatty():
         return None
-    from .network import _stderr_progress
+    from .progress import TerminalProgress
 
-    return _stderr_progress
+    return TerminalProgress(sys.stderr)
 
 
 def _formats(text: str) -> frozenset[str]:
@@ -242,6 +251,17 @@ def _crs(text: str) -> str:
 def _options(args: argparse.Namespace) -> dict:
     """The exporters' options of a run command (``--crs``, ``--origin``)."""
     return {"crs": args.crs, "origin": args.origin}
+
+
+def _port(text: str) -> int:
+    """``--port``: 0 (a free one) to 65535."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 0 <= n <= 65535:
+        raise argparse.ArgumentTypeError(f"{n} is not a port (0 to 65535)")
+    return n
 
 
 def _workers(text: str) -> int:
@@ -420,14 +440,33 @@ def cmd_batch(args: argparse.Namespace) -> int:
         fixed_sets=spec.fixed_sets,
     )
 
+    # on a terminal, one bar over the variants (count, rate, time left) with a line above it for each variant;
+    # the variants' own runs draw nothing (they may run in other processes): the two never draw over each other
+    display = _progress(args)
+    tally = {"done": 0, "total": 0}
+
+    def started(n: int, scheduler: str) -> None:
+        tally["total"] = n
+        if display is not None:
+            display.begin(f"batch: {n} variant{'' if n == 1 else 's'} ({scheduler})")
+            display.advance(0, n, "variants")
+
+    def say(line: str, file=None) -> None:
+        if display is not None:
+            display.write(line, file or sys.stdout)
+            tally["done"] += 1
+            display.advance(tally["done"], tally["total"], "variants")
+        else:
+            print(line, file=file or sys.stdout, flush=True)
+
     def done(k: int, n: int, row: dict) -> None:
         if not args.quiet:
             counts = ", ".join(f"{c[2:]} {row[c]:,}" for c in row if c.startswith("n_") and row[c] is not None)
             far = f", FAR {row['far']:.2f}" if row.get("far") is not None else ""
-            print(f"[{k}/{n}] {row['id']}: {counts}{far} in {row['seconds']:.1f} s", flush=True)
+            say(f"[{k}/{n}] {row['id']}: {counts}{far} in {row['seconds']:.1f} s")
 
     def failed(variant, exc: BaseException) -> None:
-        print(f"sengine: error: variant {variant.id}: {_one_line(str(exc))}", file=sys.stderr, flush=True)
+        say(f"sengine: error: variant {variant.id}: {_one_line(str(exc))}", sys.stderr)
 
     if not args.debug:  # Dask's logs (its loggers set their own levels, in every worker) only with --debug
         for handler in logging.getLogger().handlers:
@@ -441,10 +480,16 @@ def cmd_batch(args: argparse.Namespace) -> int:
             force=args.force,
             on_done=done,
             on_failed=failed,
+            on_start=started,
         )
     except BatchInterrupted as stop:
+        if display is not None:
+            display.close()
         print(f"sengine: {stop}", file=sys.stderr)
         return 128 + int(stop.signum)
+    finally:
+        if display is not None:
+            display.close()
     if not args.quiet:
         made = len(report.made)
         already = f", {len(report.skipped)} already made" if report.skipped else ""
@@ -572,6 +617,36 @@ def cmd_nodes(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_view(args: argparse.Namespace) -> int:
+    """(Re)write the page of an output folder (the viewer of this sengine) and serve it with ``--serve``."""
+    from . import viewer
+
+    out = args.out
+    if not out.is_dir():
+        raise SEngineError(f"{out}: no such output folder")
+    if not (out / viewer.DATA_FILE).is_file():
+        raise SEngineError(
+            f"{out}: holds no {viewer.DATA_FILE} (the city for the page): run sengine again with --format html"
+            " (or with html among the --format list)"
+        )
+    try:
+        page = viewer.write_page(out)
+    except OSError as err:
+        raise SEngineError(f"{out}: cannot write the page: {err.strerror or err}") from None
+    if not args.serve:
+        print(page.resolve().as_uri())
+        return 0
+    server = viewer.serve(out, port=args.port)
+    host, port = server.server_address[:2]
+    print(f"serving {out} on http://{host}:{port}/ (Ctrl-C to stop)", flush=True)
+    try:
+        threading.Event().wait()
+    finally:
+        server.shutdown()
+        server.server_close()
+    return 0
+
+
 def cmd_graph(args: argparse.Namespace) -> int:
     """``sengine graph``: draw a config's network, the plan's inputs included."""
     from .graphview import write_graph
@@ -594,6 +669,7 @@ COMMANDS = {
     "validate": cmd_validate,
     "nodes": cmd_nodes,
     "graph": cmd_graph,
+    "view": cmd_view,
 }
 
 

@@ -24,7 +24,6 @@ import json
 import logging
 import os
 import shutil
-import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
@@ -37,6 +36,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import __version__, registry
+from . import progress as _progress
 from .errors import NetworkError, NodeError, OutputError, Problems, SEngineError
 from .layer import Layer
 from .node import Context, NodeResult, SENode
@@ -112,7 +112,7 @@ class _Bound:
     order: list[str]
 
 
-ProgressFn = Callable[[int, int, str, str, int, float], None]
+ProgressFn = Callable[[int, int, str, str, int, float], None]  # or a sengine.progress.Progress
 
 
 class Network:
@@ -412,6 +412,7 @@ class Network:
             formats=frozenset(formats),
             workers=workers,
             options=dict(options or {}),
+            name=str(getattr(self.plan, "name", "") or ""),
         )
 
     def run(
@@ -420,7 +421,7 @@ class Network:
         out: Any = None,
         *,
         formats: Iterable[str] = (),
-        progress: ProgressFn | None = None,
+        progress: ProgressFn | _progress.Progress | None = None,
         workers: int = 1,
         options: Mapping[str, Any] | None = None,
         check_kinds: bool = False,
@@ -437,8 +438,13 @@ class Network:
             ``stats.json`` last.
         formats : iterable of str
             Output formats for exporter nodes (empty: their defaults).
-        progress : callable, optional
-            Called after each node as ``progress(i, n, node_id, type, count, seconds)``.
+        progress : callable or sengine.progress.Progress, optional
+            A callable is called after each node as ``progress(i, n, node_id,
+            type, count, seconds)``; an object with ``start``, ``advance``,
+            ``finish`` and ``close`` methods hears when each node starts, how
+            far a node that counts its work (chunks of features, exporters'
+            writers) has got, and when it finishes (:mod:`sengine.progress`;
+            :class:`~sengine.progress.TerminalProgress` draws bars).
         workers : int
             Worker processes: nodes that map features one by one get their
             first input cut into chunks, exporters write their files side by
@@ -457,14 +463,17 @@ class Network:
         seed = self.seed if seed is None else int(seed)
         formats = registry.check_formats(formats)
         out_dir = Path(out) if out is not None else None
+        events = _progress.as_progress(progress)
         tmp = _output_folder(out_dir) if out_dir is not None else None
         try:
-            result = self._run(seed, tmp, formats, progress, max(1, int(workers)), options, check_kinds)
+            result = self._run(seed, tmp, formats, events, max(1, int(workers)), options, check_kinds)
             if tmp is not None:
                 _write_json(tmp / "stats.json", result.stats)
                 _move_into(tmp, out_dir)
             return result
         finally:
+            if events is not None:
+                events.close()
             if tmp is not None and tmp.exists():
                 shutil.rmtree(tmp, ignore_errors=True)
 
@@ -473,7 +482,7 @@ class Network:
         seed: int,
         tmp: Path | None,
         formats: Iterable[str],
-        progress: ProgressFn | None,
+        events: _progress.Progress | None,
         workers: int,
         options: Mapping[str, Any] | None = None,
         check_kinds: bool = False,
@@ -496,7 +505,8 @@ class Network:
             for s, sp, dp in incoming[node_id]:
                 kwargs[dp] = layers[s][sp]
             t0 = time.perf_counter()
-            result = _run_node(node, kwargs, workers)
+            with _progress.step(events, i, n, node_id, node.name):
+                result = _run_node(node, kwargs, workers)
             dt = time.perf_counter() - t0
             if check_kinds:
                 for port_name, lay in result.layers.items():
@@ -514,8 +524,8 @@ class Network:
             if result.report:
                 report[node_id] = result.report
             log.info("%s (%s): %d features in %.3f s", node_id, node.name, count, dt)
-            if progress is not None:
-                progress(i, n, node_id, node.name, count, dt)
+            if events is not None:
+                events.finish(i, n, node_id, node.name, count, dt)
         seconds["total"] = round(time.perf_counter() - t_start, 4)
         stats = {
             "sengine": __version__,
@@ -591,15 +601,16 @@ def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> No
     if workers <= 1 or not node.maps_features or layer is None or len(layer) < 2 * MIN_CHUNK:
         return _call_run(node, kwargs)
     t = time.perf_counter()
-    parts = [_call_run(node, {**kwargs, first: layer.take(np.arange(MIN_CHUNK))})]
+    _progress.expect(len(layer), first)  # counted in the input's features: "blocks", "lots" ...
+    parts = [_call_run(node, {**kwargs, first: layer.take(np.arange(MIN_CHUNK))}, MIN_CHUNK)]
     rest = len(layer) - MIN_CHUNK
     if (time.perf_counter() - t) * rest / MIN_CHUNK < FORK_AFTER:
-        parts.append(_call_run(node, {**kwargs, first: layer.take(np.arange(MIN_CHUNK, len(layer)))}))
+        parts.append(_call_run(node, {**kwargs, first: layer.take(np.arange(MIN_CHUNK, len(layer)))}, rest))
     else:
         n_chunks = max(1, min(workers * 4, rest // MIN_CHUNK))
         bounds = np.linspace(MIN_CHUNK, len(layer), n_chunks + 1).astype(int)
         jobs = [
-            partial(_call_run, node, {**kwargs, first: layer.take(np.arange(a, b))})
+            partial(_call_run, node, {**kwargs, first: layer.take(np.arange(a, b))}, b - a)
             for a, b in zip(bounds[:-1], bounds[1:])
         ]
         parts += run_jobs(jobs, workers)  # forked workers inherit the registry and plugins
@@ -612,8 +623,10 @@ def _run_node(node: SENode, kwargs: dict[str, Layer | None], workers: int) -> No
     return NodeResult(merged, _sum_reports(reports) if reports else None)
 
 
-def _call_run(node: SENode, kwargs: dict[str, Layer | None]) -> NodeResult:
-    """``node.run(**kwargs)`` as a NodeResult.
+def _call_run(node: SENode, kwargs: dict[str, Layer | None], count: int = 0) -> NodeResult:
+    """``node.run(**kwargs)`` as a NodeResult, then ``count`` features counted as done.
+
+    ``count`` is the chunk's features (:func:`sengine.progress.advance`).
 
     A plugin's node (a class from outside the ``sengine`` package) that
     raises anything but an :class:`~sengine.errors.SEngineError` fails with
@@ -636,6 +649,7 @@ def _call_run(node: SENode, kwargs: dict[str, Layer | None]) -> NodeResult:
             f"failed: {type(exc).__name__}: {exc} (a bug in the plugin; --debug shows the traceback)",
             where=node.where,
         ) from exc
+    _progress.advance(count)
     return NodeResult.of(node, value)
 
 
@@ -697,10 +711,3 @@ def _move_into(tmp: Path, out_dir: Path) -> None:
         if target.is_dir() and not target.is_symlink():
             shutil.rmtree(target)
         os.replace(tmp / name, target)
-
-
-def _stderr_progress(i: int, n: int, node_id: str, type_: str, count: int, seconds: float) -> None:
-    sys.stderr.write(f"\r[{i}/{n}] {node_id} ({type_}): {count:,} features, {seconds:.2f} s\033[K")
-    if i == n:
-        sys.stderr.write("\n")
-    sys.stderr.flush()

@@ -299,6 +299,9 @@ class Context:
         Processes the run may use (``--workers``); exporters write files side by side.
     options : dict
         Output options for exporter nodes (``--crs``, ``--origin``: ``{"crs": "utm", "origin": "local"}``).
+    name : str
+        The city's name (``<city name="...">``, or the map file's for ``sengine osm``): exporters title
+        what they write with it.
     """
 
     seed: int = 0
@@ -308,6 +311,7 @@ class Context:
     formats: frozenset = frozenset()
     workers: int = 1
     options: dict = field(default_factory=dict)
+    name: str = ""
 
 
 class SENode:

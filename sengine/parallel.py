@@ -165,7 +165,7 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
     if workers <= 1 or _running or in_worker() or not can_fork():
         return [job() for job in jobs]
     import multiprocessing  # here: most runs never fork
-    from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+    from concurrent.futures import ProcessPoolExecutor, wait
     from concurrent.futures.process import BrokenProcessPool
 
     _jobs = jobs
@@ -201,7 +201,7 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
                     break
         finally:
             _running = False
-        done, _ = wait(futures, return_when=FIRST_EXCEPTION)
+        done = _wait(futures)
         if any(not ok for ok, _ in outcomes.values()) or any(
             not f.cancelled() and f.exception() is not None for f in done
         ):
@@ -232,6 +232,23 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
         _jobs = ()
+
+
+def _wait(futures: list) -> set:
+    """The futures done when all are, or when one failed.
+
+    While waiting, the running step's count is reported
+    (:func:`sengine.progress.poll`: what the workers have counted so far).
+    """
+    from concurrent.futures import FIRST_EXCEPTION, wait
+
+    from .progress import poll
+
+    while True:
+        done, pending = wait(futures, timeout=0.2, return_when=FIRST_EXCEPTION)
+        poll()
+        if not pending or any(not f.cancelled() and f.exception() is not None for f in done):
+            return done
 
 
 def _run_job(i: int) -> Any:

@@ -314,7 +314,8 @@ def test_default_formats_and_format_choice(city, tmp_path):
     plan, layers = city
     export(tmp_path / "d", plan, layers, formats=())
     names = sorted(p.name for p in (tmp_path / "d").iterdir())
-    assert names == sorted(["city.glb", "preview.png", "streets.osm"] + [f"{n}.geojson" for n in layers])
+    page = ["index.html", "viewer.js", "city.view.js"]
+    assert names == sorted(["city.glb", "preview.png", "streets.osm", *page] + [f"{n}.geojson" for n in layers])
     export(tmp_path / "o", plan, {"buildings": layers["buildings"]}, formats={"obj"})
     assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["city.mtl", "city.obj"]
 

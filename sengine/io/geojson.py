@@ -37,6 +37,7 @@ import numpy as np
 import shapely
 
 from ..geom.cleanup import snap_to_type
+from ..progress import advance
 
 if TYPE_CHECKING:
     from ..layer import Layer
@@ -213,6 +214,7 @@ def feature_collection_chunks(
         code = crs.split(":")[-1]
         head += '"crs":{"properties":{"name":' + _dumps(f"urn:ogc:def:crs:EPSG::{code}") + '},"type":"name"},'
     yield head + '"features":['
+    advance(int((~keep).sum()))  # the features left out count as done
     for lo in range(0, len(geoms), max(int(chunk), 1)):
         part = slice(lo, lo + max(int(chunk), 1))
         geo_texts = [("null" if t is None else t) for t in shapely.to_geojson(geoms[part]).tolist()]
@@ -222,6 +224,7 @@ def feature_collection_chunks(
         yield ("," if lo else "") + ",".join(
             [feature % row for row in zip(geo_texts, id_texts, prop_texts, strict=False)]
         )
+        advance(len(geo_texts))  # written: counted for the run's progress (sengine.progress)
     yield "]" + (',"name":' + _dumps(name) if name else "") + ',"type":"FeatureCollection"}'
 
 

@@ -16,10 +16,11 @@ obj        ``city.obj`` + ``city.mtl``             :mod:`sengine.nodes.export.ob
 cityjson   ``buildings.city.json`` (LoD1 / LoD2)   :mod:`sengine.nodes.export.cityjson`
 gpkg       ``city.gpkg`` (a table per layer)       :mod:`sengine.nodes.export.gpkg`
 parquet    ``<layer>.parquet`` (GeoParquet 1.1)    :mod:`sengine.nodes.export.parquet`
+html       ``index.html`` + ``city.view.js`` (3D)  :mod:`sengine.nodes.export.html`
 ========== ======================================= ========================
 
 ``lod`` (``--lod``) chooses the buildings of the 3D formats (glb, obj,
-cityjson): 1 flat-roofed boxes, 2 with their roofs
+cityjson, html): 1 flat-roofed boxes, 2 with their roofs
 (:mod:`sengine.nodes.export.roofs`).
 
 Every layer is first made fit to open (:mod:`sengine.nodes.export.prepare`:
@@ -59,6 +60,7 @@ References
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 from collections.abc import Callable
@@ -68,7 +70,7 @@ from typing import Any
 
 import numpy as np
 
-from sengine import CityPlan, Layer, NodeResult, Param, Port, SENode, register
+from sengine import CityPlan, Layer, NodeResult, Param, Port, SENode, progress, register
 from sengine.errors import ParameterError
 from sengine.geom.crs import from_lonlat, is_geographic, layer_crs, output_crs, reproject, to_lonlat
 from sengine.parallel import run_jobs
@@ -81,6 +83,7 @@ __all__ = [
     "DEFAULT_FORMATS",
     "FORMAT_HINTS",
     "ORIGINS",
+    "north_angle",
     "city_origin",
     "export_layers",
     "ExportCity",
@@ -88,8 +91,9 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-FORMATS = ("glb", "geojson", "osm", "png", "obj", "cityjson", "gpkg", "parquet")
-DEFAULT_FORMATS = frozenset({"glb", "geojson", "osm", "png"})
+FORMATS = ("glb", "geojson", "osm", "png", "obj", "cityjson", "gpkg", "parquet", "html")
+# html: a city to look at in a browser with no other program (the page and its data, a few MB a city district)
+DEFAULT_FORMATS = frozenset({"glb", "geojson", "osm", "png", "html"})
 #: What to suggest for a format sengine does not write.
 FORMAT_HINTS = {
     "shp": "gpkg",
@@ -108,6 +112,9 @@ FORMAT_HINTS = {
     "xml": "osm",
     "jpg": "png",
     "jpeg": "png",
+    "htm": "html",
+    "web": "html",
+    "viewer": "html",
 }
 ORIGINS = ("local", "geo")
 
@@ -148,6 +155,7 @@ def export_layers(
     origin: str = "local",
     attribution: str | None = None,
     lod: int = 2,
+    city_name: str = "",
 ) -> dict:
     """Write ``layers`` into folder ``out`` in each of ``formats``.
 
@@ -181,7 +189,10 @@ def export_layers(
         The data's licence notice; default :data:`OSM_ATTRIBUTION` when a
         layer (or the plan) comes from OpenStreetMap.
     lod : int
-        Buildings in glb, obj and cityjson: 1 boxes, 2 with roofs.
+        Buildings in glb, obj, cityjson and html: 1 boxes, 2 with roofs.
+    city_name : str
+        The city's name (``<city name>``; a file name loses its extensions):
+        the title of ``preview.png`` and of the html page.
 
     Returns
     -------
@@ -191,7 +202,7 @@ def export_layers(
     """
     from sengine.io import geojson
 
-    from . import cityjson, gltf, gpkg, obj, osmxml, parquet, preview
+    from . import cityjson, gltf, gpkg, html, obj, osmxml, parquet, preview, roofs
 
     out = Path(out)
     asked = {str(f).strip().lower() for f in formats or ()} - {""}
@@ -224,6 +235,8 @@ def export_layers(
                     size=preview_size,
                     extent=extent,
                     attribution=attribution,
+                    title=preview.city_title(city_name),
+                    north=north_angle(any_crs, centre_ll),
                 ),
             )
         )
@@ -240,6 +253,25 @@ def export_layers(
                     crs=any_crs,
                     origin=None if offset is None else (offset, centre_ll),
                     copyright=attribution,
+                    lod=lod,
+                ),
+            )
+        )
+    if "html" in formats:  # the page is always around the city's origin, as a browser wants it
+        jobs.append(
+            (
+                "html",
+                None,
+                partial(
+                    html.write_html,
+                    out,
+                    layers,
+                    offset=centre,
+                    line_width=line_width,
+                    name=preview.city_title(city_name),
+                    attribution=attribution,
+                    crs=any_crs,
+                    origin={"lat": centre_ll[0], "lon": centre_ll[1], "planar": [float(c) for c in centre]},
                     lod=lod,
                 ),
             )
@@ -350,7 +382,21 @@ def export_layers(
                 ),
             )
         )
-    done = run_jobs([partial(_timed, write) for _, _, write in jobs], workers)
+    # the buildings' roofs, which several 3D writers draw alike, are made once before the writers start
+    b = layers.get("buildings")
+    solid_writers = {"glb", "obj", "cityjson", "html"} & {fmt for fmt, _, _ in jobs}
+    share = lod >= 2 and len(solid_writers) >= 2 and b is not None and len(b) and "height" in b.attrs
+    if share:
+        progress.expect(len(b), "roofs")
+    # progress: every job counts the features it writes, the chunked writers chunk by chunk
+    weights = [_weight(layers, fmt, name) for fmt, name, _ in jobs]
+    with roofs.shared_solids(b, lod) if share else contextlib.nullcontext():
+        progress.advance(len(b) if share else 0)
+        progress.expect(sum(weights), "features")
+        done = run_jobs(
+            [partial(_timed, write, 0 if fmt in _CHUNKED else w) for (fmt, _, write), w in zip(jobs, weights)],
+            workers,
+        )
     report: dict = {fmt: {} for fmt in FORMATS if any(f == fmt for f, _, _ in jobs)}
     seconds = dict.fromkeys(report, 0.0)
     for (fmt, name, _), (result, dt) in zip(jobs, done, strict=True):
@@ -378,9 +424,39 @@ def _from_osm(layers: dict[str, Layer]) -> bool:
     return any(lay.meta.get("source") == "osm" for lay in layers.values())
 
 
-def _timed(write: Callable[[], Any]) -> tuple[Any, float]:
+def north_angle(crs: str, lat_lon: tuple[float, float]) -> float:
+    """Where true north points at ``lat_lon`` in the planar frame ``crs``: degrees clockwise from grid north.
+
+    Zero on a frame's central meridian; in UTM the meridian convergence:
+    -2.0 degrees at Liège, 2.6 degrees east of its zone's meridian (true
+    north leans west there), +1.1 at Monaco, west of its own.
+    """
+    lat, lon = lat_lon
+    lat = min(max(float(lat), -89.0), 89.0)
+    xy = from_lonlat(crs)(np.array([[lon, lat], [lon, lat + 1e-3]], float))
+    dx, dy = xy[1] - xy[0]
+    return float(np.degrees(np.arctan2(dx, dy))) if np.isfinite([dx, dy]).all() and (dx or dy) else 0.0
+
+
+#: Writers that count their features chunk by chunk (:func:`sengine.progress.advance`); the others when done.
+_CHUNKED = frozenset({"geojson", "gpkg", "parquet"})
+
+
+def _weight(layers: dict[str, Layer], fmt: str, name: str | None) -> int:
+    """The features a job writes: its layer's, the roads' (OSM), the buildings' (CityJSON), else every layer's."""
+    if name is not None:
+        return len(layers[name])
+    if fmt in ("osm", "cityjson"):
+        return len(layers["roads" if fmt == "osm" else "buildings"])
+    return sum(len(v) for v in layers.values())
+
+
+def _timed(write: Callable[[], Any], count: int = 0) -> tuple[Any, float]:
+    """Run a writer; return its result and seconds; count ``count`` features done."""
     t = time.perf_counter()
-    return write(), time.perf_counter() - t
+    result = write()
+    progress.advance(count)
+    return result, time.perf_counter() - t
 
 
 def _outside(layers: dict[str, Layer], extent) -> bool:
@@ -399,10 +475,10 @@ def _outside(layers: dict[str, Layer], extent) -> bool:
 
 @register
 class ExportCity(SENode):
-    """Write the city's layers: city.glb, <layer>.geojson, streets.osm, preview.png (and OBJ, CityJSON, GPKG, GeoParquet).
+    """Write the city's layers: city.glb, <layer>.geojson, streets.osm, preview.png, index.html (and OBJ, CityJSON, GPKG, GeoParquet).
 
     Formats come from ``--format`` (the run context); with none given the
-    defaults are glb, geojson, osm and png.  ``--crs`` and ``--origin``
+    defaults are glb, geojson, osm, png and html.  ``--crs`` and ``--origin``
     come as the context's ``options``.
     """
 
@@ -436,7 +512,7 @@ class ExportCity(SENode):
             min=1,
             max=2,
             unit="1",
-            doc="buildings in glb, obj and cityjson: 1 flat-roofed boxes, 2 with their roofs (--lod)",
+            doc="buildings in glb, obj, cityjson and html: 1 flat-roofed boxes, 2 with their roofs (--lod)",
         ),
     }
 
@@ -491,6 +567,7 @@ class ExportCity(SENode):
             crs=options.get("crs"),
             origin=options.get("origin") or "local",
             lod=self.p.lod,
+            city_name=getattr(self.context, "name", ""),
         )
         report.pop("seconds", None)  # timings would make stats.json differ between runs
         return NodeResult({}, _flat_counts(report))

@@ -6,13 +6,21 @@ layers give the same bytes).  Layers from bottom to top: water, streets,
 sidewalks, blocks, lots (with their outlines), parks, buildings (a colour
 ramp over height; those of the map, ``source`` ``"osm"``, outlined), roads
 (centre lines); bridge decks over the water and trees as dots of their
-crown's width over the buildings.  A footer holds the height legend, a scale bar and the layer
-swatches.
+crown's width over the buildings.  A footer holds the height legend, a scale
+bar and the layer swatches; the map's corners the city's name and a north
+arrow (true north: in a UTM frame it leans by the meridian convergence, a
+degree or two).
+
+The view is framed on the city's streets, blocks, lots and buildings (and
+the plan's extent for a synthetic city): parks and water that reach beyond
+them (a large park relation of an OSM extract) are cut at the frame rather
+than leaving the streets in a corner of the picture.
 """
 
 from __future__ import annotations
 
 import logging
+import re
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -25,7 +33,7 @@ from sengine.layer import Layer
 from .gltf import COLOURS
 from .mesh import ring_arrays
 
-__all__ = ["render", "write_preview", "PALETTE", "ROADS_INDEX", "ramp"]
+__all__ = ["render", "write_preview", "frame", "city_title", "PALETTE", "ROADS_INDEX", "ramp"]
 
 log = logging.getLogger(__name__)
 
@@ -70,6 +78,34 @@ def _nice(x: float) -> float:
         return 1.0
     e = 10.0 ** np.floor(np.log10(x))
     return float(max(m * e for m in (1, 2, 5) if m * e <= x))
+
+
+#: Layers that frame the view (the city proper); the others are drawn where they fall inside it.
+FRAMING = ("roads", "streets", "sidewalks", "blocks", "lots", "buildings")
+
+
+def frame(layers: Mapping[str, Layer], extent=None) -> tuple[float, float, float, float]:
+    """The planar bounds ``(xmin, ymin, xmax, ymax)`` the view shows.
+
+    The bounds of the :data:`FRAMING` layers and ``extent``; when there are
+    none of those, of every layer.
+    """
+    framing = [shapely.total_bounds(v.geometry) for k, v in layers.items() if k in FRAMING and len(v)]
+    if extent is not None:
+        framing.append(np.asarray(extent, float))
+    bounds = [b for b in framing if np.all(np.isfinite(b))]
+    if not bounds:
+        bounds = [shapely.total_bounds(v.geometry) for v in layers.values() if len(v)]
+        bounds = [b for b in bounds if np.all(np.isfinite(b))]
+    if not bounds:
+        return (0.0, 0.0, 1.0, 1.0)
+    b = np.array(bounds)
+    return (float(b[:, 0].min()), float(b[:, 1].min()), float(b[:, 2].max()), float(b[:, 3].max()))
+
+
+def city_title(name: str) -> str:
+    """A city's name for a title: a file name loses its extensions (``liege_streets.osm.pbf`` -> ``liege_streets``)."""
+    return re.sub(r"(\.(osm|pbf|bz2|gz|xml|o5m))+$", "", str(name or "").strip(), flags=re.IGNORECASE) or "city"
 
 
 def _draw_polygons(draw: ImageDraw.ImageDraw, rings, to_px, values, outline: int | None = None) -> None:
@@ -124,7 +160,13 @@ def _draw_points(draw: ImageDraw.ImageDraw, geoms: np.ndarray, to_px, value: int
 
 
 def render(
-    layers: Mapping[str, Layer], *, size: int = 1600, extent=None, attribution: str | None = None
+    layers: Mapping[str, Layer],
+    *,
+    size: int = 1600,
+    extent=None,
+    attribution: str | None = None,
+    title: str | None = None,
+    north: float = 0.0,
 ) -> Image.Image:
     """The plan view as a palette image, ``size`` px on its long side (plus a footer).
 
@@ -140,18 +182,15 @@ def render(
         the view also covers every layer's bounds.
     attribution : str, optional
         The data's licence notice, written in the footer's right corner.
+    title : str, optional
+        The city's name, written in the map's top left corner.
+    north : float
+        Where true north points, in degrees clockwise from the top of the
+        picture (the planar frame's grid north); the arrow in the top right
+        corner shows it.
     """
     layers = {k: v for k, v in layers.items() if v is not None and len(v)}
-    bounds = [shapely.total_bounds(v.geometry) for v in layers.values()]
-    if extent is not None:
-        bounds.append(np.asarray(extent, float))
-    bounds = [b for b in bounds if np.all(np.isfinite(b))]
-    if bounds:
-        b = np.array(bounds)
-        extent = (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max())
-    else:
-        extent = (0.0, 0.0, 1.0, 1.0)
-    xmin, ymin, xmax, ymax = (float(v) for v in extent)
+    xmin, ymin, xmax, ymax = frame(layers, extent)
     span = max(xmax - xmin, ymax - ymin, 1e-9)
     pad = 10
     scale = (size - 2 * pad) / span
@@ -213,10 +252,41 @@ def render(
     image = Image.fromarray(np.vstack([canvas, np.zeros((64, w), np.uint8)]), "P")
     image.putpalette(PALETTE.ravel().tolist())
     _footer(image, h, w, scale, hmin, hmax, [n for n in _ORDER if n in layers], map_buildings=has_map)
+    _north_arrow(image, w, north)
+    if title:
+        _title(image, title)
     if attribution:
         draw = ImageDraw.Draw(image)
         draw.text((w - 8, h + 60), attribution, fill=_FIXED["ink"], font=ImageFont.load_default(size=12), anchor="rd")
     return image
+
+
+def _title(image: Image.Image, title: str) -> None:
+    """The city's name in a white box in the map's top left corner."""
+    draw = ImageDraw.Draw(image)
+    font = ImageFont.load_default(size=22)
+    x0, y0, x1, y1 = draw.textbbox((18, 16), title, font=font)
+    draw.rectangle([x0 - 8, y0 - 6, x1 + 8, y1 + 6], fill=_FIXED["white"], outline=_FIXED["ink"])
+    draw.text((18, 16), title, fill=_FIXED["ink"], font=font)
+
+
+def _north_arrow(image: Image.Image, w: int, north: float) -> None:
+    """A north arrow (a half-filled dart and an N) in the map's top right corner, turned ``north`` degrees."""
+    draw = ImageDraw.Draw(image)
+    cx, cy, r = w - 40, 48, 22
+    a = np.radians(north)
+    c, s = np.cos(a), np.sin(a)
+
+    def at(x: float, y: float) -> tuple[float, float]:  # (x right, y up) around the centre, turned clockwise
+        return (cx + x * c + y * s, cy - (-x * s + y * c))
+
+    draw.ellipse([cx - r - 6, cy - r - 6, cx + r + 6, cy + r + 6], fill=_FIXED["white"], outline=_FIXED["ink"])
+    tip, tail, left, right = at(0, r), at(0, -r * 0.55), at(-r * 0.5, -r * 0.8), at(r * 0.5, -r * 0.8)
+    draw.polygon([tip, left, tail], fill=_FIXED["ink"], outline=_FIXED["ink"])
+    draw.polygon([tip, right, tail], fill=_FIXED["white"], outline=_FIXED["ink"])
+    font = ImageFont.load_default(size=14)
+    nx, ny = at(0, r + 15)
+    draw.text((nx, ny), "N", fill=_FIXED["ink"], font=font, anchor="mm")
 
 
 def _footer(
@@ -265,10 +335,17 @@ def _footer(
 
 
 def write_preview(
-    path: str | Path, layers: Mapping[str, Layer], *, size: int = 1600, extent=None, attribution: str | None = None
+    path: str | Path,
+    layers: Mapping[str, Layer],
+    *,
+    size: int = 1600,
+    extent=None,
+    attribution: str | None = None,
+    title: str | None = None,
+    north: float = 0.0,
 ) -> tuple[int, int]:
-    """Render and save ``preview.png``; return its pixel size."""
-    image = render(layers, size=size, extent=extent, attribution=attribution)
+    """Render and save ``preview.png`` (see :func:`render`); return its pixel size."""
+    image = render(layers, size=size, extent=extent, attribution=attribution, title=title, north=north)
     image.save(Path(path), format="PNG", optimize=False, compress_level=1)
     log.info("wrote %s: %dx%d px", path, *image.size)
     return image.size

@@ -52,6 +52,8 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -73,6 +75,7 @@ __all__ = [
     "building_solids",
     "box_solids",
     "layer_solids",
+    "shared_solids",
 ]
 
 #: Roof kinds of the buildings layer's ``roof`` column.
@@ -307,8 +310,12 @@ def layer_solids(layer, lod: int = 2) -> Solids:
 
     ``lod`` 1 gives flat-roofed boxes of ``height``, 2 the roofs of the
     ``roof``, ``roof_height`` and ``roof_direction`` columns; ``base`` (m), when
-    present, is each building's ground height.
+    present, is each building's ground height.  Inside :func:`shared_solids`
+    of this layer and ``lod`` they are the ones made there (read-only).
     """
+    made = _SHARED.get((id(layer), int(lod)))
+    if made is not None and made[0] is layer:
+        return made[1]
     geoms = layer.geometry
     n = len(geoms)
     height = np.nan_to_num(np.asarray(layer.get("height", np.zeros(n)), np.float64))
@@ -523,3 +530,25 @@ def _annulus(outer: np.ndarray, inner: np.ndarray) -> np.ndarray:
 def _prism_kinds_open(m: int, n_faces: int) -> np.ndarray:
     caps = n_faces - 2 * m
     return np.concatenate([np.full(caps, 2, np.uint8), np.ones(2 * m, np.uint8)])
+
+
+_SHARED: dict[tuple[int, int], tuple[object, Solids]] = {}  # (id(layer), lod) -> (layer, its solids)
+
+
+@contextmanager
+def shared_solids(layer, lod: int = 2) -> Iterator[Solids]:
+    """Make the solids of ``layer`` at ``lod`` once, here, for every writer that asks within the block.
+
+    The exporters of one run (glb, OBJ, CityJSON, the html page) each ask
+    :func:`layer_solids` for the same buildings; their roofs (the straight
+    skeletons above all) are the costly part.  Made before the writers'
+    processes are forked, they are inherited by them.  Writers must not
+    change the arrays.
+    """
+    key = (id(layer), int(lod))
+    solids = layer_solids(layer, lod)
+    _SHARED[key] = (layer, solids)
+    try:
+        yield solids
+    finally:
+        _SHARED.pop(key, None)

@@ -22,6 +22,7 @@ import shapely
 from sengine.errors import SEngineError
 from sengine.geom.cleanup import GRID, layer_type, snap_to_type
 from sengine.layer import Layer
+from sengine.progress import advance
 
 __all__ = ["CHUNK", "OSM_ATTRIBUTION", "TYPE_IDS", "require", "attribute_arrays", "LayerBatches", "rebatch"]
 
@@ -184,6 +185,7 @@ class LayerBatches:
                 )
             self.written += len(out)
             yield pa.RecordBatch.from_arrays(arrays, schema=schema)
+            advance(hi - lo)  # the batch is written: counted for the run's progress
         if self.written:
             self.bounds = [float(v) for v in (*lo_all, *hi_all)]
 
