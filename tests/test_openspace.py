@@ -25,6 +25,38 @@ from sengine.registry import get
 # -- Distr(density, deviation) -------------------------------------------------------------------
 
 
+@settings(max_examples=25, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    size=st.floats(1200.0, 5000.0),
+    holes=st.integers(0, 6),
+)
+def test_big_area_test_along_lines_gives_the_point_test_answer(seed, size, holes):
+    """``_Areas.covers`` with the points' lines (big polygons tested per line) = the plain bounding-box test.
+
+    Areas: a ring-shaped polygon over 1 km across (big: tested along lines) with holes, small boxes
+    and a concave notch; points on random closed lines (block tree lines) crossing all of them.
+    """
+    from sengine.nodes.vegetation.trees import _Areas
+
+    rng = np.random.default_rng(seed)
+    big = shapely.difference(shapely.box(0, 0, size, size), shapely.box(40, 40, size - 40, size - 40))
+    cuts = [shapely.box(*(c := rng.uniform(50, size - 150, 2)), *(c + rng.uniform(20, 100, 2))) for _ in range(holes)]
+    big = shapely.difference(big, shapely.union_all(cuts)) if cuts else big
+    small = [shapely.box(*(c := rng.uniform(0, size - 60, 2)), *(c + rng.uniform(5, 60, 2))) for _ in range(40)]
+    notch = shapely.Polygon([(10, 10), (300, 10), (300, 300), (150, 80), (10, 300)])
+    areas = _Areas(np.array([big, notch, *small], dtype=object))
+    assert len(areas.large[1]) == 1 and len(areas.small[1]) == 41
+    centres = rng.uniform(0, size, (30, 2))
+    lines = shapely.get_exterior_ring(shapely.buffer(shapely.points(centres), rng.uniform(10, 400, 30)))
+    xy, li, _ = avenue_points(lines, spacing=7.0, clear=0.0, corner=179.0)
+    with_lines = areas.covers(xy[:, 0], xy[:, 1], along=(lines, li))
+    plain = areas.covers(xy[:, 0], xy[:, 1])
+    truth = shapely.intersects_xy(shapely.union_all(np.array([big, notch, *small])), xy[:, 0], xy[:, 1])
+    assert len(xy) > 100 and 0 < plain.sum() < len(xy)
+    assert (with_lines == plain).all() and (plain == truth).all()
+
+
 @pytest.mark.parametrize("deviation", [0.0, 25.0])
 def test_distr_gives_the_requested_count_within_sampling_error(deviation):
     """Each region's count is floor(lambda) + Bernoulli(frac): the total is within 4 sigma of sum(lambda).
