@@ -229,6 +229,38 @@ def test_the_river_has_water_and_bridges(paris):
     assert shapely.crosses(br.geometry, water.geometry[0]).all()
     decks = layers["bridges"]["bridges"]
     assert len(decks) == len(br)
+    # both ends of every bridge are nodes of the street graph: road ends shared (exactly) with >= 2 bank-side roads
+    rest = roads.take(~np.asarray(roads["bridge"], bool)).geometry
+    ends = np.concatenate([shapely.get_coordinates(shapely.get_point(rest, i)) for i in (0, -1)])
+    for line in br.geometry:
+        for end in shapely.get_coordinates(line)[[0, -1]]:
+            assert (ends == end).all(axis=1).sum() >= 2
+
+
+def test_a_bridge_is_noded_into_the_bank_road_it_lands_on():
+    """A river 100 m wide, one unbroken bank road on each side, a major road ending on the south bank:
+    the bridge's far end splits the north bank road there, so the three share one node."""
+    water = Layer.from_geoms([shapely.box(-1000, 0, 1000, 100)])
+    roads = Layer.from_geoms(
+        [
+            shapely.LineString([(-900, 0), (-300, 0), (0, 0), (800, 0)]),  # south bank
+            shapely.LineString([(-900, 100), (-200, 100), (450, 100), (900, 100)]),  # north bank, no vertex at x=3
+            shapely.LineString([(3, -400), (3, 0)]),  # the major road ending on the water
+        ],
+        major=np.array([False, False, True]),
+        width=np.array([8.0, 8.0, 12.0]),
+    )
+    res = get("roads.bridges")("b", {"snap": 20.0}, Context()).run(roads=roads, water=water)
+    out = res["roads"]
+    bridge = np.asarray(out["bridge"], bool)
+    assert bridge.sum() == 1 and res.report["bank_roads_split"] == 1 and len(out) == 5
+    a, b = shapely.get_coordinates(out.geometry[bridge][0])
+    assert np.allclose(a, (3, 0)) and np.allclose(b, (3, 100))
+    rest = out.geometry[~bridge]
+    starts = shapely.get_coordinates(shapely.get_point(rest, 0))
+    stops = shapely.get_coordinates(shapely.get_point(rest, -1))
+    assert (stops == b).all(axis=1).sum() == 1 and (starts == b).all(axis=1).sum() == 1
+    assert np.isclose(shapely.length(rest).sum(), 1700 + 1800 + 400)
 
 
 # -- a real extract: avenue trees on sidewalks, stopping at crossings -----------------------------
