@@ -337,7 +337,8 @@ def test_trees_are_instanced_in_the_glb_and_pass_the_validator(tmp_path):
     inst, counts = glb_bytes({"vegetation": t})
     baked, _ = glb_bytes({"vegetation": t}, instancing=False)
     assert counts["vegetation"]["instances"] == len(t)
-    assert len(inst) < len(baked) / 10
+    # 40 bytes a tree for its placement and 37 for its row of the property table (baked: 750, no table)
+    assert len(inst) < len(baked) / 8
     n = struct.unpack("<I", inst[12:16])[0]
     doc = json.loads(inst[20 : 20 + n])
     assert "EXT_mesh_gpu_instancing" in doc["extensionsUsed"]
@@ -348,6 +349,35 @@ def test_trees_are_instanced_in_the_glb_and_pass_the_validator(tmp_path):
         for nd in doc["nodes"]
     )
     assert got == len(t)
+    # every instance names its plant: its feature id is its row in the property table (EXT_instance_features)
+    binary = inst[20 + n + 8 :]
+
+    def view(i, dtype):
+        v = doc["bufferViews"][i]
+        return np.frombuffer(binary[v.get("byteOffset", 0) : v.get("byteOffset", 0) + v["byteLength"]], dtype)
+
+    meta = doc["extensions"]["EXT_structural_metadata"]
+    table = meta["propertyTables"][0]
+    assert table["class"] == "vegetation" and table["count"] == len(t)
+    enum = meta["schema"]["enums"][meta["schema"]["classes"]["vegetation"]["properties"]["category"]["enumType"]]
+    names = {e["value"]: e["name"] for e in enum["values"]}
+    category = np.array([names[c] for c in view(table["properties"]["category"]["values"], np.uint8)])
+    height = view(table["properties"]["height"]["values"], "<f4")
+    assert (category == np.asarray(t["category"]).astype(str)).all()
+    assert np.allclose(height, np.asarray(t["height"], float), atol=1e-4)
+    seen = []
+    for nd in doc["nodes"]:
+        ids = nd["extensions"]["EXT_instance_features"]["featureIds"][0]
+        attrs = nd["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]
+        assert ids["propertyTable"] == 0 and ids["attribute"] == 0
+        rows = view(doc["accessors"][attrs["_FEATURE_ID_0"]]["bufferView"], "<f4").astype(np.int64)
+        assert ids["featureCount"] == len(np.unique(rows)) == len(rows)
+        assert (category[rows] == nd["name"].split("/")[1]).all()
+        xyz = view(doc["accessors"][attrs["TRANSLATION"]]["bufferView"], "<f4").reshape(-1, 3)
+        xy = shapely.get_coordinates(t.geometry[rows])
+        assert np.allclose(xyz[:, 0], xy[:, 0], atol=0.01) and np.allclose(-xyz[:, 2], xy[:, 1], atol=0.01)
+        seen.append(rows)
+    assert np.array_equal(np.sort(np.concatenate(seen)), np.arange(len(t)))
     if _validator_ready():
         for data, name in ((inst, "i.glb"), (baked, "b.glb")):
             (tmp_path / name).write_bytes(data)
