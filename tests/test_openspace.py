@@ -25,6 +25,38 @@ from sengine.registry import get
 # -- Distr(density, deviation) -------------------------------------------------------------------
 
 
+@settings(max_examples=25, deadline=None)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    size=st.floats(1200.0, 5000.0),
+    holes=st.integers(0, 6),
+)
+def test_big_area_test_along_lines_gives_the_point_test_answer(seed, size, holes):
+    """``_Areas.covers`` with the points' lines (big polygons tested per line) = the plain bounding-box test.
+
+    Areas: a ring-shaped polygon over 1 km across (big: tested along lines) with holes, small boxes
+    and a concave notch; points on random closed lines (block tree lines) crossing all of them.
+    """
+    from sengine.nodes.vegetation.trees import _Areas
+
+    rng = np.random.default_rng(seed)
+    big = shapely.difference(shapely.box(0, 0, size, size), shapely.box(40, 40, size - 40, size - 40))
+    cuts = [shapely.box(*(c := rng.uniform(50, size - 150, 2)), *(c + rng.uniform(20, 100, 2))) for _ in range(holes)]
+    big = shapely.difference(big, shapely.union_all(cuts)) if cuts else big
+    small = [shapely.box(*(c := rng.uniform(0, size - 60, 2)), *(c + rng.uniform(5, 60, 2))) for _ in range(40)]
+    notch = shapely.Polygon([(10, 10), (300, 10), (300, 300), (150, 80), (10, 300)])
+    areas = _Areas(np.array([big, notch, *small], dtype=object))
+    assert len(areas.large[1]) == 1 and len(areas.small[1]) == 41
+    centres = rng.uniform(0, size, (30, 2))
+    lines = shapely.get_exterior_ring(shapely.buffer(shapely.points(centres), rng.uniform(10, 400, 30)))
+    xy, li, _ = avenue_points(lines, spacing=7.0, clear=0.0, corner=179.0)
+    with_lines = areas.covers(xy[:, 0], xy[:, 1], along=(lines, li))
+    plain = areas.covers(xy[:, 0], xy[:, 1])
+    truth = shapely.intersects_xy(shapely.union_all(np.array([big, notch, *small])), xy[:, 0], xy[:, 1])
+    assert len(xy) > 100 and 0 < plain.sum() < len(xy)
+    assert (with_lines == plain).all() and (plain == truth).all()
+
+
 @pytest.mark.parametrize("deviation", [0.0, 25.0])
 def test_distr_gives_the_requested_count_within_sampling_error(deviation):
     """Each region's count is floor(lambda) + Bernoulli(frac): the total is within 4 sigma of sum(lambda).
@@ -197,6 +229,38 @@ def test_the_river_has_water_and_bridges(paris):
     assert shapely.crosses(br.geometry, water.geometry[0]).all()
     decks = layers["bridges"]["bridges"]
     assert len(decks) == len(br)
+    # both ends of every bridge are nodes of the street graph: road ends shared (exactly) with >= 2 bank-side roads
+    rest = roads.take(~np.asarray(roads["bridge"], bool)).geometry
+    ends = np.concatenate([shapely.get_coordinates(shapely.get_point(rest, i)) for i in (0, -1)])
+    for line in br.geometry:
+        for end in shapely.get_coordinates(line)[[0, -1]]:
+            assert (ends == end).all(axis=1).sum() >= 2
+
+
+def test_a_bridge_is_noded_into_the_bank_road_it_lands_on():
+    """A river 100 m wide, one unbroken bank road on each side, a major road ending on the south bank:
+    the bridge's far end splits the north bank road there, so the three share one node."""
+    water = Layer.from_geoms([shapely.box(-1000, 0, 1000, 100)])
+    roads = Layer.from_geoms(
+        [
+            shapely.LineString([(-900, 0), (-300, 0), (0, 0), (800, 0)]),  # south bank
+            shapely.LineString([(-900, 100), (-200, 100), (450, 100), (900, 100)]),  # north bank, no vertex at x=3
+            shapely.LineString([(3, -400), (3, 0)]),  # the major road ending on the water
+        ],
+        major=np.array([False, False, True]),
+        width=np.array([8.0, 8.0, 12.0]),
+    )
+    res = get("roads.bridges")("b", {"snap": 20.0}, Context()).run(roads=roads, water=water)
+    out = res["roads"]
+    bridge = np.asarray(out["bridge"], bool)
+    assert bridge.sum() == 1 and res.report["bank_roads_split"] == 1 and len(out) == 5
+    a, b = shapely.get_coordinates(out.geometry[bridge][0])
+    assert np.allclose(a, (3, 0)) and np.allclose(b, (3, 100))
+    rest = out.geometry[~bridge]
+    starts = shapely.get_coordinates(shapely.get_point(rest, 0))
+    stops = shapely.get_coordinates(shapely.get_point(rest, -1))
+    assert (stops == b).all(axis=1).sum() == 1 and (starts == b).all(axis=1).sum() == 1
+    assert np.isclose(shapely.length(rest).sum(), 1700 + 1800 + 400)
 
 
 # -- a real extract: avenue trees on sidewalks, stopping at crossings -----------------------------
@@ -273,7 +337,8 @@ def test_trees_are_instanced_in_the_glb_and_pass_the_validator(tmp_path):
     inst, counts = glb_bytes({"vegetation": t})
     baked, _ = glb_bytes({"vegetation": t}, instancing=False)
     assert counts["vegetation"]["instances"] == len(t)
-    assert len(inst) < len(baked) / 10
+    # 40 bytes a tree for its placement and 37 for its row of the property table (baked: 750, no table)
+    assert len(inst) < len(baked) / 8
     n = struct.unpack("<I", inst[12:16])[0]
     doc = json.loads(inst[20 : 20 + n])
     assert "EXT_mesh_gpu_instancing" in doc["extensionsUsed"]
@@ -284,6 +349,35 @@ def test_trees_are_instanced_in_the_glb_and_pass_the_validator(tmp_path):
         for nd in doc["nodes"]
     )
     assert got == len(t)
+    # every instance names its plant: its feature id is its row in the property table (EXT_instance_features)
+    binary = inst[20 + n + 8 :]
+
+    def view(i, dtype):
+        v = doc["bufferViews"][i]
+        return np.frombuffer(binary[v.get("byteOffset", 0) : v.get("byteOffset", 0) + v["byteLength"]], dtype)
+
+    meta = doc["extensions"]["EXT_structural_metadata"]
+    table = meta["propertyTables"][0]
+    assert table["class"] == "vegetation" and table["count"] == len(t)
+    enum = meta["schema"]["enums"][meta["schema"]["classes"]["vegetation"]["properties"]["category"]["enumType"]]
+    names = {e["value"]: e["name"] for e in enum["values"]}
+    category = np.array([names[c] for c in view(table["properties"]["category"]["values"], np.uint8)])
+    height = view(table["properties"]["height"]["values"], "<f4")
+    assert (category == np.asarray(t["category"]).astype(str)).all()
+    assert np.allclose(height, np.asarray(t["height"], float), atol=1e-4)
+    seen = []
+    for nd in doc["nodes"]:
+        ids = nd["extensions"]["EXT_instance_features"]["featureIds"][0]
+        attrs = nd["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]
+        assert ids["propertyTable"] == 0 and ids["attribute"] == 0
+        rows = view(doc["accessors"][attrs["_FEATURE_ID_0"]]["bufferView"], "<f4").astype(np.int64)
+        assert ids["featureCount"] == len(np.unique(rows)) == len(rows)
+        assert (category[rows] == nd["name"].split("/")[1]).all()
+        xyz = view(doc["accessors"][attrs["TRANSLATION"]]["bufferView"], "<f4").reshape(-1, 3)
+        xy = shapely.get_coordinates(t.geometry[rows])
+        assert np.allclose(xyz[:, 0], xy[:, 0], atol=0.01) and np.allclose(-xyz[:, 2], xy[:, 1], atol=0.01)
+        seen.append(rows)
+    assert np.array_equal(np.sort(np.concatenate(seen)), np.arange(len(t)))
     if _validator_ready():
         for data, name in ((inst, "i.glb"), (baked, "b.glb")):
             (tmp_path / name).write_bytes(data)

@@ -164,7 +164,11 @@ def glb_bytes(
     ``height``, ``crown``, ``instance``) become one low-poly mesh per plant
     category (:mod:`sengine.nodes.export.trees`), a node each, placed at every
     tree by ``EXT_mesh_gpu_instancing``; ``instancing=False`` bakes every tree
-    into one mesh instead.
+    into one mesh instead.  Each instance carries its row of the layer as a
+    feature id (``EXT_instance_features``, an instance attribute
+    ``_FEATURE_ID_0``) into a property table of the layer's columns (zone,
+    category, type, instance, height, crown, park ...; text as enums, numbers
+    as 32-bit), so a viewer that knows the extensions names the plant clicked.
     """
     trees = layers.get("vegetation")
     built = {
@@ -178,7 +182,7 @@ def glb_bytes(
     order = [n for n in LAYERS if n in built] + sorted(n for n in built if n not in LAYERS)
     blobs: list[bytes] = []
     views, accessors, gl_meshes, materials, nodes = [], [], [], [], []
-    tables, classes = [], {}
+    tables, classes, enums = [], {}, {}
     length = 0
     counts = {}
 
@@ -272,6 +276,22 @@ def glb_bytes(
             translation if off.any() and not local else None,
             instancing=instancing,
         )
+        if instancing:  # pickable trees: each instance's row in a property table of the layer's columns
+            cls, table = _property_table("vegetation", trees, add_view, compact=True, enums=enums)
+            classes["vegetation"] = cls
+            for nd in nodes:
+                if "_tree_rows" in nd:
+                    nd["extensions"]["EXT_instance_features"] = {
+                        "featureIds": [
+                            {
+                                "featureCount": nd.pop("_tree_rows"),
+                                "attribute": 0,
+                                "propertyTable": len(tables),
+                                "label": "vegetation",
+                            }
+                        ]
+                    }
+            tables.append(table)
     extras = {"units": "m", "up": "y", "crs": crs or "", "planar_offset": [float(off[0]), float(off[1])]}
     if local:
         extras["origin"] = {"planar": [float(off[0]), float(off[1])], "lat": origin[1][0], "lon": origin[1][1]}
@@ -304,13 +324,12 @@ def glb_bytes(
     if used:
         doc["extensionsUsed"] = used
     if tables:
-        doc["extensionsUsed"] = sorted({*used, "EXT_mesh_features", "EXT_structural_metadata"})
-        doc["extensions"] = {
-            "EXT_structural_metadata": {
-                "schema": {"id": "sengine", "classes": classes},
-                "propertyTables": tables,
-            }
-        }
+        meshed = any("extensions" in pr for m in gl_meshes for pr in m["primitives"])  # buildings' feature ids
+        doc["extensionsUsed"] = sorted({*used, "EXT_structural_metadata", *(["EXT_mesh_features"] if meshed else [])})
+        schema = {"id": "sengine", "classes": classes}
+        if enums:
+            schema["enums"] = enums
+        doc["extensions"] = {"EXT_structural_metadata": {"schema": schema, "propertyTables": tables}}
     text = json.dumps(doc, sort_keys=True, separators=(",", ":")).encode()
     text += b" " * (-len(text) % 4)
     binary = b"".join(blobs)
@@ -327,6 +346,7 @@ def _tree_nodes(trees, off, add_view, accessors, gl_meshes, materials, nodes, tr
     from . import trees as tm
 
     cats = np.asarray(trees.get("category", np.full(len(trees), "lime")), dtype=object).astype(str)
+    rows = np.arange(len(trees))
     forms = np.asarray(trees.get("form", np.full(len(trees), "")), dtype=object).astype(str)
 
     def add_accessor(data: np.ndarray, type_: str, target: int | None, minmax: bool = False) -> int:
@@ -389,9 +409,12 @@ def _tree_nodes(trees, off, add_view, accessors, gl_meshes, materials, nodes, tr
                         "TRANSLATION": add_accessor(mesh.to_y_up(t), "VEC3", None),
                         "ROTATION": add_accessor(quat, "VEC4", None),
                         "SCALE": add_accessor(scale, "VEC3", None),
+                        # the tree's row in the layer's property table (EXT_instance_features)
+                        "_FEATURE_ID_0": add_accessor(rows[sel], "SCALAR", None),
                     }
                 }
             }
+            node["_tree_rows"] = int(sel.sum())
         if translation is not None:
             node["translation"] = translation
         nodes.append(node)
@@ -407,11 +430,14 @@ def _weld32(pos: np.ndarray, faces: np.ndarray, feature: np.ndarray):
     return np.ascontiguousarray(v, dtype=np.float32), f, feat
 
 
-def _property_table(name: str, layer: Layer, add_view) -> tuple[dict, dict]:
+def _property_table(name: str, layer: Layer, add_view, *, compact: bool = False, enums: dict | None = None):
     """``EXT_structural_metadata`` class and property table of a layer's ids and columns.
 
     Integers are INT64, floats FLOAT64, booleans UINT8, everything else
-    UTF-8 strings (with UINT32 offsets).
+    UTF-8 strings (with UINT32 offsets).  ``compact`` (the trees: hundreds
+    of thousands of rows, a few words each) stores integers that fit as
+    INT32, floats as FLOAT32 and text columns of at most 255 distinct values
+    as ENUMs of UINT8 (their value lists go into ``enums``, the schema's).
     """
     columns = {"id": np.asarray(layer.ids)}
     columns.update({k: np.asarray(v) for k, v in layer.attrs.items() if k != "id"})
@@ -421,7 +447,22 @@ def _property_table(name: str, layer: Layer, add_view) -> tuple[dict, dict]:
         pid = "".join(c if c.isalnum() or c == "_" else "_" for c in key)
         if not pid or not (pid[0].isalpha() or pid[0] == "_"):
             pid = "_" + pid
-        if col.dtype.kind == "b":
+        if compact and col.dtype.kind in "iu" and len(col) and -(2**31) <= col.min() and col.max() < 2**31:
+            props[pid] = {"type": "SCALAR", "componentType": "INT32"}
+            values[pid] = {"values": add_view(col.astype("<i4").tobytes())}
+        elif compact and col.dtype.kind == "f":
+            props[pid] = {"type": "SCALAR", "componentType": "FLOAT32"}
+            values[pid] = {"values": add_view(col.astype("<f4").tobytes())}
+        elif compact and enums is not None and col.dtype.kind in "OUS" and len(col) and _enum_column(col) is not None:
+            names, codes = _enum_column(col)
+            enum_id = f"{name}_{pid}"
+            enums[enum_id] = {
+                "valueType": "UINT8",
+                "values": [{"name": n, "value": i} for i, n in enumerate(names)],
+            }
+            props[pid] = {"type": "ENUM", "enumType": enum_id}
+            values[pid] = {"values": add_view(codes.astype(np.uint8).tobytes())}
+        elif col.dtype.kind == "b":
             props[pid] = {"type": "SCALAR", "componentType": "UINT8"}
             values[pid] = {"values": add_view(col.astype(np.uint8).tobytes())}
         elif col.dtype.kind in "iu":
@@ -446,6 +487,15 @@ def _property_table(name: str, layer: Layer, add_view) -> tuple[dict, dict]:
         if pid != key:
             props[pid]["name"] = key
     return {"name": name, "properties": props}, {"class": name, "count": len(layer), "properties": values}
+
+
+def _enum_column(col: np.ndarray):
+    """A text column of at most 255 distinct non-empty names: (sorted names, code per row); else None."""
+    text = np.array(["" if v is None else str(v) for v in col.tolist()], dtype=object)
+    names, codes = np.unique(text, return_inverse=True)
+    if len(names) > 255 or (names == "").any():
+        return None
+    return [str(n) for n in names], codes
 
 
 def write_glb(

@@ -81,6 +81,11 @@ def patio_zones(
     built_blocks = np.unique(owner)
     multi = shapely.multipolygons(parts, indices=np.searchsorted(built_blocks, owner))
     walls = shapely.buffer(multi, max(gap, 1e-3), quad_segs=2, join_style="mitre")
+    # buildings sharing party walls make a multipolygon whose parts touch along edges; its buffer can come
+    # out invalid (Paris: a side location conflict in the difference below), so such walls are repaired
+    bad = ~shapely.is_valid(walls)
+    if bad.any():
+        walls[bad] = shapely.make_valid(walls[bad])
     open_land = shapely.difference(blocks[built_blocks], walls)
     street = shapely.boundary(blocks[built_blocks])
     if front > 0:

@@ -13,7 +13,11 @@ another, at most ``crossings`` of them.
 
 The bridges join the roads as rows tagged ``bridge`` (``true``: OSM's
 ``bridge=yes``) of their road's class and width; every road gets the
-column.  They are not part of the street graph the blocks are traced from
+column.  Both ends of a bridge are nodes of the street graph, so traffic
+can cross: the near end is the end of the road it continues, and the far
+end is a road end of the far bank or a point of a bank road, which is split
+there in two rows (a possible bridge whose far end reaches no road within
+``snap`` m is not built).  They are not part of the street graph the blocks are traced from
 (a bridge and the banks would enclose the river as a block), as for a real
 map's bridges in ``roads.clean``.  The ``bridges`` output holds each deck
 as a polygon (the road's width, flat ends) with its ``span`` and
@@ -36,7 +40,7 @@ import shapely
 
 from sengine import Layer, NodeResult, Param, Port, SENode, register
 
-__all__ = ["bridge_candidates", "choose_bridges", "RoadsBridges"]
+__all__ = ["bridge_candidates", "choose_bridges", "split_lines_at", "RoadsBridges"]
 
 log = logging.getLogger(__name__)
 
@@ -62,7 +66,8 @@ def bridge_candidates(roads, major, water, *, max_span: float = 250.0, snap: flo
     Returns
     -------
     dict of numpy.ndarray
-        ``road`` (row), ``water`` (row), ``start`` and ``end`` (n, 2), ``span`` (m).
+        ``road`` (row), ``water`` (row), ``start`` and ``end`` (n, 2), ``span`` (m), ``onto``: the
+        row of the road whose inside the far end lies on (to be split there), -1 when it is a road end.
     """
     roads = np.asarray(roads, dtype=object)
     water = np.asarray(water, dtype=object)
@@ -72,6 +77,7 @@ def bridge_candidates(roads, major, water, *, max_span: float = 250.0, snap: flo
         "start": np.empty((0, 2)),
         "end": np.empty((0, 2)),
         "span": np.empty(0),
+        "onto": np.empty(0, np.int64),
     }
     if len(roads) == 0 or len(water) == 0:
         return none
@@ -119,11 +125,84 @@ def bridge_candidates(roads, major, water, *, max_span: float = 250.0, snap: flo
         snapped = far.copy()
         firsts = np.r_[True, src[1:] != src[:-1]] if len(src) else np.zeros(0, bool)  # one end per bridge
         snapped[src[firsts]] = ends_all[tgt[firsts]]
+        at_end = np.zeros(len(far), bool)
+        at_end[src[firsts]] = True
+        # otherwise onto the nearest point of a road of the far bank: the bridge is noded into it there
+        onto = np.full(len(far), -1, np.int64)
+        loose = np.flatnonzero(~at_end)
+        if len(loose):
+            (li, ri), _ = shapely.STRtree(roads).query_nearest(
+                shapely.points(far[loose]), max_distance=snap, return_distance=True
+            )
+            one = np.r_[True, li[1:] != li[:-1]] if len(li) else np.zeros(0, bool)
+            li, ri = li[one], ri[one]
+            s_on = shapely.line_locate_point(roads[ri], shapely.points(far[loose[li]]))
+            snapped[loose[li]] = shapely.get_coordinates(shapely.line_interpolate_point(roads[ri], s_on))
+            onto[loose[li]] = ri
         far = snapped
         span = np.hypot(*(far - p[which]).T)
-        keep = span <= max_span
-        which, far, span = which[keep], far[keep], span[keep]
-    return {"road": road[which], "water": wi[which], "start": p[which], "end": far, "span": span}
+        keep = (span <= max_span) & (at_end | (onto >= 0))
+        which, far, span, onto = which[keep], far[keep], span[keep], onto[keep]
+    else:
+        onto = np.empty(0, np.int64)
+    return {"road": road[which], "water": wi[which], "start": p[which], "end": far, "span": span, "onto": onto}
+
+
+def split_lines_at(lines, rows, points, tol: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """Split ``lines[rows[k]]`` at ``points[k]`` (points on the lines): a plane graph noded at the points.
+
+    Parameters
+    ----------
+    lines : array of shapely.LineString
+        The lines (m).
+    rows : array of int
+        Which line each point splits (a line may be split at several).
+    points : numpy.ndarray, shape (k, 2)
+        Points on those lines (m); one at a line's end or within ``tol`` m of
+        an existing cut splits nothing.
+    tol : float
+        Pieces shorter than this are not made (m).
+
+    Returns
+    -------
+    geoms : numpy.ndarray of shapely.LineString
+        Every line, those split replaced in place by their pieces in order along the line.
+    src : numpy.ndarray of int
+        Row of each piece's line in ``lines``.
+    """
+    lines = np.asarray(lines, dtype=object)
+    rows = np.asarray(rows, np.int64)
+    points = np.asarray(points, np.float64).reshape(-1, 2)
+    pieces: list[np.ndarray] = []
+    src: list[np.ndarray] = []
+    done = 0
+    for r in np.unique(rows).tolist():  # the few lines a bridge lands on
+        pieces.append(lines[done:r])
+        src.append(np.arange(done, r))
+        xy = shapely.get_coordinates(lines[r])
+        seg = np.hypot(*np.diff(xy, axis=0).T)
+        cum = np.r_[0.0, np.cumsum(seg)]
+        pts = points[rows == r]
+        at = shapely.line_locate_point(lines[r], shapely.points(pts))
+        order = np.argsort(at, kind="stable")
+        at, pts = at[order], pts[order]
+        keep = (at > tol) & (at < cum[-1] - tol)
+        at, pts = at[keep], pts[keep]
+        keep = np.r_[True, np.diff(at) > tol] if len(at) else np.zeros(0, bool)
+        at, pts = at[keep], pts[keep]
+        # the pieces end exactly on the given points: the new node is the point itself
+        cuts = np.r_[0.0, at, cum[-1]]
+        ends = np.concatenate([xy[:1], pts, xy[-1:]])
+        parts = []
+        for k in range(len(cuts) - 1):
+            inner = (cum > cuts[k] + tol) & (cum < cuts[k + 1] - tol)
+            parts.append(shapely.linestrings(np.concatenate([ends[k : k + 1], xy[inner], ends[k + 1 : k + 2]])))
+        pieces.append(np.array(parts, dtype=object))
+        src.append(np.full(len(parts), r))
+        done = r + 1
+    pieces.append(lines[done:])
+    src.append(np.arange(done, len(lines)))
+    return np.concatenate(pieces), np.concatenate(src).astype(np.int64)
 
 
 def choose_bridges(cand: dict, *, crossings: int = 3, min_gap: float = 300.0) -> np.ndarray:
@@ -182,6 +261,13 @@ class RoadsBridges(SENode):
         lines = shapely.linestrings(np.stack([cand["start"][pick], cand["end"][pick]], axis=1))
         span = cand["span"][pick]
         new = Layer(lines, src.ids, src.parent, dict(src.attrs), dict(roads.meta))
+        onto = cand["onto"][pick]
+        split = 0
+        if (onto >= 0).any():  # the bank roads the far ends land on are noded there
+            geoms, rows = split_lines_at(roads.geometry, onto[onto >= 0], cand["end"][pick][onto >= 0])
+            split = len(geoms) - len(roads)
+            roads = roads.take(rows)
+            roads = Layer(geoms, roads.ids, roads.parent, dict(roads.attrs), dict(roads.meta))
         out = Layer.concat(
             [roads.with_columns(bridge=np.zeros(len(roads), bool)), new.with_columns(bridge=np.ones(len(new), bool))]
         )
@@ -196,6 +282,11 @@ class RoadsBridges(SENode):
             thickness=np.full(len(lines), float(self.p.thickness)),
             district=np.asarray(src["district"], np.int64) if "district" in src else np.full(len(src), -1),
         )
-        report = {"bridges": len(pick), "bridge_m": round(float(span.sum()), 1), "candidates": len(cand["span"])}
+        report = {
+            "bridges": len(pick),
+            "bridge_m": round(float(span.sum()), 1),
+            "candidates": len(cand["span"]),
+            "bank_roads_split": split,
+        }
         log.info("%s: %d bridges (%.0f m) of %d possible", self.where, len(pick), span.sum(), len(cand["span"]))
         return NodeResult({"roads": out, "bridges": decks}, report)

@@ -53,38 +53,73 @@ ZONES = ("avenue", "district", "block", "lot", "patio", "region")
 _ZONE_KEY = {z: np.uint64(stable_hash(f"zone/{z}")) for z in ZONES}
 
 
-def _in_any(tree, polys: np.ndarray, x: np.ndarray, y: np.ndarray, pts=None) -> np.ndarray:
-    """Which points lie in (or on) some of ``polys`` (prepared), by bounding boxes then point-in-polygon."""
-    out = np.zeros(len(x), bool)
-    pi, qi = tree.query(shapely.points(x, y) if pts is None else pts)
-    if len(pi):
-        hit = shapely.intersects_xy(polys[qi], x[pi], y[pi])
-        out[pi[hit]] = True
-    return out
+class _Areas:
+    """Which points lie in (or on) some of a set of polygons: bounding boxes, then point-in-polygon.
+
+    The polygons are prepared.  A bounding-box query hands a point every
+    polygon whose box holds it, and a city's street or sidewalk polygon can
+    have 40,000 vertices and a box over the whole city, so the polygons
+    longer than ``big`` m across are kept apart: for points known to lie on
+    lines (avenue trees on their block's tree line), a big polygon is tested
+    only for the points of the lines it meets (an exact filter: a point of a
+    line in a polygon makes the line meet it), one line-polygon predicate per
+    line instead of a point-in-polygon test per point.
+    """
+
+    def __init__(self, geoms, big: float = 1000.0):
+        geoms = np.asarray(geoms, dtype=object)
+        shapely.prepare(geoms)
+        b = shapely.bounds(geoms)
+        large = np.hypot(b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]) > big
+        self.all = (shapely.STRtree(geoms), geoms)
+        self.small = (shapely.STRtree(geoms[~large]), geoms[~large])
+        self.large = (shapely.STRtree(geoms[large]), geoms[large])
+
+    def covers(self, x: np.ndarray, y: np.ndarray, pts=None, along=None) -> np.ndarray:
+        """Bool per point; ``along = (lines, line_of)``: each point lies on ``lines[line_of[i]]``."""
+        out = np.zeros(len(x), bool)
+        if not len(x):
+            return out
+        tree, polys = self.all if along is None else self.small
+        pi, qi = tree.query(shapely.points(x, y) if pts is None else pts)
+        if len(pi):
+            out[pi[shapely.intersects_xy(polys[qi], x[pi], y[pi])]] = True
+        tree, polys = self.large
+        if along is not None and len(polys):
+            lines, line_of = along
+            li, qi = tree.query(lines)  # boxes, then the predicate on the prepared polygons
+            meet = shapely.intersects(polys[qi], lines[li])
+            li, qi = li[meet], qi[meet]
+            order = np.argsort(li, kind="stable")
+            li, qi = li[order], qi[order]
+            start = np.searchsorted(li, np.arange(len(lines)))
+            cnt = np.bincount(li, minlength=len(lines))[line_of]
+            pi = np.repeat(np.arange(len(x)), cnt)
+            qi = qi[np.repeat(start[line_of] - np.cumsum(cnt) + cnt, cnt) + np.arange(len(pi))]
+            out[pi[shapely.intersects_xy(polys[qi], x[pi], y[pi])]] = True
+        return out
 
 
 def _obstacle_test(buildings, water, streets, roads, road_width, clearance: float):
-    """``accept(x, y, clear)``: points on no street, in no water, ``clear`` m off every building.
+    """``accept(x, y, clear, along=None)``: points on no street, in no water, ``clear`` m off every building.
 
     Big polygons (street surfaces, rivers) are tested point-in-polygon on
-    prepared geometry after a bounding-box query: far faster than a
-    predicate query, which prepares the points instead.
+    prepared geometry after a bounding-box query (:class:`_Areas`): far
+    faster than a predicate query, which prepares the points instead.
+    ``along = (lines, line_of)`` says the points lie on those lines;
+    ``pts`` are the points if made already.
     """
-    areas = []
-    for geoms in (water, streets):
-        if geoms is not None and len(geoms):
-            geoms = np.asarray(geoms, dtype=object)
-            shapely.prepare(geoms)
-            areas.append((shapely.STRtree(geoms), geoms))
+    areas = [_Areas(g) for g in (water, streets) if g is not None and len(g)]
     b_tree = shapely.STRtree(buildings) if buildings is not None and len(buildings) else None
     r_tree = shapely.STRtree(roads) if roads is not None and len(roads) else None
     half = np.asarray(road_width, np.float64) / 2 if r_tree is not None else None
 
-    def accept(x, y, clear=clearance):
+    def accept(x, y, clear=clearance, along=None, pts=None):
         ok = np.ones(len(x), bool)
-        pts = shapely.points(x, y) if areas else None
-        for tree, geoms in areas:
-            ok &= ~_in_any(tree, geoms, x, y, pts)
+        if pts is None and areas:
+            pts = shapely.points(x, y)
+        for a in areas:
+            ok &= ~a.covers(x, y, pts, along)
         if b_tree is not None and ok.any():
             idx = np.flatnonzero(ok)
             pts = shapely.points(x[idx], y[idx])
@@ -131,7 +166,7 @@ def place_trees(
     region_pattern: str = "scatter",
     versailles_depth: int = 3,
 ) -> dict[str, np.ndarray]:
-    """Trees of every zone, as columns (``x``, ``y``, ``zone``, ``zone_row``, ``key``).
+    """Trees of every zone, as columns (``x``, ``y``, ``zone``, ``zone_row``, ``key``, ``geometry``: points).
 
     ``density`` maps a zone (district, block, lot, patio, region) to trees per
     m2.  ``zone_row`` is the row of the tree's park, region or (avenue) block;
@@ -139,21 +174,21 @@ def place_trees(
     """
     density = density or {}
     accept = _obstacle_test(buildings, water, streets, roads, road_width, clearance)
-    xs, zs, rows, keys = [], [], [], []
+    xs, zs, rows, keys, made = [], [], [], [], []
     seed = np.uint64(seed & 0xFFFFFFFFFFFFFFFF)
     # avenue trees: along the blocks (and block-level parks), kept on the sidewalks
     if avenue_spacing > 0 and blocks is not None and len(blocks):
         lines, row = tree_lines(blocks, avenue_offset)
         xy, li, _ = avenue_points(lines, spacing=avenue_spacing, clear=avenue_clear, corner=corner)
         row = row[li]
-        ok = accept(xy[:, 0], xy[:, 1], 0.0) if len(xy) else np.zeros(0, bool)
+        pts = shapely.points(xy[:, 0], xy[:, 1])
+        ok = accept(xy[:, 0], xy[:, 1], 0.0, along=(lines, li), pts=pts) if len(xy) else np.zeros(0, bool)
         if sidewalks is not None and len(sidewalks) and len(xy):
-            walk = np.asarray(sidewalks, dtype=object)
-            shapely.prepare(walk)
-            ok &= _in_any(shapely.STRtree(walk), walk, xy[:, 0], xy[:, 1])
+            ok &= _Areas(sidewalks).covers(xy[:, 0], xy[:, 1], pts, along=(lines, li))
         rank = np.arange(len(li)) - np.searchsorted(li, li)
         k = mix64(mix64(seed ^ _ZONE_KEY["avenue"], np.asarray(block_ids, np.int64)[row].astype(np.uint64)), rank)
         xs.append(xy[ok])
+        made.append(pts[ok])
         zs.append(np.full(int(ok.sum()), "avenue"))
         rows.append(row[ok])
         keys.append(k[ok])
@@ -216,6 +251,7 @@ def place_trees(
             "zone": np.empty(0, "<U8"),
             "zone_row": np.empty(0, np.int64),
             "key": np.empty(0, np.uint64),
+            "geometry": np.empty(0, object),
         }
     xy = np.concatenate(xs)
     return {
@@ -224,6 +260,8 @@ def place_trees(
         "zone": np.concatenate(zs).astype("<U8"),
         "zone_row": np.concatenate(rows).astype(np.int64),
         "key": np.concatenate(keys).astype(np.uint64),
+        # the avenue trees' points were made for their tests already
+        "geometry": np.concatenate([*made, shapely.points(xy[sum(len(m) for m in made) :])]),
     }
 
 
@@ -368,7 +406,7 @@ class VegetationTrees(SENode):
             district[ave] = np.asarray(edge["district"], np.int64)[trees["zone_row"][ave]]
         meta = next((dict(lay.meta) for lay in (blocks, parks, regions, roads) if lay is not None), {})
         out = Layer.from_geoms(
-            shapely.points(trees["x"], trees["y"]) if n else np.empty(0, object),
+            trees["geometry"],
             meta=meta,
             zone=zone.astype(object),
             category=cols["category"],
