@@ -84,7 +84,10 @@ def patio_zones(
     built_blocks = np.unique(owner)
     multi = shapely.multipolygons(parts, indices=np.searchsorted(built_blocks, owner))
     walls = shapely.buffer(multi, max(gap, 1e-3), quad_segs=2, join_style="mitre")
-    open_land = shapely.difference(blocks[built_blocks], walls)
+    try:
+        open_land = shapely.difference(blocks[built_blocks], walls)
+    except shapely.errors.GEOSException:  # an invalid wall union ('free hole'): made valid first
+        open_land = shapely.difference(shapely.make_valid(blocks[built_blocks]), shapely.make_valid(walls))
     street = shapely.boundary(blocks[built_blocks])
     if front > 0:
         open_land = shapely.difference(open_land, shapely.buffer(street, front, quad_segs=2))
