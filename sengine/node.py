@@ -340,6 +340,11 @@ class SENode:
     shard_port: ClassVar[str | None] = None
     #: The formats a sink writes shard by shard (:meth:`write_shard`), when it can.
     shard_formats: ClassVar[tuple[str, ...]] = ()
+    #: Input ports whose features the node hands on or fills (a stream such as ``parks``).  In a
+    #: sharded run a layer made for the whole city that reaches such a port is cut: each shard gets
+    #: the features whose inner point lies in one of its enclosures, the remainder those outside
+    #: every enclosure, so each feature comes out of one shard (:mod:`sengine.shard`).
+    shard_streams: ClassVar[tuple[str, ...]] = ()
 
     def __init__(
         self,
@@ -435,6 +440,17 @@ class SENode:
         enclosure.  Only a node that sets :attr:`shard_port` implements it.
         """
         raise NotImplementedError
+
+    def shard_refusal(self, connected: frozenset[str]) -> str | None:
+        """Why this node, with its parameters, cannot run one enclosure group at a time (None: it can).
+
+        Asked of every node after the face tracer before a sharded run does
+        any work (``connected``: its connected input ports); a reason makes
+        the run fail in one line.  A node whose result for a feature depends
+        on features of other enclosures (a share of the whole city, a rank
+        among all blocks) returns one.
+        """
+        return None
 
     def write_shard(self, inputs: dict[str, Layer | None], *, shard: int, city_ports: frozenset) -> Any:
         """A sink (a node without outputs) in a sharded run: write shard ``shard``'s part; return a small summary.

@@ -31,7 +31,17 @@ experiment lost faces with tiles and halos, and with re-noding per shard;
 tracing per enclosure on the graph noded once loses none.
 
 Nodes after the tracer must be local to an enclosure (a lot is made from
-its block alone).  ``stats.json`` holds the shards' counts summed, their
+its block alone); one that is not, with its parameters, says why
+(:meth:`~sengine.node.SENode.shard_refusal`) and the run stops in one line
+before any work.  A layer made for the whole city that reaches a node's
+stream port (:attr:`~sengine.node.SENode.shard_streams`: the district
+parks handed down the parks stream) is cut by enclosure: each feature goes
+to the shard whose enclosure holds its inner point (the remainder: outside
+every enclosure), so it comes out of one shard and is filled (trees) once;
+its other whole-city inputs (water, rules) every shard gets whole, as
+context.  The open-space nodes keep their layers in id order, with ids
+derived from the enclosure (:mod:`sengine.nodes.parks.ids`), so the
+shards' parts in shard order are again the whole city's layers.  ``stats.json`` holds the shards' counts summed, their
 reports merged (sums added; the FAR and coverage of the sums) and the
 seconds of every node summed over the shards.
 """
@@ -50,6 +60,7 @@ import numpy as np
 
 from . import __version__, registry
 from .errors import ParameterError, SEngineError
+from .geom.polygons import containing
 from .layer import Layer
 from .node import SENode
 
@@ -118,6 +129,7 @@ class _City:
     tracer: str
     shards: list
     city_ports: dict
+    streams: dict  # (node id, port) -> enclosure row of each feature of the city layer on that stream port
 
 
 _CITY: _City | None = None  # set before the scheduler starts: forked workers inherit it
@@ -146,6 +158,11 @@ def _run_shard(k: int) -> dict:
     for node_id in city.shard_nodes:
         node = city.bound.nodes[node_id]
         kwargs = _inputs(city, node_id, layers)
+        for (nid, port), host in city.streams.items():
+            if nid == node_id:  # the whole city's stream features this shard owns
+                rows = city.shards[k]
+                mine = np.isin(host, rows) if len(rows) else host < 0
+                kwargs[port] = kwargs[port].take(np.flatnonzero(mine))
         if node_id == city.tracer:
             kwargs = node.shard_inputs(kwargs, city.shards[k])
         t = time.perf_counter()
@@ -242,6 +259,13 @@ def run_sharded(
         city_nodes = [k for k in bound.order if k not in after]
         shard_nodes = [k for k in bound.order if k in after and bound.nodes[k].outputs]
         sinks = [k for k in bound.order if k in after and not bound.nodes[k].outputs]
+        for k in [*shard_nodes, *sinks]:  # refused before any work: nodes that need the whole city
+            why = bound.nodes[k].shard_refusal(frozenset(dp for _, _, dp in incoming[k]))
+            if why:
+                raise SEngineError(
+                    f"--shards: {bound.nodes[k].where} cannot run one enclosure group at a time: {why} "
+                    "(run without --shards)"
+                )
         for k in sinks:
             if type(bound.nodes[k]).write_shard is SENode.write_shard:
                 raise SEngineError(f"--shards: node {k!r} ({bound.nodes[k].name}) cannot write shard by shard")
@@ -282,7 +306,13 @@ def run_sharded(
         groups = group_enclosures(shapely.area(areas.geometry), shards)
         groups.append(np.zeros(0, np.int64))  # the remainder: faces outside every enclosure
         city_ports = {k: frozenset(dp for s, _, dp in incoming[k] if s not in after) for k in sinks}
-        _CITY = _City(bound, incoming, layers, shard_nodes, sinks, tracer, groups, city_ports)
+        streams = {}  # whole-city layers on stream ports: each feature goes to the shard of its enclosure
+        for k in shard_nodes:
+            for s, sp, dp in incoming[k]:
+                lay = layers[s][sp] if s not in after else None
+                if lay is not None and dp in bound.nodes[k].shard_streams:
+                    streams[(k, dp)] = containing(shapely.point_on_surface(lay.geometry), areas.geometry)
+        _CITY = _City(bound, incoming, layers, shard_nodes, sinks, tracer, groups, city_ports, streams)
         outcomes: list = [None] * len(groups)
         t_shards = time.perf_counter()
         joined = 0  # shards handed to the sinks' join_shard, in order, while the next ones run

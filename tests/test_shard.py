@@ -19,7 +19,12 @@ from sengine.shard import group_enclosures, merge_reports
 
 ROOT = Path(__file__).resolve().parent.parent
 METROPOLIS = ROOT / "configs" / "metropolis.xml"
-TABLES = ("blocks", "buildings", "lots", "parks", "roads", "sidewalks", "streets")
+TABLES = ("blocks", "buildings", "lots", "parks", "roads", "sidewalks", "streets", "vegetation", "water", "bridges")
+#: Every park level on (the pattern network leaves block, lot and patio parks off).
+OPEN_SPACE = (
+    *("--set", "blockParks.mode=every", "--set", "blockParks.every=7"),
+    *("--set", "lotParks.mode=every", "--set", "lotParks.every=9", "--set", "patios.mode=all"),
+)
 
 
 def _grid_city(nx_: int, ny: int, step: float, rng: np.random.Generator):
@@ -125,6 +130,31 @@ def test_lot_and_building_ids_derive_from_their_block(tmp_path, capsys):
     assert (bid % 10_000 < 10_000).all() and np.isin(bid // 10_000, np.unique(blocks["parent_id"].to_numpy())).all()
 
 
+@pytest.mark.slow
+def test_open_space_at_every_level_sharded_and_chunked_gives_the_same_bytes(tmp_path, capsys):
+    """District parks made once pass down the parks stream: each comes out of one shard with its trees."""
+    import pyarrow.parquet as pq
+
+    base = [METROPOLIS, "--scale", "0.004", "--format", "parquet,gpkg", "-q", *OPEN_SPACE]
+    assert _run(["run", *base, "-o", tmp_path / "whole", "--workers", "1"], capsys)[0] == 0
+    assert _run(["run", *base, "-o", tmp_path / "shards", "--workers", "2", "--shards", "3"], capsys)[0] == 0
+    assert _run(["run", *base, "-o", tmp_path / "chunks", "--workers", "2"], capsys)[0] == 0
+    for other in ("shards", "chunks"):
+        for name in [f"{t}.parquet" for t in TABLES] + ["city.gpkg"]:
+            assert (tmp_path / "whole" / name).read_bytes() == (tmp_path / other / name).read_bytes(), (other, name)
+    parks = pq.read_table(tmp_path / "whole" / "parks.parquet")
+    level, pid = parks["level"].to_numpy(zero_copy_only=False), parks["id"].to_numpy()
+    assert set(level) == {"district", "block", "lot", "patio"}
+    assert len(np.unique(pid)) == len(pid) and (np.diff(pid) > 0).all()
+    code = {"district": 0, "block": 1, "lot": 2, "patio": 3}
+    assert (pid % 4 == np.array([code[v] for v in level])).all()
+    trees = pq.read_table(tmp_path / "whole" / "vegetation.parquet")
+    tid = trees["id"].to_numpy()
+    assert len(tid) > 10_000 and len(np.unique(tid)) == len(tid)
+    inpark = trees["zone"].to_numpy(zero_copy_only=False) != "avenue"
+    assert np.array_equal(tid[inpark] // 100_000 // 4, trees["park"].to_numpy()[inpark])
+
+
 def test_shards_refuse_what_they_cannot_do(tmp_path, capsys):
     osm = ROOT / "configs" / "monaco.xml"
     status, err = _run(["run", osm, "-o", tmp_path / "o", "--shards", "4", "-q"], capsys)
@@ -133,6 +163,11 @@ def test_shards_refuse_what_they_cannot_do(tmp_path, capsys):
         ["run", METROPOLIS, "--scale", "0.004", "-o", tmp_path / "p", "--shards", "4", "--format", "png"], capsys
     )
     assert status == 2 and err.count("\n") == 1 and "png" in err
+    for setting, word in (("blockParks.mode=largest", "largest"), ("vegetation.spacing=20", "spacing")):
+        status, err = _run(
+            ["run", METROPOLIS, "--scale", "0.004", "-o", tmp_path / "p", "--shards", "4", "--set", setting], capsys
+        )
+        assert status == 2 and err.count("\n") == 1 and word in err and "enclosure" in err, err
     assert not (tmp_path / "o").exists() and not (tmp_path / "p").exists()
     assert not list(tmp_path.glob(".*"))
 

@@ -35,7 +35,18 @@ log = logging.getLogger(__name__)
 #: What a sharded run writes: streamed tables, and the glb as one file per shard.
 SHARD_FORMATS = ("parquet", "gpkg", "glb")
 #: The exporter's layer ports, in its order.
-LAYER_PORTS = ("roads", "streets", "sidewalks", "blocks", "lots", "buildings", "parks", "water")
+LAYER_PORTS = (
+    "roads",
+    "streets",
+    "sidewalks",
+    "blocks",
+    "lots",
+    "buildings",
+    "parks",
+    "water",
+    "bridges",
+    "vegetation",
+)
 _MULTI = {"Polygon": "MultiPolygon", "LineString": "MultiLineString", "Point": "MultiPoint"}
 
 
@@ -86,6 +97,8 @@ def write_part(node, inputs: dict, *, shard, ports, folder: Path, city_origin) -
     options = dict(getattr(node.context, "options", None) or {})
     lat_lon, any_crs, target, grid = _frame(inputs, options)
     layers = {k: inputs[k] for k in LAYER_PORTS if k in ports and inputs.get(k) is not None}
+    if "bridges" in layers and not len(layers["bridges"]):  # as export.city: no bridges, no table
+        del layers["bridges"]
     rules = {"district": inputs.get("district_rules"), "landuse": inputs.get("landuse_rules")}
     layers, cleaned = prepare_layers(layers, rules, origin=lat_lon)
     attribution = _attribution(inputs)

@@ -6,7 +6,8 @@ a few blocks to the space equivalent to a single building."  District-level
 parks come from the land-use map (``roads.districts``' ``parks`` output);
 this module turns chosen blocks into parks before they are cut into lots,
 and hands the other blocks on.  It also passes upstream parks through, so
-one ``parks`` stream reaches the exporter.
+one ``parks`` stream reaches the exporter, in id order; a block park's id
+comes from its block (:mod:`.ids`).
 
 References
 ----------
@@ -25,6 +26,8 @@ import numpy as np
 import shapely
 
 from sengine import Layer, NodeResult, Param, Port, SENode, register
+
+from .ids import block_site, join_parks, park_ids
 
 __all__ = ["choose_park_blocks", "ParksBlock"]
 
@@ -101,6 +104,7 @@ class ParksBlock(SENode):
 
     name = "parks.block"
     maps_features = False
+    shard_streams = ("parks",)
     inputs = {
         "blocks": Port("blocks", "blocks to choose from"),
         "parks": Port(
@@ -125,6 +129,13 @@ class ParksBlock(SENode):
         "min_area": Param("float", 0.0, min=0.0, unit="m2", doc="smaller blocks never become parks"),
     }
 
+    def shard_refusal(self, connected):
+        if self.p.mode == "largest":
+            return "mode 'largest' ranks every block of the city (use every or random)"
+        if self.p.mode == "inside":
+            return "mode 'inside' reads every district park's outline (use every or random)"
+        return None
+
     def run(self, *, blocks: Layer, parks: Layer | None = None):
         zones = None
         if self.p.mode == "inside":
@@ -146,13 +157,14 @@ class ParksBlock(SENode):
         district = chosen["district"] if "district" in chosen else np.full(len(chosen), -1, np.int64)
         new = Layer.from_geoms(
             chosen.geometry,
+            ids=park_ids(block_site(chosen.ids), "block", where=self.where),
             parent=chosen.ids,
             meta=dict(blocks.meta),
             level=np.full(len(chosen), "block"),
             district=np.asarray(district, np.int64),
             area=shapely.area(chosen.geometry) if len(chosen) else np.zeros(0),
         )
-        out = Layer.concat([parks, new]) if parks is not None and len(parks) else new
+        out = join_parks(parks, new, where=self.where)
         report = {"block_parks": int(pick.sum()), "park_area_m2": round(float(new.area()), 1)}
         log.info("parks.block: %d of %d blocks become parks", int(pick.sum()), len(blocks))
         return NodeResult({"parks": out, "blocks": blocks.take(~pick)}, report)

@@ -14,7 +14,9 @@ others go on to the buildings node.  Lots are chosen
 * ``ids``: the lot ids a rule names.
 
 ``use`` restricts the choice to lots of districts whose ``<district use=...>``
-is that land use (e.g. parks only in residential districts).
+is that land use (e.g. parks only in residential districts).  A lot
+park's id comes from its lot (:mod:`.ids`); the parks stream is handed on
+in id order.
 
 References
 ----------
@@ -40,6 +42,7 @@ from sengine.errors import ParameterError
 from sengine.random import uniform
 
 from ..roads.districts import _rules
+from .ids import join_parks, park_ids
 
 __all__ = ["LOT_MODES", "choose_park_lots", "ParksLot"]
 
@@ -107,6 +110,7 @@ class ParksLot(SENode):
     """Lot-level parks: chosen lots stay free of buildings and become parks (paper 002 §4)."""
 
     name = "parks.lot"
+    shard_streams = ("parks",)
     inputs = {
         "lots": Port("lots", "lots to choose from"),
         "parks": Port("parks", "parks made upstream, passed through", required=False),
@@ -124,6 +128,11 @@ class ParksLot(SENode):
         "use": Param("str", "", doc="only lots of districts with this <district use=...> (empty: any)"),
         "min_area": Param("float", 0.0, min=0.0, unit="m2", doc="smaller lots never become parks"),
     }
+
+    def shard_refusal(self, connected):
+        if self.p.mode == "area":
+            return "mode 'area' takes a share of the whole city's lot area (use every, random, inner or ids)"
+        return None
 
     def run(self, *, lots: Layer, parks: Layer | None = None, district_rules: Layer | None = None):
         if self.p.mode == "none":
@@ -157,6 +166,7 @@ class ParksLot(SENode):
         col = lambda k: np.asarray(chosen[k], np.int64) if k in chosen else np.full(len(chosen), -1, np.int64)  # noqa: E731
         new = Layer.from_geoms(
             chosen.geometry,
+            ids=park_ids(chosen.ids, "lot", where=self.where),
             parent=chosen.ids,
             meta=dict(lots.meta),
             level=np.full(len(chosen), "lot"),
@@ -165,7 +175,7 @@ class ParksLot(SENode):
             lot=chosen.ids.astype(np.int64),
             block=col("block"),
         )
-        out = Layer.concat([parks, new]) if parks is not None and len(parks) else new
+        out = join_parks(parks, new, where=self.where)
         report = {"lot_parks": int(pick.sum()), "park_area_m2": round(float(area[pick].sum()), 1)}
         log.info("%s: %d of %d lots become parks", self.where, int(pick.sum()), len(lots))
         return NodeResult({"parks": out, "lots": lots.take(~pick)}, report)

@@ -13,7 +13,8 @@ buildings opens it to the street.  Pieces under ``min_area`` or thinner than
 Vectorized over all blocks: the buildings of each block become one
 geometry (:func:`shapely.multipolygons` by block, buffered by ``gap``, which
 also unions walls that touch), then one difference, one ``get_parts`` and
-one distance test.
+one distance test.  A patio's id comes from its block and its rank there
+(:mod:`.ids`); the parks stream is handed on in id order.
 
 References
 ----------
@@ -32,6 +33,8 @@ import numpy as np
 import shapely
 
 from sengine import Layer, NodeResult, Param, Port, SENode, register
+
+from .ids import block_site, join_parks, park_ids, ranks
 
 __all__ = ["patio_zones", "ParksPatio"]
 
@@ -86,7 +89,10 @@ def patio_zones(
     bad = ~shapely.is_valid(walls)
     if bad.any():
         walls[bad] = shapely.make_valid(walls[bad])
-    open_land = shapely.difference(blocks[built_blocks], walls)
+    try:
+        open_land = shapely.difference(blocks[built_blocks], walls)
+    except shapely.errors.GEOSException:  # a wall union GEOS still cannot subtract ('free hole'): blocks made valid
+        open_land = shapely.difference(shapely.make_valid(blocks[built_blocks]), shapely.make_valid(walls))
     street = shapely.boundary(blocks[built_blocks])
     if front > 0:
         open_land = shapely.difference(open_land, shapely.buffer(street, front, quad_segs=2))
@@ -111,6 +117,7 @@ class ParksPatio(SENode):
     """Patio zones: each block's open core once buildings stand, as parks of level 'patio' (001 §3.2)."""
 
     name = "parks.patio"
+    shard_streams = ("parks",)
     inputs = {
         "blocks": Port("blocks", "blocks: their boundary is the street edge"),
         "buildings": Port("buildings", "buildings standing on the blocks"),
@@ -145,8 +152,10 @@ class ParksPatio(SENode):
             min_width=self.p.min_width,
         )
         district = np.asarray(blocks["district"], np.int64)[row] if "district" in blocks else np.full(len(row), -1)
+        bid = blocks.ids[row].astype(np.int64)
         new = Layer.from_geoms(
             zones,
+            ids=park_ids(block_site(bid) + ranks(bid), "patio", where=self.where),
             parent=blocks.ids[row],
             meta=dict(blocks.meta),
             level=np.full(len(zones), "patio"),
@@ -154,7 +163,7 @@ class ParksPatio(SENode):
             area=shapely.area(zones) if len(zones) else np.zeros(0),
             block=blocks.ids[row].astype(np.int64),
         )
-        out = Layer.concat([parks, new]) if parks is not None and len(parks) else new
+        out = join_parks(parks, new, where=self.where)
         report = {"patios": len(new), "patio_area_m2": round(float(new.area()), 1)}
         log.info("%s: %d patio zones, %.0f m2", self.where, len(new), new.area())
         return NodeResult({"parks": out}, report)

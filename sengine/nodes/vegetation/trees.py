@@ -21,6 +21,11 @@ palette.  Columns: ``zone``, ``category``, ``type`` (age class),
 ``instance``, ``height`` and ``crown`` (m), ``form`` (broad / conifer),
 ``park`` (id of its park or region, -1 for avenue trees), ``district``.
 
+Each tree's id is stable whatever the batch (:mod:`sengine.nodes.parks.ids`):
+its zone's key (its park's id, its block's for an avenue tree, its
+region's) times :data:`~sengine.nodes.parks.ids.TREE_SPAN` plus its rank in
+the zone; the layer is in id order.
+
 References
 ----------
 .. [1] A. Ulmer, J. Halatsch, A. Kunze, P. Müller and L. Van Gool, "Procedural design
@@ -39,6 +44,7 @@ import shapely
 from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.random import mix64, stable_hash
 
+from ..parks.ids import TREE_KINDS, avenue_value, tree_ids
 from .avenue import avenue_points, tree_lines
 from .distr import distr, far_from
 from .plants import choose_plants, parse_palette
@@ -281,6 +287,10 @@ class VegetationTrees(SENode):
         "water": Port("polygons", "water: no tree in it", required=False),
     }
     outputs = {"vegetation": Port("vegetation", "one point per tree: zone, category, type, instance, height ...")}
+    shard_streams = ("parks", "regions")
+    #: How far (m) a tree may look beyond its enclosure (spacing, clearance) in a sharded run: below half
+    #: the narrowest major road between enclosures (16 m in the demos), trees of two enclosures never meet.
+    SHARD_REACH = 8.0
     params = {
         "spacing": Param("float", 4.0, min=0.0, max=100.0, unit="m", doc="least distance between two trees"),
         "avenue_spacing": Param(
@@ -314,6 +324,17 @@ class VegetationTrees(SENode):
         ),
         "versailles_depth": Param("int", 3, min=0, max=8, unit="1", doc="Versailles recursive splits"),
     }
+
+    def shard_refusal(self, connected):
+        if "regions" in connected:
+            return "vegetation regions are not numbered by enclosure (connect them only to an unsharded run)"
+        reach = max(self.p.spacing, self.p.clearance)
+        if reach > self.SHARD_REACH:
+            return (
+                f"spacing / clearance {reach:g} m reach past the major road between two enclosures "
+                f"(at most {self.SHARD_REACH:g} m)"
+            )
+        return None
 
     def run(
         self,
@@ -404,9 +425,28 @@ class VegetationTrees(SENode):
         ave = zone == "avenue"
         if edge is not None and ave.any() and "district" in edge:
             district[ave] = np.asarray(edge["district"], np.int64)[trees["zone_row"][ave]]
+        # stable ids: the zone's key (park, block, region) x TREE_SPAN + rank in the zone
+        kind = np.full(n, TREE_KINDS.index("park"), np.int64)
+        value = park.copy()
+        kind[ave] = TREE_KINDS.index("avenue")
+        if ave.any():
+            n_blocks = 0 if blocks is None else len(blocks)
+            row = trees["zone_row"][ave]
+            from_block = row < n_blocks
+            value[ave] = np.where(
+                from_block,
+                avenue_value(blocks.ids[np.minimum(row, n_blocks - 1)]) if n_blocks else 0,
+                edge.ids[row],
+            )
+        kind[reg] = TREE_KINDS.index("region")
+        ids = tree_ids(value, kind, where=self.where)
+        order = np.argsort(ids, kind="stable")
         meta = next((dict(lay.meta) for lay in (blocks, parks, regions, roads) if lay is not None), {})
+        zone, park, district = zone[order], park[order], district[order]
+        cols = {k: v[order] for k, v in cols.items()}
         out = Layer.from_geoms(
-            trees["geometry"],
+            trees["geometry"][order],
+            ids=ids[order],
             meta=meta,
             zone=zone.astype(object),
             category=cols["category"],
