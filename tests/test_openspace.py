@@ -402,3 +402,24 @@ def test_trees_in_every_format(tmp_path):
     assert len(svo) == len(t)
     validate_cityjson(doc)
     assert (tmp_path / "city.gpkg").stat().st_size > 0
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.floats(0, 5_000), st.floats(0, 5_000), st.floats(5, 300), st.floats(0, 3)), min_size=2, max_size=6
+    )
+)
+def test_avenue_trees_of_a_ring_do_not_depend_on_the_rings_before_it(rings):
+    """The same ring gives the same trees, to the bit, whatever else is in the batch (shards, chunks)."""
+    lines = np.array(
+        [
+            shapely.affinity.rotate(shapely.box(x, y, x + w, y + 0.7 * w), a, use_radians=True).exterior
+            for x, y, w, a in rings
+        ],
+        dtype=object,
+    )
+    alone, ring_alone, ang_alone = avenue_points(lines[-1:], spacing=7.3, clear=4.0, corner=35.0)
+    xy, ring, ang = avenue_points(lines, spacing=7.3, clear=4.0, corner=35.0)
+    last = ring == len(lines) - 1
+    assert np.array_equal(xy[last], alone) and np.array_equal(ang[last], ang_alone)

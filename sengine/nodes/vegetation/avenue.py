@@ -46,6 +46,9 @@ def tree_lines(blocks, offset: float) -> tuple[np.ndarray, np.ndarray]:
     return shapely.get_exterior_ring(polys[keep]), row[keep]
 
 
+NM = 1e9  # nanometres per metre: arc lengths are summed as whole nanometres
+
+
 def avenue_points(
     lines, *, spacing: float = 10.0, clear: float = 6.0, corner: float = 35.0, min_run: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -95,10 +98,13 @@ def avenue_points(
     ang = np.arctan2(edge[:, 1], edge[:, 0])
     turn = np.abs((ang - ang[prv] + np.pi) % (2 * np.pi) - np.pi)
     brk = turn > np.radians(corner)
-    # arc length of each vertex along its ring, and each ring's perimeter
-    cum = np.cumsum(seg) - seg
-    arc = cum - cum[start[li]]
-    perim = np.bincount(li, weights=seg, minlength=n)
+    # arc length of each vertex along its ring, and each ring's perimeter; summed in whole nanometres,
+    # where sums are exact, so that a ring's arc lengths do not depend on the rings before it in the
+    # batch (a sharded or chunked run places the same trees as a whole one)
+    segq = np.rint(seg * NM).astype(np.int64)
+    cumq = np.cumsum(segq) - segq
+    arc = (cumq - cumq[start[li]]) / NM
+    perim = np.bincount(li, weights=segq, minlength=n) / NM
     # a ring with no crossing is one run starting at its first vertex
     has = np.bincount(li, weights=brk, minlength=n) > 0
     brk |= ~has[li] & (np.arange(len(xy)) == start[li])
@@ -117,8 +123,8 @@ def avenue_points(
     ring = bring[rid]
     s = np.mod(s, perim[ring])
     # the segment each tree lies on (arc lengths increase over all rings together), then along it
-    g = cum[start[ring]] + s
-    vi = np.clip(np.searchsorted(cum, g, side="right") - 1, start[ring], start[ring] + count[ring] - 1)
-    t = np.clip((g - cum[vi]) / np.maximum(seg[vi], 1e-12), 0.0, 1.0)
+    g = cumq[start[ring]] + np.rint(s * NM).astype(np.int64)
+    vi = np.clip(np.searchsorted(cumq, g, side="right") - 1, start[ring], start[ring] + count[ring] - 1)
+    t = np.clip((g - cumq[vi]) / np.maximum(segq[vi], 1), 0.0, 1.0)
     pts = xy[vi] + t[:, None] * edge[vi]
     return pts, ring, ang[vi]
