@@ -361,20 +361,30 @@ def cmd_run(args: argparse.Namespace) -> int:
             scheduler=args.scheduler,
         )
     else:
-        result = net.run(
-            out=args.out,
-            formats=formats,
-            progress=_progress(args),
-            workers=args.workers,
-            options=_options(args),
-            check_kinds=args.debug,
-        )
-    if not args.quiet:
-        counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
-        print(f"{args.out}: {counts} in {result.stats['seconds']['total']:.2f} s")
+        result = _run_network(net, args, formats)
+    _print_counts(args, result)
     if args.check:
         return _check(result.stats.get("report", {}))
     return 0
+
+
+def _run_network(net, args: argparse.Namespace, formats):
+    """``net.run`` with the options ``run`` and ``osm`` share."""
+    return net.run(
+        out=args.out,
+        formats=formats,
+        progress=_progress(args),
+        workers=args.workers,
+        options=_options(args),
+        check_kinds=args.debug,
+    )
+
+
+def _print_counts(args: argparse.Namespace, result) -> None:
+    """The one line a run prints: its counts and seconds (nothing with ``--quiet``)."""
+    if not args.quiet:
+        counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
+        print(f"{args.out}: {counts} in {result.stats['seconds']['total']:.2f} s")
 
 
 def _check(reports: dict) -> int:
@@ -527,17 +537,8 @@ def cmd_osm(args: argparse.Namespace) -> int:
         net = load_config(config, sets=args.sets, maps=[osm], plugins=args.plugin, seed=args.seed)
         _set_lod(net, args.lod)
         net.source = str(args.file)
-        result = net.run(
-            out=args.out,
-            formats=formats,
-            progress=_progress(args),
-            workers=args.workers,
-            options=_options(args),
-            check_kinds=args.debug,
-        )
-    if not args.quiet:
-        counts = ", ".join(f"{k} {v:,}" for k, v in result.stats["counts"].items())
-        print(f"{args.out}: {counts} in {result.stats['seconds']['total']:.2f} s")
+        result = _run_network(net, args, formats)
+    _print_counts(args, result)
     return 0
 
 
