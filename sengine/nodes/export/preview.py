@@ -39,7 +39,22 @@ log = logging.getLogger(__name__)
 
 #: Drawing order; trees are dots of their crown's size, bridges decks over the water.
 _ORDER = ("water", "streets", "sidewalks", "blocks", "lots", "parks", "bridges", "buildings", "vegetation", "roads")
-_INDEXED = ("water", "streets", "sidewalks", "blocks", "lots", "parks", "buildings", "roads", "bridges", "vegetation")
+_INDEXED = (
+    "water",
+    "streets",
+    "sidewalks",
+    "blocks",
+    "lots",
+    "parks",
+    "buildings",
+    "roads",
+    "bridges",
+    "vegetation",
+    "courtyards",
+)
+#: Patios (parks of level ``patio``: courtyards and rear yards, 001 §3.2) are private open space, not
+#: public parks: drawn paler, so that a city with its courtyards on does not read as one park.
+_COURTYARD = (196, 214, 170)
 _BACKGROUND = (250, 250, 247)
 _INK = (30, 30, 30)
 _LOT_EDGE = (196, 188, 170)
@@ -64,7 +79,7 @@ def _palette() -> np.ndarray:
     pal = np.zeros((256, 3), np.uint8)
     pal[0], pal[1], pal[2], pal[3], pal[4] = _BACKGROUND, _INK, (255, 255, 255), _LOT_EDGE, _MAP_EDGE
     for name, idx in _LAYER_INDEX.items():
-        pal[idx] = COLOURS[name]
+        pal[idx] = _COURTYARD if name == "courtyards" else COLOURS[name]
     pal[_RAMP0 : _RAMP0 + _RAMP_N] = ramp(np.linspace(0, 1, _RAMP_N))
     return pal
 
@@ -202,7 +217,7 @@ def render(
 
     canvas = Image.new("L", (w, h), 0)
     hmin = hmax = 0.0
-    has_map = False
+    has_map = has_courtyards = False
     for name in _ORDER:
         lay = layers.get(name)
         if lay is None:
@@ -231,7 +246,12 @@ def render(
                     _draw_polygons(draw, rings, to_px, vals[polys])
             else:
                 edge = _FIXED["lot_edge"] if name == "lots" else None
-                _draw_polygons(draw, rings, to_px, _LAYER_INDEX.get(name, _FIXED["ink"]), outline=edge)
+                value = np.full(int(polys.sum()), _LAYER_INDEX.get(name, _FIXED["ink"]))
+                if name == "parks" and "level" in lay.attrs:
+                    patio = np.asarray(lay["level"]).astype(str)[polys] == "patio"
+                    value[patio] = _LAYER_INDEX["courtyards"]
+                    has_courtyards |= bool(patio.any())
+                _draw_polygons(draw, rings, to_px, value, outline=edge)
             if holes:
                 canvas.paste(img, mask=img.point(lambda v: 255 if v else 0))
         points = types == 0
@@ -251,7 +271,8 @@ def render(
     canvas = np.asarray(canvas)
     image = Image.fromarray(np.vstack([canvas, np.zeros((64, w), np.uint8)]), "P")
     image.putpalette(PALETTE.ravel().tolist())
-    _footer(image, h, w, scale, hmin, hmax, [n for n in _ORDER if n in layers], map_buildings=has_map)
+    present = [n for n in _ORDER if n in layers] + (["courtyards"] if has_courtyards else [])
+    _footer(image, h, w, scale, hmin, hmax, present, map_buildings=has_map)
     _north_arrow(image, w, north)
     if title:
         _title(image, title)
