@@ -186,6 +186,9 @@ def glb_buildings(path: Path) -> dict:
     props = meta["schema"]["classes"][table["class"]]["properties"]
     columns = {}
     for pid, spec in props.items():
+        if pid not in table["properties"]:  # a text column empty in every row: in the class, not in the table
+            columns[spec.get("name", pid)] = [""] * table["count"]
+            continue
         values = table["properties"][pid]
         if spec["type"] == "STRING":
             offs = _buffer_view(doc, binary, values["stringOffsets"], "<u4")

@@ -254,6 +254,8 @@ class RoadsBridges(SENode):
         if "class" in roads:
             major &= np.asarray(roads["class"]).astype(str) != "boundary"  # a bank road runs along the water
         cand = bridge_candidates(roads.geometry, major, water.geometry, max_span=self.p.max_span, snap=self.p.snap)
+        # a road that only touches the water at a point crosses nothing: a span of no length is no bridge
+        cand = {k: v[cand["span"] > 1e-3] for k, v in cand.items()}
         pick = choose_bridges(cand, crossings=self.p.crossings, min_gap=self.p.min_gap)
         if len(pick) == 0:
             return NodeResult({"roads": roads, "bridges": empty}, {"bridges": 0})
