@@ -1,6 +1,6 @@
 """Benchmark: trees placed per second on whole Liège, and the glb with and without instancing.
 
-Liège's street network (``/work/shared/data/liege_streets.osm.pbf``, about
+Liège's street network (``../shared/data/liege_streets.osm.pbf`` beside the checkout, about
 80,000 highway ways) and its parks are read and turned into blocks by the
 load-map network's nodes (``osm.read`` -> ``roads.clean`` ->
 ``blocks.circuits``, parameters of ``sengine/nodes/networks/loadmap.xml``);
@@ -36,7 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _results import RESULTS, write  # noqa: E402
 
-LIEGE = Path("/work/shared/data/liege_streets.osm.pbf")
+LIEGE = Path(__file__).resolve().parent.parent.parent / "shared" / "data" / "liege_streets.osm.pbf"
 
 
 def main(argv: list[str] | None = None) -> int:

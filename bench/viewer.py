@@ -20,7 +20,7 @@ A software rasteriser on two shared cores is a floor, not what a laptop's
 GPU gives.  Writes ``bench/results/viewer.json``.
 
     python bench/viewer.py OUT [OUT ...] [--seconds 8]
-    # whole Liège: sengine osm /work/shared/data/liege_streets.osm.pbf -o /tmp/liege --format glb,geojson,png,html
+    # whole Liège: sengine osm ../shared/data/liege_streets.osm.pbf -o /tmp/liege --format glb,geojson,png,html
 """
 
 from __future__ import annotations
