@@ -7,10 +7,10 @@ import pytest
 import shapely
 
 from sengine import Layer
-from sengine.errors import NodeError
+from sengine.errors import LimitError, NodeError
 from sengine.node import Context
 from sengine.nodes.blocks.circuits import ID_SPAN
-from sengine.nodes.lots.nodes import LOT_SPAN
+from sengine.nodes.lots.nodes import LOT_SPAN, lot_ids
 from sengine.nodes.parks.ids import TREE_SPAN, park_ids, ranks, tree_ids
 from sengine.registry import get
 
@@ -133,3 +133,23 @@ def test_trees_keep_their_ids_in_any_batch_of_blocks_and_parks():
     mine = np.isin(whole.ids, half.ids)
     assert len(half) and mine.sum() == len(half)
     assert np.array_equal(shapely.to_wkb(whole.geometry[mine]), shapely.to_wkb(half.geometry))
+
+
+def test_lot_ids_hold_a_block_of_whole_lieges_size():
+    # whole Liège's largest block (17 km² of rural dead ends round the extract's edge) makes 19,611 lots
+    block = np.repeat(np.array([3, 2797], np.int64), [5, 19_611])
+    ids = lot_ids(block)
+    assert len(np.unique(ids)) == len(ids)
+    assert np.array_equal(ids // LOT_SPAN, block)
+    with pytest.raises(LimitError, match="block 7 makes more than"):
+        lot_ids(np.full(LOT_SPAN + 1, 7, np.int64))
+
+
+def test_the_metropolis_tree_ids_fit_64_bits():
+    # configs/metropolis.xml at full scale: some 3,650 major-road enclosures (365 at --scale 0.1);
+    # its last enclosure's last block's last lot park, and that park's last tree
+    enclosure = 3_700
+    lot = (enclosure * ID_SPAN + ID_SPAN - 1) * LOT_SPAN + LOT_SPAN - 1
+    park = park_ids(np.array([lot]), "patio")
+    ids = tree_ids(park, np.array([0]))
+    assert ids[0] == ((park[0] * 4) * TREE_SPAN) and ids[0] < np.iinfo(np.int64).max
