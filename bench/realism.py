@@ -10,7 +10,10 @@ and generated buildings are measured:
 * generated buildings (``source`` is not ``osm``): count, the share of each
   building's perimeter that is a party wall (within 5 cm of another building's
   outline), as a median and as the share of buildings that have one; the median
-  distance from a building to its block's edge (the street wall);
+  distance from a building to its block's edge (the street wall); the median
+  wing depth (the diameter of the largest circle inside the footprint: a
+  perimeter block's wing is as deep as that); the share of each block's land
+  that generated buildings cover (median over blocks with one);
 * the ``planning`` node's city figures: FAR, coverage, GFA and residents.
 
 Real-world figures to compare with are in the README's realism section.
@@ -51,6 +54,7 @@ CASES = {
     "helsinki": lambda sets: _osm_network(DATA / "helsinki_centre.osm.pbf", sets),
     "monaco": lambda sets: _osm_network(DATA / "monaco.osm.pbf", sets),
     "liege": lambda sets: _osm_network(LIEGE, sets),
+    "paris": lambda sets: sengine.load(ROOT / "configs" / "paris.xml", sets=sets),
 }
 
 
@@ -113,6 +117,12 @@ def building_figures(buildings, blocks) -> dict:
         d[ai] = shapely.distance(geoms[ai], shapely.boundary(blocks.geometry[bi]))
         out["median_distance_to_block_edge_m"] = round(float(np.nanmedian(d)), 2)
         out["on_block_edge_share"] = round(float((d < 0.05).mean()), 4)
+        cover = np.bincount(bi, weights=shapely.area(geoms[ai]), minlength=len(blocks))
+        has = cover > 0
+        share = cover[has] / shapely.area(blocks.geometry[has])
+        out["block_coverage_median"] = round(float(np.median(np.minimum(share, 1.0))), 4)
+    radius = shapely.length(shapely.maximum_inscribed_circle(geoms, tolerance=0.05))
+    out["wing_depth_median_m"] = round(float(np.median(2.0 * radius)), 2)
     return out
 
 

@@ -16,7 +16,7 @@ from test_roofs import _validator_ready, gltf_validate, validate_cityjson
 
 import sengine
 from sengine import Layer
-from sengine.errors import ParameterError
+from sengine.errors import NodeError, ParameterError
 from sengine.node import Context
 from sengine.nodes.export.gltf import glb_bytes
 from sengine.nodes.vegetation import avenue_points, distr, tree_lines, versailles_split
@@ -291,6 +291,37 @@ def test_avenue_trees_lie_on_sidewalks_and_stop_at_crossings(kirchberg):
     crossings = node[deg >= 3]
     d, _ = cKDTree(crossings).query(shapely.get_coordinates(ave.geometry))
     assert d.min() >= 8.0 - 0.5  # avenue_clear, measured from the sidewalk corner (further from the centre)
+
+
+def test_only_wide_streets_are_avenues():
+    # Paris plants its boulevards and avenues, not its narrow rues: avenue_min_width keeps the trees whose
+    # nearest street is that wide, and says so if it has no street widths to read (Monaco: streets of
+    # many widths)
+    def run(name, params=None, **ins):
+        return get(name)(name.split(".")[0], params or {}, Context(seed=2)).run(**ins)
+
+    raw = run("osm.read", {"path": str(data_file("monaco.osm.pbf"))})["roads"]
+    roads = run("roads.clean", {}, roads=raw)["roads"]
+    city = run("blocks.circuits", {}, roads=roads)
+    ins = dict(blocks=city["blocks"], sidewalks=city["sidewalks"], streets=city["streets"], roads=roads)
+
+    def avenue(**params):
+        t = run("vegetation.trees", params, **ins)["vegetation"]
+        return t.take(np.asarray(t["zone"]).astype(str) == "avenue")
+
+    every = avenue()
+    width = np.asarray(roads["width"], float)
+    cut = float(np.median(width[width > 0])) + 0.5
+    wide = avenue(avenue_min_width=cut)
+    assert 0 < len(wide) < len(every)
+    # the same trees, fewer of them
+    assert {tuple(c) for c in shapely.get_coordinates(wide.geometry)} <= {
+        tuple(c) for c in shapely.get_coordinates(every.geometry)
+    }
+    nearest = shapely.STRtree(roads.geometry).query_nearest(wide.geometry, all_matches=False)[1]
+    assert (width[nearest] >= cut).all()
+    with pytest.raises(NodeError, match="avenue_min_width"):
+        run("vegetation.trees", {"avenue_min_width": cut}, **{**ins, "roads": None})
 
 
 def test_same_seed_same_bytes(kirchberg, tmp_path):

@@ -455,6 +455,14 @@ for c in CASES:
                 "lots.district", c.param, c.lo, c.hi, c.measure, c.sign, c.inputs, c.base + (("default", c.node[5:]),)
             )
 CASES += _district.values()
+
+
+def on_streets():
+    city = city_blocks()
+    return {"blocks": blocks(), "sidewalks": city["sidewalks"], "streets": city["streets"], "roads": roads()}
+
+
+CASES.append(Case("vegetation.trees", "avenue_min_width", 0.0, 12.0, count("vegetation"), -1, on_streets))
 CASES.append(Case("lots.district", "default", "manhattan", "paris", count("lots"), +1, on_blocks))
 
 ALLOWED: dict[str, str] = {

@@ -10,6 +10,9 @@ by more than ``corner`` degrees ends one run of trees and starts the next.
 On each run trees stand every ``spacing`` m, centred on the run, and none
 within ``clear`` m of its ends, so the crossings and their sight lines stay
 free.  Both sides of a street get their row, from the blocks on either side.
+Where only the wide streets are avenues (Paris's boulevards and avenues have
+their rows of planes, its narrow *rues* none), :func:`on_wide_streets` keeps
+the trees whose nearest street is wide enough.
 
 All rings are handled at once: one coordinate array, turn angles by
 ``numpy``, runs by cumulative arc length, and each tree placed on its
@@ -32,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-__all__ = ["tree_lines", "avenue_points"]
+__all__ = ["tree_lines", "avenue_points", "on_wide_streets"]
 
 
 def tree_lines(blocks, offset: float) -> tuple[np.ndarray, np.ndarray]:
@@ -128,3 +131,31 @@ def avenue_points(
     t = np.clip((g - cumq[vi]) / np.maximum(segq[vi], 1), 0.0, 1.0)
     pts = xy[vi] + t[:, None] * edge[vi]
     return pts, ring, ang[vi]
+
+
+def on_wide_streets(points, lines, width, min_width: float) -> np.ndarray:
+    """Whether the street nearest each point is at least ``min_width`` m wide.
+
+    Parameters
+    ----------
+    points : array_like of shapely.Point
+        Street trees (m).
+    lines : array_like of shapely.LineString
+        Street centre lines (m).
+    width : array_like of float
+        Each street's width, kerb to kerb (m).
+    min_width : float
+        The narrowest street that is an avenue (m).
+
+    Returns
+    -------
+    numpy.ndarray of bool
+        One flag per point; False where there is no street at all.
+    """
+    points = np.asarray(points, dtype=object)
+    out = np.zeros(len(points), bool)
+    if not len(points) or not len(lines):
+        return out
+    pi, li = shapely.STRtree(np.asarray(lines, dtype=object)).query_nearest(points, all_matches=False)
+    out[pi] = np.asarray(width, float)[li] >= min_width
+    return out

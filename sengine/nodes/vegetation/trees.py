@@ -4,7 +4,7 @@ Zones and what fills them:
 
 * **avenue**: the street trees of :mod:`.avenue`, on the sidewalk of every
   block (and of every block-level park), both sides of each street, split at
-  crossings;
+  crossings; with ``avenue_min_width``, only along streets at least that wide;
 * **district**, **block**, **lot** and **patio** parks (the ``level`` of each
   feature of the ``parks`` stream, :mod:`sengine.nodes.parks`):
   ``Distr(density, deviation)`` (:mod:`.distr`) with that level's density;
@@ -42,10 +42,11 @@ import numpy as np
 import shapely
 
 from sengine import Layer, NodeResult, Param, Port, SENode, register
+from sengine.errors import NodeError
 from sengine.random import mix64, stable_hash
 
 from ..parks.ids import TREE_KINDS, avenue_value, tree_ids
-from .avenue import avenue_points, tree_lines
+from .avenue import avenue_points, on_wide_streets, tree_lines
 from .distr import distr, far_from
 from .plants import choose_plants, parse_palette
 from .versailles import versailles_split
@@ -167,6 +168,8 @@ def place_trees(
     avenue_spacing: float = 10.0,
     avenue_offset: float = 1.5,
     avenue_clear: float = 8.0,
+    avenue_min_width: float = 0.0,
+    avenue_roads=None,
     corner: float = 35.0,
     clearance: float = 2.0,
     region_pattern: str = "scatter",
@@ -175,7 +178,9 @@ def place_trees(
     """Trees of every zone, as columns (``x``, ``y``, ``zone``, ``zone_row``, ``key``, ``geometry``: points).
 
     ``density`` maps a zone (district, block, lot, patio, region) to trees per
-    m2.  ``zone_row`` is the row of the tree's park, region or (avenue) block;
+    m2.  ``avenue_roads`` (centre lines, widths) say which streets are at
+    least ``avenue_min_width`` m wide (0: every street gets its trees).
+    ``zone_row`` is the row of the tree's park, region or (avenue) block;
     ``key`` a uint64 per tree for its plant.  See the module notes for the rest.
     """
     density = density or {}
@@ -191,6 +196,8 @@ def place_trees(
         ok = accept(xy[:, 0], xy[:, 1], 0.0, along=(lines, li), pts=pts) if len(xy) else np.zeros(0, bool)
         if sidewalks is not None and len(sidewalks) and len(xy):
             ok &= _Areas(sidewalks).covers(xy[:, 0], xy[:, 1], pts, along=(lines, li))
+        if avenue_min_width > 0 and len(xy):
+            ok &= on_wide_streets(pts, *avenue_roads, avenue_min_width)
         rank = np.arange(len(li)) - np.searchsorted(li, li)
         k = mix64(mix64(seed ^ _ZONE_KEY["avenue"], np.asarray(block_ids, np.int64)[row].astype(np.uint64)), rank)
         xs.append(xy[ok])
@@ -302,6 +309,14 @@ class VegetationTrees(SENode):
         "avenue_clear": Param(
             "float", 8.0, min=0.0, max=100.0, unit="m", doc="no street tree this close to a crossing"
         ),
+        "avenue_min_width": Param(
+            "float",
+            0.0,
+            min=0.0,
+            max=200.0,
+            unit="m",
+            doc="only streets at least this wide (kerb to kerb, the roads port) are avenues; 0: every street",
+        ),
         "corner": Param(
             "float", 35.0, min=1.0, max=179.0, unit="deg", doc="a sharper turn of the street is a crossing"
         ),
@@ -368,6 +383,14 @@ class VegetationTrees(SENode):
         geoms = lambda lay: None if lay is None or not len(lay) else lay.geometry  # noqa: E731
         road_lines = roads.geometry if roads is not None and len(roads) else None
         width = None if roads is None or "width" not in roads else np.nan_to_num(np.asarray(roads["width"], float))
+        avenue_roads = None
+        if p.avenue_min_width > 0:
+            if road_lines is None or width is None:
+                raise NodeError(
+                    "param 'avenue_min_width' needs the street centre lines and their width on the roads port",
+                    where=self.where,
+                )
+            avenue_roads = (road_lines, width)
         if streets is not None and len(streets):
             road_lines = None  # the street surfaces say where the road is
         trees = place_trees(
@@ -397,6 +420,8 @@ class VegetationTrees(SENode):
             avenue_spacing=p.avenue_spacing,
             avenue_offset=p.avenue_offset,
             avenue_clear=p.avenue_clear,
+            avenue_min_width=p.avenue_min_width,
+            avenue_roads=avenue_roads,
             corner=p.corner,
             clearance=p.clearance,
             region_pattern=p.region_pattern,
