@@ -334,6 +334,7 @@ CASES: list[Case] = [
     Case("lots.paris", "segment", 10.0, 30.0, count("lots"), -1, on_blocks),
     Case("lots.paris", "depth", 12.0, 30.0, inner_area, -1, on_blocks),
     Case("lots.paris", "deviation", 0.0, 6.0, content("lots"), 0, on_blocks),
+    Case("lots.paris", "min_area", 1.0, 150.0, count("lots"), -1, on_blocks),
     Case("lots.paris", "min_frontage", 1.0, 12.0, count("lots"), -1, on_blocks),
     Case("lots.recursive", "max_area", 400.0, 2000.0, count("lots"), -1, on_blocks),
     Case("lots.recursive", "min_area", 50.0, 400.0, count("lots"), -1, on_blocks),

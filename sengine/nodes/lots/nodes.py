@@ -404,7 +404,7 @@ def _recursive(
     return LotSplit(lots, owner, np.full(len(lots), "recursive"), inner, on, np.ones(len(lots), bool))
 
 
-def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage):
+def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage, min_area):
     lots, owner, inner, on, known = paris_lots(
         geoms,
         segment=segment,
@@ -412,6 +412,7 @@ def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage)
         deviation=deviation,
         seeds=_seeds(self, ids),
         min_frontage=min_frontage,
+        min_area=min_area,
         report=report,
         street=True,
     )
@@ -517,6 +518,7 @@ _P_PARIS = {
     "min_frontage": Param(
         "float", 2.0, min=0.0, unit="m", doc="perimeter pieces with less frontage join a neighbouring lot"
     ),
+    "min_area": _P_MIN_AREA,
 }
 
 
@@ -618,6 +620,7 @@ class LotsParis(_Lots):
             depth=self.p.depth,
             deviation=self.p.deviation,
             min_frontage=self.p.min_frontage,
+            min_area=self.p.min_area,
         )
 
 
@@ -758,6 +761,7 @@ class LotsDistrict(_Lots):
                     depth=v["depth"],
                     deviation=v["deviation"],
                     min_frontage=min(v["min_frontage"], 2.0),
+                    min_area=v["min_area"],
                 )
             outs.append(res)
             sels.append(sel)

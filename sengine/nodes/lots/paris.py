@@ -55,6 +55,7 @@ import numpy as np
 import shapely
 
 from sengine.geom.boundary import polygon_parts
+from sengine.geom.merge import merge_small
 from sengine.geom.polygons import threaded
 from sengine.geom.split import RingSet, split
 from sengine.random import hash01
@@ -366,6 +367,15 @@ def _back_length(C, p, ja, jb, step):
 # -- all blocks -------------------------------------------------------------------------------
 
 
+def _regrown(marks: Marks, lots, grown) -> Marks:
+    """``marks`` of lots of which the ``grown`` ones took a sliver: theirs unknown, on their new outline."""
+    counts = np.where(grown, Marks.unknown(lots).counts, marks.counts)
+    flat = np.zeros(int(counts.sum()), bool)
+    same = np.flatnonzero(~grown)
+    flat[np.repeat((np.cumsum(counts) - counts)[same], counts[same]) + ramp(counts[same])] = marks.take(same).flat
+    return Marks(flat, counts)
+
+
 def paris_lots(
     blocks,
     *,
@@ -375,6 +385,7 @@ def paris_lots(
     seeds=None,
     rngs=None,
     min_frontage=2.0,
+    min_area=0.0,
     max_cuts=8,
     report=None,
     street=False,
@@ -398,6 +409,11 @@ def paris_lots(
     min_frontage : float
         Perimeter pieces with less street frontage (m) join a neighbouring
         perimeter lot; only pieces without street join the core.
+    min_area : float
+        Lots under this area (m2), slivers where a displaced segment meets a
+        corner lot, join the neighbour of their block with which they share
+        the longest boundary (:func:`sengine.geom.merge.merge_small`), a
+        street lot another street lot and an inner lot another inner lot.
     max_cuts : int
         How many times a block the partition test refuses may be cut in
         two before its pieces are kept whole.
@@ -405,7 +421,8 @@ def paris_lots(
         Receives ``paris_inner`` (inner lots: cores, and pieces without
         street kept whole), ``paris_corner`` (corner lots
         merged from overlapping candidates), ``paris_cut`` (cuts made) and
-        ``paris_fallback`` (pieces kept whole).
+        ``paris_fallback`` (pieces kept whole), ``merged_slivers`` and
+        ``dropped_slivers`` (under 1 m2, touching no neighbour along a side).
 
     street : bool
         Also return which boundary segment of each lot lies on its block's
@@ -492,12 +509,20 @@ def paris_lots(
     lots, owner, inner = lots[o], owner[o], inner[o]
     marks = Marks.concat(out_m).take(o)
     known = np.concatenate(out_k)[o] if out_k else np.zeros(0, bool)
+    merged = dropped = 0
+    if min_area > 0 and (shapely.area(lots) < min_area).any():
+        # a sliver on the street joins a street lot, never the courtyard (which has no street)
+        lots, keep, grown, merged, dropped = merge_small(lots, 2 * owner + inner, min_area)
+        owner, inner, known = owner[keep], inner[keep], known[keep] & ~grown
+        marks = _regrown(marks.take(keep), lots, grown)
     if report is not None:
         for k, v in (
             ("paris_inner", int(inner.sum())),
             ("paris_corner", corners),
             ("paris_cut", cuts),
             ("paris_fallback", fallback),
+            ("merged_slivers", merged),
+            ("dropped_slivers", dropped),
         ):
             report[k] = report.get(k, 0) + v
     return (lots, owner, inner) + ((marks.flat, known) if street else ())
