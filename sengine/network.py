@@ -513,7 +513,7 @@ class Network:
                     registry.check_kind(lay, node.outputs[port_name].kind, where=f"{node.where} output {port_name!r}")
             layers[node_id] = dict(result.layers)
             first = next(iter(layers[node_id].values()), None)
-            count = len(first) if first is not None else 0
+            count = node.counted(layers[node_id])
             if node.outputs and not node.source_for:  # sinks (exporters) and the plan's inputs count no features
                 counts[node_id] = count
             seconds[node_id] = round(dt, 4)

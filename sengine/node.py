@@ -423,6 +423,15 @@ class SENode:
         """
         raise NotImplementedError
 
+    def counted(self, layers: Mapping[str, Layer]) -> int:
+        """How many features this node made, for the run's counts line and ``stats.json``.
+
+        Its first output's length; a node whose first output is a stream it
+        hands on (parks, roads) counts what it added to it.
+        """
+        first = next(iter(layers.values()), None)
+        return len(first) if first is not None else 0
+
     def check(self, **inputs: Layer | None) -> None:
         """Checks that need no geometry, run by ``sengine validate`` (optional).
 

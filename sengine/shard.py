@@ -169,8 +169,7 @@ def _run_shard(k: int) -> dict:
         result = _run_node(node, kwargs, 1)
         seconds[node_id] = time.perf_counter() - t
         layers[node_id] = dict(result.layers)
-        first = next(iter(result.layers.values()), None)
-        counts[node_id] = len(first) if first is not None else 0
+        counts[node_id] = node.counted(result.layers)
         if result.report:
             reports[node_id] = dict(result.report)
     parts = {}
@@ -290,9 +289,8 @@ def run_sharded(
             result = _run_node(node, kwargs, workers)
             dt = time.perf_counter() - t0
             layers[node_id] = dict(result.layers)
-            first = next(iter(result.layers.values()), None)
             if node.outputs and not node.source_for:
-                counts[node_id] = len(first) if first is not None else 0
+                counts[node_id] = node.counted(result.layers)
             secs[node_id] = round(dt, 4)
             if result.report:
                 report[node_id] = result.report

@@ -169,12 +169,12 @@ def paris():
         ],
     )
     layers, stats = net.run(seed=11, check_kinds=True)
-    return net, layers, stats["report"]
+    return net, layers, stats["report"], stats["counts"]
 
 
 @pytest.mark.slow
 def test_parks_at_every_level_in_one_network_without_a_cycle(paris):
-    net, layers, report = paris
+    net, layers, report, _ = paris
     import networkx as nx
 
     g = nx.DiGraph([(a, c) for a, _, c, _ in net.validate().edges])
@@ -198,8 +198,23 @@ def test_parks_at_every_level_in_one_network_without_a_cycle(paris):
 
 
 @pytest.mark.slow
+def test_each_node_counts_what_it_made(paris):
+    # the parks nodes hand the stream on and roads.bridges every road: the counts line says what each added
+    _, layers, _, counts = paris
+    level = np.asarray(layers["patios"]["parks"]["level"]).astype(str)
+    made = {node: int((level == lev).sum()) for node, lev in PARK_NODES.items()}
+    assert {node: counts[node] for node in PARK_NODES} == made
+    assert sum(made.values()) == len(level) and min(made.values()) > 0
+    assert counts["bridges"] == len(layers["bridges"]["bridges"]) > 0
+    assert counts["bridges"] < len(layers["bridges"]["roads"])
+
+
+PARK_NODES = {"districtParks": "district", "blockParks": "block", "lotParks": "lot", "patios": "patio"}
+
+
+@pytest.mark.slow
 def test_no_tree_on_a_road_in_water_or_in_a_building(paris):
-    _, layers, report = paris
+    _, layers, report, _ = paris
     t = layers["vegetation"]["vegetation"]
     assert len(t) > 10_000
     pts = t.geometry
@@ -219,7 +234,7 @@ def test_no_tree_on_a_road_in_water_or_in_a_building(paris):
 
 @pytest.mark.slow
 def test_the_river_has_water_and_bridges(paris):
-    _, layers, report = paris
+    _, layers, report, _ = paris
     water = layers["water"]["water"]
     assert len(water) == 1 and 0.5e6 < water.area() < 0.7e6
     roads = layers["bridges"]["roads"]

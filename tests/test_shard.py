@@ -14,6 +14,8 @@ from hypothesis import strategies as st
 from sengine import Layer
 from sengine.cli import main
 from sengine.node import Context
+from sengine.nodes.blocks.circuits import ID_SPAN
+from sengine.nodes.lots.nodes import LOT_SPAN
 from sengine.registry import get
 from sengine.shard import group_enclosures, merge_reports
 
@@ -125,9 +127,9 @@ def test_lot_and_building_ids_derive_from_their_block(tmp_path, capsys):
     blocks, lots, bld = (pq.read_table(out / f"{t}.parquet") for t in ("blocks", "lots", "buildings"))
     bid, lid = blocks["id"].to_numpy(), lots["id"].to_numpy()
     assert len(np.unique(bid)) == len(bid) and len(np.unique(lid)) == len(lid)
-    assert np.isin(lid // 10_000, bid).all() and np.array_equal(lid // 10_000, lots["block"].to_numpy())
+    assert np.isin(lid // LOT_SPAN, bid).all() and np.array_equal(lid // LOT_SPAN, lots["block"].to_numpy())
     assert np.isin(bld["id"].to_numpy() // 16, lid).all()
-    assert (bid % 10_000 < 10_000).all() and np.isin(bid // 10_000, np.unique(blocks["parent_id"].to_numpy())).all()
+    assert np.isin(bid // ID_SPAN, np.unique(blocks["parent_id"].to_numpy())).all()
 
 
 @pytest.mark.slow

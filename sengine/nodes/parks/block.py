@@ -28,6 +28,7 @@ import shapely
 from sengine import Layer, NodeResult, Param, Port, SENode, register
 
 from .ids import block_site, join_parks, park_ids
+from .level import CountsItsLevel
 
 __all__ = ["choose_park_blocks", "ParksBlock"]
 
@@ -94,7 +95,7 @@ def choose_park_blocks(
 
 
 @register
-class ParksBlock(SENode):
+class ParksBlock(CountsItsLevel, SENode):
     """Block-level parks: turn chosen blocks into parks and hand the rest on to the lots (paper 002 §4).
 
     Upstream parks (district level, from the land-use map) connected to
@@ -103,6 +104,7 @@ class ParksBlock(SENode):
     """
 
     name = "parks.block"
+    level = "block"
     maps_features = False
     shard_streams = ("parks",)
     inputs = {

@@ -29,15 +29,17 @@ from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.geom.polygons import containing
 
 from .ids import district_sites, park_ids
+from .level import CountsItsLevel
 
 __all__ = ["ParksDistrict"]
 
 
 @register
-class ParksDistrict(SENode):
+class ParksDistrict(CountsItsLevel, SENode):
     """District-level parks: the land-use map's park class, the head of the parks stream (paper 002 §4)."""
 
     name = "parks.district"
+    level = "district"
     inputs = {
         "parks": Port("parks", "the land-use map's park regions (roads.districts' parks)", required=False),
         "areas": Port("areas", "the areas enclosed by major roads: they key the parks' ids", required=False),

@@ -43,6 +43,7 @@ from sengine.random import uniform
 
 from ..roads.districts import _rules
 from .ids import join_parks, park_ids
+from .level import CountsItsLevel
 
 __all__ = ["LOT_MODES", "choose_park_lots", "ParksLot"]
 
@@ -106,10 +107,11 @@ def choose_park_lots(
 
 
 @register
-class ParksLot(SENode):
+class ParksLot(CountsItsLevel, SENode):
     """Lot-level parks: chosen lots stay free of buildings and become parks (paper 002 §4)."""
 
     name = "parks.lot"
+    level = "lot"
     shard_streams = ("parks",)
     inputs = {
         "lots": Port("lots", "lots to choose from"),

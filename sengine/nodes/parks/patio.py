@@ -35,6 +35,7 @@ import shapely
 from sengine import Layer, NodeResult, Param, Port, SENode, register
 
 from .ids import block_site, join_parks, park_ids, ranks
+from .level import CountsItsLevel
 
 __all__ = ["patio_zones", "ParksPatio"]
 
@@ -113,10 +114,11 @@ def patio_zones(
 
 
 @register
-class ParksPatio(SENode):
+class ParksPatio(CountsItsLevel, SENode):
     """Patio zones: each block's open core once buildings stand, as parks of level 'patio' (001 §3.2)."""
 
     name = "parks.patio"
+    level = "patio"
     shard_streams = ("parks",)
     inputs = {
         "blocks": Port("blocks", "blocks: their boundary is the street edge"),

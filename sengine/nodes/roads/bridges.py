@@ -246,6 +246,10 @@ class RoadsBridges(SENode):
         "thickness": Param("float", 1.5, min=0.1, max=20.0, unit="m", doc="deck thickness in city.glb"),
     }
 
+    def counted(self, layers) -> int:
+        """The bridges it made (its first output hands on every road)."""
+        return len(layers["bridges"])
+
     def run(self, *, roads: Layer, water: Layer | None = None):
         empty = Layer.empty(meta=dict(roads.meta), kind=np.dtype("<U6"))
         if water is None or not len(water) or not len(roads):

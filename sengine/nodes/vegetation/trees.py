@@ -391,8 +391,9 @@ class VegetationTrees(SENode):
                     where=self.where,
                 )
             avenue_roads = (road_lines, width)
-        if streets is not None and len(streets):
-            road_lines = None  # the street surfaces say where the road is
+        if streets is not None:
+            # the street surfaces say where the road is (in a shard with none, still none: not the lines)
+            road_lines = None
         trees = place_trees(
             seed=stable_hash(f"{self.context.seed}:{self.id}"),
             blocks=geoms(edge),
