@@ -16,7 +16,15 @@ enough.  Which cut, in order of preference:
    piece's area (Parish and Müller halve the long side [1]_);
 4. the cut of 2 at the exact middle;
 5. **shed** -- a street-facing piece still too elongated, or too deep and
-   too large, is halved across its long axis, the far part becoming inner.
+   too large, is halved across its long axis, the far part becoming inner;
+6. **bend** -- a piece no cut above could split, cut as in 2 (then 4 across
+   the long axis) with its parts allowed to be as elongated as the piece
+   really is: a curved strip's second moments spread over its bend and
+   understate how thin it is (a strip 12 m wide and 370 m long along a
+   curve measures about 1:9), so its halves, each straighter, measure more
+   elongated than the whole and every other cut is refused.  Its true
+   elongation is that of the rectangle of the same area and perimeter
+   (:func:`perimeter_aspect`).
 
 A cut is kept only if every part has at least ``min_area``, no part is
 more elongated than ``max_aspect`` (or than the piece was; not checked for
@@ -152,6 +160,20 @@ def piece_axes(rs: RingSet) -> dict:
     return {"area": area, "long": u, "aspect": aspect, "front": front, "street": street}
 
 
+def perimeter_aspect(area, perimeter) -> np.ndarray:
+    """Long side over short side of the rectangle with this area and perimeter (``1`` if none is so long).
+
+    A rectangle ``L x W`` has ``P**2 / A = 4 (1 + r)**2 / r`` with ``r = L / W``;
+    solved for ``r >= 1``.  Unlike second moments it does not depend on how
+    a strip bends; a ragged outline overstates it.
+    """
+    area = np.asarray(area, np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.asarray(perimeter, np.float64) ** 2 / (4.0 * area) - 2.0  # r + 1/r
+    k = np.where(np.isfinite(k) & (k > 2.0), k, 2.0)
+    return 0.5 * (k + np.sqrt(k * k - 4.0))
+
+
 def _take(ax: dict, sel) -> dict:
     return {k: v[sel] for k, v in ax.items()}
 
@@ -285,8 +307,13 @@ def _try_cuts(rs, point, direction, *, fronted, min_frontage, min_area, cap, rul
     return pieces.take(sel), _take(ax, sel), idx[parent[sel]], side[sel], accepted, int(failed.sum())
 
 
+def _bent_aspect(rs: RingSet) -> np.ndarray:
+    """:func:`perimeter_aspect` of each polygon of ``rs`` (holes' edges count in its perimeter)."""
+    return perimeter_aspect(rs.areas(), np.bincount(rs.vertex_poly(), weights=rs.edge_lengths(), minlength=rs.n))
+
+
 def _cut_level(rs, ax, own, key, seeds, p):
-    """One level: the first kept cut of each piece (rows, across the front, across the long axis, middle).
+    """One level: the first kept cut of each piece (rows, across the front, across the long axis, middle, shed, bend).
 
     Returns the parts (RingSet) and their measures, their piece and side,
     the mask of pieces no cut could split, the number of failed cuts and of
@@ -307,7 +334,7 @@ def _cut_level(rs, ax, own, key, seeds, p):
     half = np.full(k, 0.5)
     # a stripe, or a piece too deep and too large, that no cut could split keeping every part on the street
     shed = fronted & ((aspect > p["max_aspect"][own]) | (deep & (ax["area"] > p["max_area"][own])))
-    for kind in ("rows", "front", "long", "middle", "shed"):
+    for kind in ("rows", "front", "long", "middle", "shed", "bend", "bend_long"):
         if kind == "rows":
             cand = left[applies[left]]
         elif kind == "shed":  # ... sheds its far end as an inner piece
@@ -319,7 +346,7 @@ def _cut_level(rs, ax, own, key, seeds, p):
         sub = rs.take(cand)
         if kind == "rows":
             point, direction = rpoint[cand], rdir[cand]
-        elif kind in ("long", "shed"):
+        elif kind in ("long", "shed", "bend_long"):
             point, direction = _cross_cuts(sub, u[cand], (t01 if kind == "long" else half)[cand])
         else:
             t = (t01 if kind == "front" else half)[cand]
@@ -331,7 +358,7 @@ def _cut_level(rs, ax, own, key, seeds, p):
             fronted=fronted[cand],
             min_frontage=mf[cand],
             min_area=ma[cand],
-            cap=cap[cand],
+            cap=np.maximum(cap[cand], _bent_aspect(sub)) if kind.startswith("bend") else cap[cand],
             rule={"rows": "rows", "shed": "shed"}.get(kind, "keep"),
         )
         failed_count += nfail
