@@ -58,11 +58,11 @@ import numpy as np
 import shapely
 
 from sengine.errors import ParameterError
-from sengine.geom.boundary import polygon_parts
+from sengine.geom.boundary import polygon_parts, segments_on_box, segments_on_lines
 from sengine.geom.split import RingSet, cut_lengths, split
 from sengine.random import hash01
 
-__all__ = ["recursive_lots", "piece_axes", "check_recursive"]
+__all__ = ["recursive_lots", "piece_axes", "check_recursive", "perimeter_aspect", "street_edges"]
 
 PARALLEL = np.cos(np.radians(30.0))  # a street edge within 30 deg of the front runs along it
 FRONT_EPS = 1e-6  # m: a piece with less marked boundary than this has no street at all
@@ -334,7 +334,7 @@ def _cut_level(rs, ax, own, key, seeds, p):
     half = np.full(k, 0.5)
     # a stripe, or a piece too deep and too large, that no cut could split keeping every part on the street
     shed = fronted & ((aspect > p["max_aspect"][own]) | (deep & (ax["area"] > p["max_area"][own])))
-    for kind in ("rows", "front", "long", "middle", "shed", "bend", "bend_long"):
+    for kind in ("rows", "front", "long", "middle", "shed", "bend", "bend_long", "loose"):
         if kind == "rows":
             cand = left[applies[left]]
         elif kind == "shed":  # ... sheds its far end as an inner piece
@@ -346,7 +346,7 @@ def _cut_level(rs, ax, own, key, seeds, p):
         sub = rs.take(cand)
         if kind == "rows":
             point, direction = rpoint[cand], rdir[cand]
-        elif kind in ("long", "shed", "bend_long"):
+        elif kind in ("long", "shed", "bend_long", "loose"):
             point, direction = _cross_cuts(sub, u[cand], (t01 if kind == "long" else half)[cand])
         else:
             t = (t01 if kind == "front" else half)[cand]
@@ -359,7 +359,7 @@ def _cut_level(rs, ax, own, key, seeds, p):
             min_frontage=mf[cand],
             min_area=ma[cand],
             cap=np.maximum(cap[cand], _bent_aspect(sub)) if kind.startswith("bend") else cap[cand],
-            rule={"rows": "rows", "shed": "shed"}.get(kind, "keep"),
+            rule={"rows": "rows", "shed": "shed", "loose": "rows"}.get(kind, "keep"),
         )
         failed_count += nfail
         if kind == "rows":
@@ -391,6 +391,8 @@ def recursive_lots(
     max_levels=40,
     report=None,
     street=False,
+    fronts=None,
+    box=None,
 ):
     """Recursive lots in back-to-back rows, keeping street access (Parish and Müller [1]_).
 
@@ -434,6 +436,17 @@ def recursive_lots(
     street : bool
         Also return which boundary segment of each lot lies on its block's
         boundary (exact: carried through the cuts), and the inner lots.
+    fronts : array_like of object (n,), optional
+        Per block, the part of its boundary that faces a street (a
+        (Multi)LineString, e.g. ``blocks.landuse``'s ``street_front`` where
+        open land, water or a park was cut off it), or ``None``: all of it.
+        The rest of the boundary is no street: no row faces it, the cuts
+        give it no frontage, and land behind the rows along the real
+        street becomes inner lots (rear lots of compact shape) instead of
+        thin lots fronting onto open land.
+    box : tuple of float, optional
+        ``(xmin, ymin, xmax, ymax)``: block boundary on this box (the
+        extract's edge that closed the land round its streets) is no street.
 
     Returns
     -------
@@ -442,7 +455,8 @@ def recursive_lots(
         Index into ``blocks`` of each lot's block, non-decreasing.
     on : ndarray of bool, only with ``street``
         One per boundary segment of the lots, in the order of
-        :func:`sengine.geom.boundary.ring_segments`.
+        :func:`sengine.geom.boundary.ring_segments`: on the block's street
+        (its boundary less what ``fronts`` and ``box`` take off).
     inner : ndarray of bool, only with ``street``
         Lots cut off the street (less than ``min_frontage`` of it, and not
         a whole block).
@@ -466,7 +480,9 @@ def recursive_lots(
         "jitter": per_block(jitter),
     }
     parts, own = polygon_parts(blocks, np.arange(n))
-    rs = RingSet.from_polygons(parts, flag=True)  # every block edge faces a street
+    rs = RingSet.from_polygons(parts, flag=True)  # every block edge faces a street ...
+    if fronts is not None or box is not None:  # ... but those on open land or the extract's edge
+        rs = RingSet(rs.xy, rs.ring, street_edges(rs, own, fronts, box), rs.poly, rs.n)
     key = np.ones(rs.n, np.uint64)
     done_rs, done_o = [], []
     stuck_count = failed_count = levels = rows = 0
@@ -512,6 +528,22 @@ def recursive_lots(
         report["recursive_failed_cuts"] = report.get("recursive_failed_cuts", 0) + failed_count
         report["recursive_inner"] = report.get("recursive_inner", 0) + int(off_street.sum())
     return (lots, owner) + ((done.flag.copy(), off_street) if street else ())
+
+
+def street_edges(rs: RingSet, own, fronts=None, box=None) -> np.ndarray:
+    """Which edges of the block parts ``rs`` face a street: not on ``box``, and on their block's ``fronts``.
+
+    ``own`` maps each polygon of ``rs`` to its block; ``fronts`` holds one
+    (Multi)LineString or ``None`` (all of its boundary) per block.
+    """
+    p0 = rs.xy
+    p1 = rs.xy[rs.next_vertex()] if len(p0) else p0
+    on = ~segments_on_box(p0, p1, box)
+    if fronts is not None and on.any():
+        sel = np.flatnonzero(on)
+        lines = np.asarray(fronts, dtype=object)[np.asarray(own, np.int64)[rs.vertex_poly()[sel]]]
+        on[sel] = segments_on_lines(p0[sel], p1[sel], lines)
+    return on
 
 
 def check_recursive(blocks, *, max_area, min_area, min_frontage, where=None, report=None) -> np.ndarray:
