@@ -24,7 +24,11 @@ enough.  Which cut, in order of preference:
    curve measures about 1:9), so its halves, each straighter, measure more
    elongated than the whole and every other cut is refused.  Its true
    elongation is that of the rectangle of the same area and perimeter
-   (:func:`perimeter_aspect`).
+   (:func:`perimeter_aspect`);
+7. **loose** -- in a block with edges on no street (``fronts``, ``box``),
+   a piece still left is halved across its long axis, one part at least
+   keeping the street (the far one may be inner, of any shape): such a
+   block's pieces reach far from the street and would otherwise stay whole.
 
 A cut is kept only if every part has at least ``min_area``, no part is
 more elongated than ``max_aspect`` (or than the piece was; not checked for
@@ -339,6 +343,8 @@ def _cut_level(rs, ax, own, key, seeds, p):
             cand = left[applies[left]]
         elif kind == "shed":  # ... sheds its far end as an inner piece
             cand = left[shed[left]]
+        elif kind == "loose":  # a block with open land (no street on some edges): split what is left
+            cand = left[p["open"][own][left]]
         else:
             cand = left
         if len(cand) == 0:
@@ -483,6 +489,8 @@ def recursive_lots(
     rs = RingSet.from_polygons(parts, flag=True)  # every block edge faces a street ...
     if fronts is not None or box is not None:  # ... but those on open land or the extract's edge
         rs = RingSet(rs.xy, rs.ring, street_edges(rs, own, fronts, box), rs.poly, rs.n)
+    p["open"] = np.zeros(n, bool)  # blocks with edges on no street: the 'loose' cut is theirs
+    p["open"][own[rs.vertex_poly()[~rs.flag]]] = True
     key = np.ones(rs.n, np.uint64)
     done_rs, done_o = [], []
     stuck_count = failed_count = levels = rows = 0
