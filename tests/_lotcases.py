@@ -56,3 +56,34 @@ def osm_blocks(name: str) -> Layer:
     if name == "liege":
         return _blocks(LIEGE, minor=None, clean={}, blocks={})
     raise KeyError(name)
+
+
+@cache
+def landuse_blocks(name: str) -> Layer:
+    """Blocks of ``helsinki`` or ``monaco`` as ``sengine osm`` makes them (load-map network up to ``landuse``).
+
+    Land more than 100 m from any street is cut off as ``landuse=open``; the
+    piece left has a ``street_front`` column (its street-facing boundary),
+    and the land closed along the extract's box is no street either.
+    """
+    import tempfile
+
+    import sengine
+
+    src = {"helsinki": "helsinki_centre.osm.pbf", "monaco": "monaco.osm.pbf"}[name]
+    with tempfile.TemporaryDirectory() as tmp:
+        cfg = Path(tmp) / "city.xml"
+        cfg.write_text(
+            f'<sengine version="1"><city name="t" seed="1"><map kind="osm" src="{ROOT / "configs/data" / src}"/>'
+            '</city><network base="loadmap"/></sengine>'
+        )
+        net = sengine.load(cfg)
+    need, todo = set(), ["landuse"]
+    while todo:
+        node = todo.pop()
+        if node not in need:
+            need.add(node)
+            todo += [c.src for c in net.connections if c.dst == node]
+    net.specs = {k: v for k, v in net.specs.items() if k in need}
+    net.connections = [c for c in net.connections if c.src in need and c.dst in need]
+    return net.run(seed=1)["landuse"]

@@ -23,6 +23,7 @@ from sengine import Context, Layer
 from sengine.errors import ParameterError
 from sengine.geom.merge import merge_small
 from sengine.nodes.lots.partition import partition_index, partition_lots
+from sengine.nodes.lots.recursive import perimeter_aspect
 from sengine.registry import get
 
 DATA = Path(__file__).resolve().parent.parent / "configs" / "data"
@@ -94,6 +95,27 @@ def test_a_very_deep_block_keeps_street_rows_and_flags_the_inside(name):
     np.maximum.at(reach, which, shapely.distance(shapely.points(pts), ring))
     assert (reach <= 2 * 30.0 + 1e-6).all(), np.sort(reach)[-5:]
     assert 0.3 <= shapely.area(lots.geometry[inner]).sum() / 300**2 <= (240 / 300) ** 2 + 1e-9  # at most the 240 m core
+
+
+@pytest.mark.parametrize("sweep", [60.0, 120.0, 200.0])
+def test_a_curved_strip_is_cut_across(sweep):
+    """A strip 12 m wide bent along an arc (Monaco's curved blocks): lots across it, none kept whole."""
+    r, length = 100.0, 370.0
+    arc = shapely.LineString([(r * np.cos(t), r * np.sin(t)) for t in np.linspace(0, np.radians(sweep), 60)])
+    strip = shapely.affinity.scale(arc, length / arc.length, length / arc.length).buffer(6.0, cap_style="flat")
+    blocks = Layer.from_geoms([strip])
+    ran = get("lots.recursive")("lots", {}, Context(seed=3)).run(blocks=blocks)
+    lots = ran["lots"]
+    check_lots(blocks, lots, "lots.recursive")
+    assert ran.report["recursive_stuck"] == 0 and ran.report["over_max_area"] == 0
+    assert len(lots) >= strip.area / 800.0 and (~lots["inner"]).all()
+    long, short = obb_sides(lots.geometry)
+    assert (short >= 0.1 * long).all()
+
+
+def test_perimeter_aspect_of_rectangles_and_bends():
+    assert np.allclose(perimeter_aspect([12.0 * 370.0, 100.0], [2 * (12 + 370.0), 40.0]), [370 / 12, 1.0])
+    assert perimeter_aspect([0.0], [10.0])[0] == 1.0  # empty piece: no elongation to trust
 
 
 @SETTINGS

@@ -381,7 +381,20 @@ def _seeds(self, ids) -> np.ndarray:
 
 
 def _recursive(
-    self, geoms, ids, report, *, max_area, min_area, min_frontage, row_depth, max_aspect, jitter, inner_lots
+    self,
+    geoms,
+    ids,
+    report,
+    *,
+    max_area,
+    min_area,
+    min_frontage,
+    row_depth,
+    max_aspect,
+    jitter,
+    inner_lots,
+    fronts=None,
+    box=None,
 ):
     check_recursive(
         geoms, max_area=max_area, min_area=min_area, min_frontage=min_frontage, where=self.where, report=report
@@ -398,6 +411,8 @@ def _recursive(
         seeds=_seeds(self, ids),
         report=report,
         street=True,
+        fronts=fronts,
+        box=box,
     )
     over = int(((shapely.area(lots) > max_area) & ~inner).sum())  # inner lots stay whole by design
     report["over_max_area"] = report.get("over_max_area", 0) + over
@@ -600,6 +615,8 @@ class LotsRecursive(_Lots):
             max_aspect=self.p.max_aspect,
             jitter=self.p.jitter,
             inner_lots=self.p.inner_lots,
+            fronts=blocks.get("street_front"),
+            box=blocks.meta.get("bbox"),
         )
 
 
@@ -739,6 +756,8 @@ class LotsDistrict(_Lots):
                     max_aspect=v["max_aspect"],
                     jitter=v["jitter"],
                     inner_lots=v["inner_lots"],
+                    fronts=None if blocks.get("street_front") is None else blocks["street_front"][sel],
+                    box=blocks.meta.get("bbox"),
                 )
             elif method == "skeleton":
                 res = _skeleton(

@@ -16,7 +16,19 @@ enough.  Which cut, in order of preference:
    piece's area (Parish and Müller halve the long side [1]_);
 4. the cut of 2 at the exact middle;
 5. **shed** -- a street-facing piece still too elongated, or too deep and
-   too large, is halved across its long axis, the far part becoming inner.
+   too large, is halved across its long axis, the far part becoming inner;
+6. **bend** -- a piece no cut above could split, cut as in 2 (then 4 across
+   the long axis) with its parts allowed to be as elongated as the piece
+   really is: a curved strip's second moments spread over its bend and
+   understate how thin it is (a strip 12 m wide and 370 m long along a
+   curve measures about 1:9), so its halves, each straighter, measure more
+   elongated than the whole and every other cut is refused.  Its true
+   elongation is that of the rectangle of the same area and perimeter
+   (:func:`perimeter_aspect`);
+7. **loose** -- in a block with edges on no street (``fronts``, ``box``),
+   a piece still left is halved across its long axis, one part at least
+   keeping the street (the far one may be inner, of any shape): such a
+   block's pieces reach far from the street and would otherwise stay whole.
 
 A cut is kept only if every part has at least ``min_area``, no part is
 more elongated than ``max_aspect`` (or than the piece was; not checked for
@@ -50,11 +62,11 @@ import numpy as np
 import shapely
 
 from sengine.errors import ParameterError
-from sengine.geom.boundary import polygon_parts
+from sengine.geom.boundary import polygon_parts, segments_on_box, segments_on_lines
 from sengine.geom.split import RingSet, cut_lengths, split
 from sengine.random import hash01
 
-__all__ = ["recursive_lots", "piece_axes", "check_recursive"]
+__all__ = ["recursive_lots", "piece_axes", "check_recursive", "perimeter_aspect", "street_edges"]
 
 PARALLEL = np.cos(np.radians(30.0))  # a street edge within 30 deg of the front runs along it
 FRONT_EPS = 1e-6  # m: a piece with less marked boundary than this has no street at all
@@ -150,6 +162,20 @@ def piece_axes(rs: RingSet) -> dict:
     whole = (street >= perimeter - 1e-9) | (street <= FRONT_EPS)  # a whole block, or no street: the long axis
     front[whole] = u[whole]
     return {"area": area, "long": u, "aspect": aspect, "front": front, "street": street}
+
+
+def perimeter_aspect(area, perimeter) -> np.ndarray:
+    """Long side over short side of the rectangle with this area and perimeter (``1`` if none is so long).
+
+    A rectangle ``L x W`` has ``P**2 / A = 4 (1 + r)**2 / r`` with ``r = L / W``;
+    solved for ``r >= 1``.  Unlike second moments it does not depend on how
+    a strip bends; a ragged outline overstates it.
+    """
+    area = np.asarray(area, np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.asarray(perimeter, np.float64) ** 2 / (4.0 * area) - 2.0  # r + 1/r
+    k = np.where(np.isfinite(k) & (k > 2.0), k, 2.0)
+    return 0.5 * (k + np.sqrt(k * k - 4.0))
 
 
 def _take(ax: dict, sel) -> dict:
@@ -285,8 +311,13 @@ def _try_cuts(rs, point, direction, *, fronted, min_frontage, min_area, cap, rul
     return pieces.take(sel), _take(ax, sel), idx[parent[sel]], side[sel], accepted, int(failed.sum())
 
 
+def _bent_aspect(rs: RingSet) -> np.ndarray:
+    """:func:`perimeter_aspect` of each polygon of ``rs`` (holes' edges count in its perimeter)."""
+    return perimeter_aspect(rs.areas(), np.bincount(rs.vertex_poly(), weights=rs.edge_lengths(), minlength=rs.n))
+
+
 def _cut_level(rs, ax, own, key, seeds, p):
-    """One level: the first kept cut of each piece (rows, across the front, across the long axis, middle).
+    """One level: the first kept cut of each piece (rows, across the front, across the long axis, middle, shed, bend).
 
     Returns the parts (RingSet) and their measures, their piece and side,
     the mask of pieces no cut could split, the number of failed cuts and of
@@ -307,11 +338,13 @@ def _cut_level(rs, ax, own, key, seeds, p):
     half = np.full(k, 0.5)
     # a stripe, or a piece too deep and too large, that no cut could split keeping every part on the street
     shed = fronted & ((aspect > p["max_aspect"][own]) | (deep & (ax["area"] > p["max_area"][own])))
-    for kind in ("rows", "front", "long", "middle", "shed"):
+    for kind in ("rows", "front", "long", "middle", "shed", "bend", "bend_long", "loose"):
         if kind == "rows":
             cand = left[applies[left]]
         elif kind == "shed":  # ... sheds its far end as an inner piece
             cand = left[shed[left]]
+        elif kind == "loose":  # a block with open land (no street on some edges): split what is left
+            cand = left[p["open"][own][left]]
         else:
             cand = left
         if len(cand) == 0:
@@ -319,7 +352,7 @@ def _cut_level(rs, ax, own, key, seeds, p):
         sub = rs.take(cand)
         if kind == "rows":
             point, direction = rpoint[cand], rdir[cand]
-        elif kind in ("long", "shed"):
+        elif kind in ("long", "shed", "bend_long", "loose"):
             point, direction = _cross_cuts(sub, u[cand], (t01 if kind == "long" else half)[cand])
         else:
             t = (t01 if kind == "front" else half)[cand]
@@ -331,8 +364,8 @@ def _cut_level(rs, ax, own, key, seeds, p):
             fronted=fronted[cand],
             min_frontage=mf[cand],
             min_area=ma[cand],
-            cap=cap[cand],
-            rule={"rows": "rows", "shed": "shed"}.get(kind, "keep"),
+            cap=np.maximum(cap[cand], _bent_aspect(sub)) if kind.startswith("bend") else cap[cand],
+            rule={"rows": "rows", "shed": "shed", "loose": "rows"}.get(kind, "keep"),
         )
         failed_count += nfail
         if kind == "rows":
@@ -364,6 +397,8 @@ def recursive_lots(
     max_levels=40,
     report=None,
     street=False,
+    fronts=None,
+    box=None,
 ):
     """Recursive lots in back-to-back rows, keeping street access (Parish and Müller [1]_).
 
@@ -407,6 +442,17 @@ def recursive_lots(
     street : bool
         Also return which boundary segment of each lot lies on its block's
         boundary (exact: carried through the cuts), and the inner lots.
+    fronts : array_like of object (n,), optional
+        Per block, the part of its boundary that faces a street (a
+        (Multi)LineString, e.g. ``blocks.landuse``'s ``street_front`` where
+        open land, water or a park was cut off it), or ``None``: all of it.
+        The rest of the boundary is no street: no row faces it, the cuts
+        give it no frontage, and land behind the rows along the real
+        street becomes inner lots (rear lots of compact shape) instead of
+        thin lots fronting onto open land.
+    box : tuple of float, optional
+        ``(xmin, ymin, xmax, ymax)``: block boundary on this box (the
+        extract's edge that closed the land round its streets) is no street.
 
     Returns
     -------
@@ -415,7 +461,8 @@ def recursive_lots(
         Index into ``blocks`` of each lot's block, non-decreasing.
     on : ndarray of bool, only with ``street``
         One per boundary segment of the lots, in the order of
-        :func:`sengine.geom.boundary.ring_segments`.
+        :func:`sengine.geom.boundary.ring_segments`: on the block's street
+        (its boundary less what ``fronts`` and ``box`` take off).
     inner : ndarray of bool, only with ``street``
         Lots cut off the street (less than ``min_frontage`` of it, and not
         a whole block).
@@ -439,7 +486,11 @@ def recursive_lots(
         "jitter": per_block(jitter),
     }
     parts, own = polygon_parts(blocks, np.arange(n))
-    rs = RingSet.from_polygons(parts, flag=True)  # every block edge faces a street
+    rs = RingSet.from_polygons(parts, flag=True)  # every block edge faces a street ...
+    if fronts is not None or box is not None:  # ... but those on open land or the extract's edge
+        rs = RingSet(rs.xy, rs.ring, street_edges(rs, own, fronts, box), rs.poly, rs.n)
+    p["open"] = np.zeros(n, bool)  # blocks with edges on no street: the 'loose' cut is theirs
+    p["open"][own[rs.vertex_poly()[~rs.flag]]] = True
     key = np.ones(rs.n, np.uint64)
     done_rs, done_o = [], []
     stuck_count = failed_count = levels = rows = 0
@@ -485,6 +536,22 @@ def recursive_lots(
         report["recursive_failed_cuts"] = report.get("recursive_failed_cuts", 0) + failed_count
         report["recursive_inner"] = report.get("recursive_inner", 0) + int(off_street.sum())
     return (lots, owner) + ((done.flag.copy(), off_street) if street else ())
+
+
+def street_edges(rs: RingSet, own, fronts=None, box=None) -> np.ndarray:
+    """Which edges of the block parts ``rs`` face a street: not on ``box``, and on their block's ``fronts``.
+
+    ``own`` maps each polygon of ``rs`` to its block; ``fronts`` holds one
+    (Multi)LineString or ``None`` (all of its boundary) per block.
+    """
+    p0 = rs.xy
+    p1 = rs.xy[rs.next_vertex()] if len(p0) else p0
+    on = ~segments_on_box(p0, p1, box)
+    if fronts is not None and on.any():
+        sel = np.flatnonzero(on)
+        lines = np.asarray(fronts, dtype=object)[np.asarray(own, np.int64)[rs.vertex_poly()[sel]]]
+        on[sel] = segments_on_lines(p0[sel], p1[sel], lines)
+    return on
 
 
 def check_recursive(blocks, *, max_area, min_area, min_frontage, where=None, report=None) -> np.ndarray:
