@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-__all__ = ["polygon_parts", "ring_segments", "segments_on_boundary", "segments_on_box", "segments_on_lines"]
+__all__ = ["polygon_parts", "ring_segments", "segments_on_boundary", "segments_on_box", "segments_on_lines", "street_edges"]
 
 
 def _ramp(counts) -> np.ndarray:
@@ -223,3 +223,34 @@ def segments_on_lines(p0, p1, lines, *, tol: float = 0.02) -> np.ndarray:
         mid = shapely.points(0.5 * (np.asarray(p0, float)[some] + np.asarray(p1, float)[some]))
         out[some] = shapely.dwithin(mid, lines[some], tol)
     return out
+
+
+def street_edges(rs, own, fronts=None, box=None) -> np.ndarray:
+    """Which edges of the block parts ``rs`` face a street: not on ``box``, and on their block's ``fronts``.
+
+    Parameters
+    ----------
+    rs : sengine.geom.split.RingSet
+        Block parts; edge ``i`` runs from vertex ``i`` to its next vertex.
+    own : array_like of int
+        Block of each polygon of ``rs``.
+    fronts : array_like of object, optional
+        Per block, its street-facing boundary, a (Multi)LineString, or
+        ``None``: all of it (``blocks.landuse``'s ``street_front``).
+    box : tuple of float, optional
+        ``(xmin, ymin, xmax, ymax)``: edges on it (the extract's edge) face
+        no street.
+
+    Returns
+    -------
+    ndarray of bool
+        One per vertex (edge) of ``rs``.
+    """
+    p0 = rs.xy
+    p1 = rs.xy[rs.next_vertex()] if len(p0) else p0
+    on = ~segments_on_box(p0, p1, box)
+    if fronts is not None and on.any():
+        sel = np.flatnonzero(on)
+        lines = np.asarray(fronts, dtype=object)[np.asarray(own, np.int64)[rs.vertex_poly()[sel]]]
+        on[sel] = segments_on_lines(p0[sel], p1[sel], lines)
+    return on

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from sengine.geom.boundary import polygon_parts, segments_on_boundary
+from sengine.geom.boundary import polygon_parts, segments_on_boundary, segments_on_box, segments_on_lines
 from sengine.geom.grid import clip_frame_grid
 from sengine.geom.merge import merge_small
 from sengine.geom.polygons import obb_frame
@@ -34,15 +34,24 @@ __all__ = ["manhattan_lots", "manhattan_rows"]
 ON_TOL = 1e-5  # m: a lot's segment within this of its block's boundary lies on it (frontage is measured so)
 
 
-def touches_along(lots, owner, blocks) -> np.ndarray:
-    """Per lot: some segment of its boundary, longer than a nanometre, lies on its block's boundary.
+def touches_along(lots, owner, blocks, *, fronts=None, box=None) -> np.ndarray:
+    """Per lot: some segment of its boundary, longer than a nanometre, lies on its block's street.
 
     The frontage rule of :func:`sengine.nodes.lots.nodes.lot_attributes` (segments within
     :data:`ON_TOL`, zero-length ones left out): a lot that meets the outline at a point only
-    (where a clip left a vertex doubled a hair apart) has no frontage and is inner.
+    (where a clip left a vertex doubled a hair apart) has no frontage and is inner.  The
+    block's street is its boundary less what lies on ``box`` (the extract's edge) and off
+    its ``fronts`` (per block, its street-facing boundary or ``None``: all of it; indexed
+    like ``blocks``): a lot on open land only has no frontage either.
     """
     p0, p1, si, _, on = segments_on_boundary(lots, owner, blocks, tol=ON_TOL)
     on &= np.hypot(*(p1 - p0).T) > 1e-9
+    if box is not None:
+        on &= ~segments_on_box(p0, p1, box)
+    if fronts is not None and on.any():
+        sel = np.flatnonzero(on)
+        lines = np.asarray(fronts, dtype=object)[np.asarray(owner, np.int64)[si[sel]]]
+        on[sel] = segments_on_lines(p0[sel], p1[sel], lines)
     return np.bincount(si[on], minlength=len(lots)) > 0
 
 
@@ -134,7 +143,9 @@ def _end_kind(nend):
     return np.where(_ramp(nend) == 0, 0, 1)
 
 
-def manhattan_lots(blocks, *, count=0, width=65.0, min_depth=10.0, depth=30.0, min_area=0.0, report=None):
+def manhattan_lots(
+    blocks, *, count=0, width=65.0, min_depth=10.0, depth=30.0, min_area=0.0, report=None, fronts=None, box=None
+):
     """Manhattan lots: two rows along the block's main axis (§5.5, Fig. 9 right).
 
     Parameters
@@ -160,6 +171,14 @@ def manhattan_lots(blocks, *, count=0, width=65.0, min_depth=10.0, depth=30.0, m
         Receives ``merged_slivers`` (pieces merged into a neighbour),
         ``dropped_slivers`` (pieces under 1 m2 touching their neighbours at
         points only, dropped) and ``inner_blocks`` (blocks with inner land).
+    fronts : array_like of object (n,), optional
+        Per block, the part of its boundary that faces a street (a
+        (Multi)LineString, e.g. ``blocks.landuse``'s ``street_front``), or
+        ``None``: all of it.
+    box : tuple of float, optional
+        ``(xmin, ymin, xmax, ymax)``: block boundary on this box (the
+        extract's edge) is no street.  With ``fronts`` or ``box`` every lot
+        that touches no street (only open land or the box) is inner.
 
     Returns
     -------
@@ -219,6 +238,10 @@ def manhattan_lots(blocks, *, count=0, width=65.0, min_depth=10.0, depth=30.0, m
     sub = np.flatnonzero(inner & ~inside)
     if len(sub):
         inner[sub[touches_along(lots[sub], owner[sub], blocks)]] = False
+    if fronts is not None or box is not None:  # a street row on open land only: inner (rear) land
+        edge = np.flatnonzero(~inside)
+        inner = inside.copy()
+        inner[edge] = ~touches_along(lots[edge], owner[edge], blocks, fronts=fronts, box=box)
     if report is not None:
         report["merged_slivers"] = report.get("merged_slivers", 0) + merged
         report["dropped_slivers"] = report.get("dropped_slivers", 0) + dropped

@@ -363,9 +363,17 @@ class _Lots(SENode):
         return NodeResult({"lots": lay}, report)
 
 
-def _manhattan(self, geoms, report, *, count, width, min_depth, row_depth, min_area):
+def _manhattan(self, geoms, report, *, count, width, min_depth, row_depth, min_area, fronts=None, box=None):
     lots, owner, inner, off_street = manhattan_lots(
-        geoms, count=count, width=width, min_depth=min_depth, depth=row_depth, min_area=min_area, report=report
+        geoms,
+        count=count,
+        width=width,
+        min_depth=min_depth,
+        depth=row_depth,
+        min_area=min_area,
+        report=report,
+        fronts=fronts,
+        box=box,
     )
     o = np.argsort(owner, kind="stable")
     lots, off_street = lots[o], off_street[o]
@@ -592,6 +600,8 @@ class LotsManhattan(_Lots):
             min_depth=self.p.min_depth,
             row_depth=self.p.row_depth,
             min_area=self.p.min_area,
+            fronts=blocks.get("street_front"),
+            box=blocks.meta.get("bbox"),
         )
 
 
@@ -729,9 +739,11 @@ class LotsDistrict(_Lots):
             np.asarray(blocks["district"], np.int64) if "district" in blocks else np.full(len(blocks), -1, np.int64)
         )
         outs, sels = [], []
+        box = blocks.meta.get("bbox")
         for dist in np.unique(district):
             sel = np.flatnonzero(district == dist)
             method, v, where = self._rule_params(rules, int(dist))
+            fronts = None if blocks.get("street_front") is None else blocks["street_front"][sel]
             if method == "manhattan":
                 res = _manhattan(
                     self,
@@ -742,6 +754,8 @@ class LotsDistrict(_Lots):
                     min_depth=v["min_depth"],
                     row_depth=v["row_depth"],
                     min_area=v["min_area"],
+                    fronts=fronts,
+                    box=box,
                 )
             elif method == "recursive":
                 res = _recursive(
@@ -756,8 +770,8 @@ class LotsDistrict(_Lots):
                     max_aspect=v["max_aspect"],
                     jitter=v["jitter"],
                     inner_lots=v["inner_lots"],
-                    fronts=None if blocks.get("street_front") is None else blocks["street_front"][sel],
-                    box=blocks.meta.get("bbox"),
+                    fronts=fronts,
+                    box=box,
                 )
             elif method == "skeleton":
                 res = _skeleton(

@@ -152,6 +152,8 @@ def partition_lots(
     min_area=1.0,
     max_aspect=6.0,
     report=None,
+    fronts=None,
+    box=None,
 ):
     """Partition lots of each block (Zhang et al. 2022, §3.3.1 [1]_).
 
@@ -179,6 +181,13 @@ def partition_lots(
     report : dict, optional
         Receives ``remainders``, ``merged_slivers`` and ``dropped_slivers``
         (pieces under 1 m2 touching their neighbours at points only).
+    fronts : array_like of object (n,), optional
+        Per block, the part of its boundary that faces a street (e.g.
+        ``blocks.landuse``'s ``street_front``), or ``None``: all of it.
+    box : tuple of float, optional
+        ``(xmin, ymin, xmax, ymax)``: block boundary on this box (the
+        extract's edge) is no street.  Lots touching no street (only open
+        land or the box) are inner.
 
     Returns
     -------
@@ -209,8 +218,8 @@ def partition_lots(
     xs = xs - np.repeat(L / 2, nx + 1)
     ys = ys - np.repeat(W / 2, ny + 1)
     pieces, own, ix, iy, inside, whole = clip_frame_grid(blocks, center, axis, xs, nx, ys, ny, clearance=ON_TOL)
-    lots, box = _polygons(pieces)
-    owner, ix, iy, inside, whole = own[box], ix[box], iy[box], inside[box], whole[box]
+    lots, cell = _polygons(pieces)
+    owner, ix, iy, inside, whole = own[cell], ix[cell], iy[cell], inside[cell], whole[cell]
     lots, keep, grown, merged, dropped = merge_small(lots, owner, min_area, cell=(ix, iy))
     owner, ix, iy, inside, whole = owner[keep], ix[keep], iy[keep], inside[keep] & ~grown, whole[keep] & ~grown
     cells = _cells(L, W, ix, iy, owner, **grid)
@@ -223,9 +232,10 @@ def partition_lots(
     # a lot that is its whole box inside the block (and took no sliver) touches no street; a clipped
     # one does; a whole box on the outline may or may not: measured
     inner = inside.copy()
-    check = np.flatnonzero(whole & ~inside)
+    street = fronts is not None or box is not None  # then a clipped lot may touch open land only: measured
+    check = np.flatnonzero((whole | street) & ~inside)
     if len(check):
-        inner[check] = ~touches_along(lots[check], owner[check], blocks)
+        inner[check] = ~touches_along(lots[check], owner[check], blocks, fronts=fronts, box=box)
     if report is not None:
         report["remainders"] = report.get("remainders", 0) + int(remainder.sum())
         report["merged_slivers"] = report.get("merged_slivers", 0) + merged
@@ -367,7 +377,12 @@ class LotsPartition(_Lots):
         opts = self._options()
         check_partition(blocks.geometry, **opts, where=self.where, report=report)
         lots, owner, ix, iy, remainder, cells, inner = partition_lots(
-            blocks.geometry, **opts, min_area=self.p.min_area, report=report
+            blocks.geometry,
+            **opts,
+            min_area=self.p.min_area,
+            report=report,
+            fronts=blocks.get("street_front"),
+            box=blocks.meta.get("bbox"),
         )
         o = np.argsort(owner, kind="stable")
         lots, inner = lots[o], inner[o]

@@ -62,11 +62,11 @@ import numpy as np
 import shapely
 
 from sengine.errors import ParameterError
-from sengine.geom.boundary import polygon_parts, segments_on_box, segments_on_lines
+from sengine.geom.boundary import polygon_parts, street_edges
 from sengine.geom.split import RingSet, cut_lengths, split
 from sengine.random import hash01
 
-__all__ = ["recursive_lots", "piece_axes", "check_recursive", "perimeter_aspect", "street_edges"]
+__all__ = ["recursive_lots", "piece_axes", "check_recursive", "perimeter_aspect"]
 
 PARALLEL = np.cos(np.radians(30.0))  # a street edge within 30 deg of the front runs along it
 FRONT_EPS = 1e-6  # m: a piece with less marked boundary than this has no street at all
@@ -536,22 +536,6 @@ def recursive_lots(
         report["recursive_failed_cuts"] = report.get("recursive_failed_cuts", 0) + failed_count
         report["recursive_inner"] = report.get("recursive_inner", 0) + int(off_street.sum())
     return (lots, owner) + ((done.flag.copy(), off_street) if street else ())
-
-
-def street_edges(rs: RingSet, own, fronts=None, box=None) -> np.ndarray:
-    """Which edges of the block parts ``rs`` face a street: not on ``box``, and on their block's ``fronts``.
-
-    ``own`` maps each polygon of ``rs`` to its block; ``fronts`` holds one
-    (Multi)LineString or ``None`` (all of its boundary) per block.
-    """
-    p0 = rs.xy
-    p1 = rs.xy[rs.next_vertex()] if len(p0) else p0
-    on = ~segments_on_box(p0, p1, box)
-    if fronts is not None and on.any():
-        sel = np.flatnonzero(on)
-        lines = np.asarray(fronts, dtype=object)[np.asarray(own, np.int64)[rs.vertex_poly()[sel]]]
-        on[sel] = segments_on_lines(p0[sel], p1[sel], lines)
-    return on
 
 
 def check_recursive(blocks, *, max_area, min_area, min_frontage, where=None, report=None) -> np.ndarray:
