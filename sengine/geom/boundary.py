@@ -12,7 +12,14 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-__all__ = ["polygon_parts", "ring_segments", "segments_on_boundary", "segments_on_box", "segments_on_lines", "street_edges"]
+__all__ = [
+    "polygon_parts",
+    "ring_segments",
+    "segments_on_boundary",
+    "segments_on_box",
+    "segments_on_lines",
+    "street_edges",
+]
 
 
 def _ramp(counts) -> np.ndarray:

@@ -58,7 +58,7 @@ def _chain(item_seg, item_par, item_node, seg_end, nseg):
     return nd, v, sg
 
 
-def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part):
+def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part, flag=None):
     """Faces of the plane graph: block rings, offset rings and rays, all joined at exact nodes.
 
     Every ray starts at a known point of a block edge and ends at a known
@@ -68,7 +68,8 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part):
     lots; those right of a block edge fill a hole of the block and are
     dropped, those left of an offset edge are the interior.  Returns faces,
     their part, the interior flag, and per part whether its faces add up
-    to its area (else it needs GEOS).
+    to its area (else it needs GEOS).  ``flag`` (per block edge, optional):
+    which edges face a street; the frontage counts only those.
     """
     N, NI, P = len(rs.xy), len(rsI.xy), rs.n
     xy0 = np.r_[rs.xy, rsI.xy]
@@ -156,6 +157,8 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part):
     el = np.hypot(*(xy[v] - xy[u]).T)
     # street frontage of each face: the block edges it lies left of
     onb = (kind == 0) & (left >= 0)
+    if flag is not None:
+        onb[: len(su)] &= np.r_[np.asarray(flag, bool), np.zeros(NI, bool)][sg]
     front = np.bincount(np.maximum(fmap[left[onb]], 0), weights=el[onb] * (fmap[left[onb]] >= 0), minlength=len(kept))
     # neighbours: faces on both sides of an edge, with the length they share
     both = (left >= 0) & (right >= 0) & (left != right)

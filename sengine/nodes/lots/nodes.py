@@ -442,7 +442,7 @@ def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage,
     return LotSplit(lots, owner, np.full(len(lots), "paris"), inner, on, known)
 
 
-def _skeleton(self, geoms, ids, report, *, where=None, **p):
+def _skeleton(self, geoms, ids, report, *, where=None, fronts=None, box=None, **p):
     """Skeleton lots of ``geoms``; a block whose whole boundary is shorter than ``lot_width_min`` is
     kept whole (counted), and when every block is so, the parameter cannot hold: an error."""
     where = where or self.where
@@ -467,7 +467,8 @@ def _skeleton(self, geoms, ids, report, *, where=None, **p):
     if short.any():
         log.warning("%s: %d block(s) shorter all round than lot_width_min are kept whole", where, int(short.sum()))
     go = np.flatnonzero(~short)
-    res = skeleton_lots(geoms[go], seeds=_seeds(self, ids[go]), **p)
+    fr = None if fronts is None else np.asarray(fronts, dtype=object)[go]
+    res = skeleton_lots(geoms[go], seeds=_seeds(self, ids[go]), fronts=fr, box=box, **p)
     for k, v in res.report.items():
         report[k] = report.get(k, 0) + v
     keep = np.flatnonzero(short)
@@ -659,7 +660,15 @@ class LotsSkeleton(_Lots):
     params = dict(_P_SKELETON)
 
     def split(self, blocks, report):
-        return _skeleton(self, blocks.geometry, blocks.ids, report, **dict(self.p))
+        return _skeleton(
+            self,
+            blocks.geometry,
+            blocks.ids,
+            report,
+            fronts=blocks.get("street_front"),
+            box=blocks.meta.get("bbox"),
+            **dict(self.p),
+        )
 
 
 # district rule attribute -> node parameter
@@ -782,6 +791,8 @@ class LotsDistrict(_Lots):
                     where=where,
                     width=v["skeleton_width"],
                     force_street_access=v["force_street_access"],
+                    fronts=fronts,
+                    box=box,
                     **{k: v[k] for k in _SKELETON_SHARED},
                 )
             else:

@@ -62,7 +62,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from sengine.geom.boundary import polygon_parts, segments_on_boundary
+from sengine.geom.boundary import (
+    polygon_parts,
+    segments_on_boundary,
+    segments_on_box,
+    segments_on_lines,
+    street_edges,
+)
 from sengine.geom.polygons import inset
 from sengine.geom.split import RingSet
 
@@ -128,9 +134,11 @@ def _per_block(x, n, dtype=np.float64):
 # -- streets and cuts -----------------------------------------------------------------------------
 
 
-def _streets(rs: RingSet, corner_angle: float):
+def _streets(rs: RingSet, corner_angle: float, flag=None):
     """Vertices' turning angles and the street (run of edges between corners) of each edge.
 
+    ``flag`` (per edge, optional): which edges face a street; a run also
+    ends where it changes, so each run is all street or all open land.
     Returns ``turn`` (rad, > 0 convex: the rings have the interior on the
     left), ``run`` (street of each edge, edges of a street consecutive in
     ``order``), ``order`` (edges street by street, in ring order),
@@ -145,6 +153,8 @@ def _streets(rs: RingSet, corner_angle: float):
     dt = np.einsum("ij,ij->i", u[prv], u)
     turn = np.arctan2(cr, dt)
     corner = np.abs(turn) > np.radians(corner_angle)
+    if flag is not None:  # street meets open land: a run ends there too
+        corner = corner | (flag != flag[prv])
     R = len(rs.poly)
     has = np.bincount(rs.ring[corner], minlength=R) > 0
     rstart = np.r_[0, np.cumsum(np.bincount(rs.ring, minlength=R))][:-1]
@@ -163,9 +173,14 @@ def _streets(rs: RingSet, corner_angle: float):
     return turn, u, run, order, closed, start
 
 
-def _cuts(rs, own, d, width, lmin, amax, irregularity, seeds, corner_angle, corner):
-    """Cut rays of every street: origin, inner normal, street, edge, and whether it is a bisector."""
-    turn, u, run, order, closed, start = _streets(rs, corner_angle)
+def _cuts(rs, own, d, width, lmin, amax, irregularity, seeds, corner_angle, corner, flag=None):
+    """Cut rays of every street: origin, inner normal, street, edge, and whether it is a bisector.
+
+    Runs of edges off the street (``flag`` False) get a cut at each end
+    only, where they meet a street at a corner: between them lies one
+    piece of land without frontage (it joins the interior).
+    """
+    turn, u, run, order, closed, start = _streets(rs, corner_angle, flag)
     N = len(rs.xy)
     ln = rs.edge_lengths()
     vp = rs.vertex_poly()
@@ -187,13 +202,16 @@ def _cuts(rs, own, d, width, lmin, amax, irregularity, seeds, corner_angle, corn
     phi0 = turn[first_v]
     phi1 = turn[first_v[nxt]]
     dS, wS, lminS = d[sp], width[sp], lmin[sp]
+    bend = np.abs(turn) > np.radians(corner_angle)
+    cor0, cor1 = bend[first_v], bend[first_v[nxt]]  # else the run ends where street meets open land
+    sflag = np.ones(S, bool) if flag is None else flag[first_v]
 
     def clearance(phi):
         convex = dS * np.tan(0.5 * np.minimum(phi, np.radians(170.0))) + MARGIN
         return np.where(phi > 0, convex, 0.5 * wS)
 
-    c0 = np.where(closed, 0.0, clearance(phi0))
-    c1 = np.where(closed, 0.0, clearance(phi1))
+    c0 = np.where(closed | ~cor0, 0.0, clearance(phi0))
+    c1 = np.where(closed | ~cor1, 0.0, clearance(phi1))
     U = L - c0 - c1
     w = np.maximum(np.minimum(wS, amax[sp] / np.maximum(dS, 1e-9)), lminS)
     m = np.floor(U / w + 0.5).astype(np.int64)
@@ -201,6 +219,7 @@ def _cuts(rs, own, d, width, lmin, amax, irregularity, seeds, corner_angle, corn
     m = np.minimum(m, np.floor(U / np.maximum(lminS, 1e-9)).astype(np.int64) * (lminS > 0) + m * (lminS <= 0))
     m = np.maximum(m, 0)
     m = np.where(closed & (m < 2), 0, m)
+    m = np.where(sflag, m, np.where(~closed & (U > MARGIN), 1, 0))  # off the street: a cut at each end
     ncut = np.where(closed, m, np.where(m > 0, m + 1, 0))
     # lot widths: lot_width_min plus a random share of the rest
     cs = np.repeat(np.arange(S), m)
@@ -245,9 +264,13 @@ def _cuts(rs, own, d, width, lmin, amax, irregularity, seeds, corner_angle, corn
         q = prv[e[at_v]]
         nb = nrm[at_v] + np.stack([-u[q, 1], u[q, 0]], axis=1)
         nrm[at_v] = nb / np.maximum(np.hypot(nb[:, 0], nb[:, 1]), 1e-300)[:, None]
-    bis = np.zeros(len(arc), bool)
+    # off the street, no cut where the run meets a street in line: the street's own cut is there
+    drop = ~sflag[cut_s] & (((cj == 0) & ~cor0[cut_s]) | ((cj == ncut[cut_s] - 1) & ~cor1[cut_s]))
+    if drop.any():
+        p, nrm, cut_s, e, toff = p[~drop], nrm[~drop], cut_s[~drop], e[~drop], toff[~drop]
+    bis = np.zeros(len(p), bool)
     if corner == "split":  # the corner's bisector halves the corner lot
-        cv = first_v[(~closed) & (phi0 > 0)]
+        cv = first_v[(~closed) & (phi0 > 0) & cor0]
         nx = rs.next_vertex()
         prv = np.empty(N, np.int64)
         prv[nx] = np.arange(N)
@@ -259,7 +282,7 @@ def _cuts(rs, own, d, width, lmin, amax, irregularity, seeds, corner_angle, corn
         toff = np.r_[toff, np.zeros(len(cv))]
         cut_s = np.r_[cut_s, run[cv]]
         bis = np.r_[bis, np.ones(len(cv), bool)]
-    return p, nrm, cut_s, e, bis, run, toff
+    return p, nrm, cut_s, e, bis, run, toff, sflag
 
 
 def _cast(p, nrm, ray_part, reach, seg0, seg1, seg_part, seg_key, tmin=1e-6):
@@ -319,6 +342,8 @@ def skeleton_lots(
     force_street_access=True,
     corner_angle=30.0,
     seeds=None,
+    fronts=None,
+    box=None,
 ) -> SkeletonLots:
     """Skeleton lots (Vanegas et al. 2012 [1]_): street strips of ``depth`` cut into lots of ``width``.
 
@@ -354,6 +379,16 @@ def skeleton_lots(
         A turn of the boundary by more than this (deg) ends a street.
     seeds : array_like of uint64 (n,), optional
         One seed per block; 0 when omitted.
+    fronts : array_like of object (n,), optional
+        Per block, the part of its boundary that faces a street (a
+        (Multi)LineString, e.g. ``blocks.landuse``'s ``street_front`` where
+        open land, water or a park was cut off it), or ``None``: all of it.
+        Strips and lots run only along the street; the land along the rest
+        (without frontage) joins the interior, so it becomes inner (rear)
+        lots, not thin lots fronting onto open land.
+    box : tuple of float, optional
+        ``(xmin, ymin, xmax, ymax)``: block boundary on this box (the
+        extract's edge that closed the land round its streets) is no street.
 
     Returns
     -------
@@ -390,13 +425,16 @@ def skeleton_lots(
     if P == 0:
         return empty
     parts = shapely.orient_polygons(parts)
+    flag = street_edges(rs, own, fronts, box) if fronts is not None or box is not None else None
+    # parts with land off the street: their faces without frontage join the interior
+    open_part = np.zeros(P, bool) if flag is None else np.bincount(rs.vertex_poly(), ~flag, minlength=P) > 0
     d = d_b[own]
     # 1. the interior: the block offset by the depth
     core = inset(parts, d)
     cparts, cown = polygon_parts(core, np.arange(P))
     # 2-3. streets and cut rays
-    p, nrm, cut_s, cut_e, bis, run, toff = _cuts(
-        rs, own, d, w_b[own], lmin_b[own], amax_b[own], irr_b[own], seeds, corner_angle, corner
+    p, nrm, cut_s, cut_e, bis, run, toff, sflag = _cuts(
+        rs, own, d, w_b[own], lmin_b[own], amax_b[own], irr_b[own], seeds, corner_angle, corner, flag
     )
     vp = rs.vertex_poly()
     ray_part = vp[cut_e]
@@ -409,8 +447,11 @@ def skeleton_lots(
     reach = 3.0 * d[ray_part] + 1.0
     t, hit, hseg, hpar = _cast(p, nrm, ray_part, reach, S0, S1, spart, skey)
     through = hit >= 0
-    # a part thinner than twice the depth: only the rays of the lower street cross it
-    keep = np.isfinite(t) & (~through | (cut_s < hit) | ((cut_s == hit) & ~bis))
+    # a part thinner than twice the depth: only the rays of the lower street cross it (streets before
+    # runs off the street)
+    rank = np.where(sflag, 0, len(sflag)) + np.arange(len(sflag))
+    rhit = rank[np.maximum(hit, 0)]
+    keep = np.isfinite(t) & (~through | (rank[cut_s] < rhit) | ((cut_s == hit) & ~bis))
     keep |= bis & np.isfinite(t)
     report["skeleton_thin"] = int((through & keep).sum())
     p, nrm, t, ray_part = p[keep], nrm[keep], t[keep], ray_part[keep]
@@ -418,7 +459,7 @@ def skeleton_lots(
     report["skeleton_cuts"] = int(len(p))
     # 4. faces of the plane graph of block boundary, offset curve and rays
     faces, fpart, inner, ok, front, adj, marks, known = _graph_faces(
-        rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part
+        rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part, flag
     )
     bad = np.flatnonzero(~ok)
     if len(bad):  # parts the graph could not close (overlapping blocks): GEOS noding and polygonize
@@ -440,7 +481,16 @@ def skeleton_lots(
     unk = unk[np.isin(fpart[unk], bad)]
     if len(unk):
         s0, s1, sidx, _, on = segments_on_boundary(faces[unk], fpart[unk], parts, tol=1e-5)
+        if flag is not None:  # on the street only
+            on &= ~segments_on_box(s0, s1, box)
+            if fronts is not None and on.any():
+                sel = np.flatnonzero(on)
+                lines = np.asarray(fronts, dtype=object)[own[fpart[unk][sidx[sel]]]]
+                on[sel] = segments_on_lines(s0[sel], s1[sel], lines)
         front[unk] = np.bincount(sidx[on], weights=np.hypot(*(s1 - s0)[on].T), minlength=len(unk))
+    # faces along land off the street (no frontage at all): rear land, joining the interior below
+    back = ~inner & (front <= 0) & open_part[fpart]
+    inner = inner | back
     amin = amin_b[own[fpart]]
     small = ~inner & (area < amin)
     if force_street_access:
@@ -452,7 +502,12 @@ def skeleton_lots(
         report["skeleton_merged"] += int(drop.sum())
         faces = np.r_[faces[~drop], parts[whole]]
         fpart = np.r_[fpart[~drop], whole]
-        inner = np.r_[inner[~drop], np.zeros(len(whole), bool)]
+        # a part with no street edge at all is one inner lot
+        wstreet = (
+            np.ones(len(whole), bool) if flag is None else np.bincount(rs.vertex_poly(), flag, minlength=P)[whole] > 0
+        )
+        inner = np.r_[inner[~drop], ~wstreet]
+        back = np.r_[back[~drop], np.zeros(len(whole), bool)]
         small = np.r_[small[~drop], np.zeros(len(whole), bool)]
         marks = Marks.concat([marks.take(np.flatnonzero(~drop)), Marks.unknown(parts[whole])])
         known = np.r_[known[~drop], np.zeros(len(whole), bool)]
@@ -461,8 +516,13 @@ def skeleton_lots(
         adj = (remap[adj[0][sel]], remap[adj[1][sel]], adj[2][sel])
     faces, alive, nm, changed = _merge_into(faces, small, inner, fpart, strict=True, adj=adj)
     report["skeleton_merged"] += nm
-    fpart, inner = fpart[alive], inner[alive]
+    fpart, inner, back = fpart[alive], inner[alive], back[alive]
     marks, known = _after_merge(marks.take(np.flatnonzero(alive)), faces, changed), known[alive] & ~changed
+    if back.any():  # the land along open edges joins the interior beside it: compact rear land, not strips
+        faces, alive, nm, changed = _merge_into(faces, back, inner, fpart, strict=True)
+        report["skeleton_rear"] = int(nm)
+        fpart, inner = fpart[alive], inner[alive]
+        marks, known = _after_merge(marks.take(np.flatnonzero(alive)), faces, changed), known[alive] & ~changed
     # 5. the interior
     if interior == "split" and inner.any():
         ii = np.flatnonzero(inner)
