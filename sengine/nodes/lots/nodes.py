@@ -427,7 +427,7 @@ def _recursive(
     return LotSplit(lots, owner, np.full(len(lots), "recursive"), inner, on, np.ones(len(lots), bool))
 
 
-def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage, min_area):
+def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage, min_area, fronts=None, box=None):
     lots, owner, inner, on, known = paris_lots(
         geoms,
         segment=segment,
@@ -438,6 +438,8 @@ def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage,
         min_area=min_area,
         report=report,
         street=True,
+        fronts=fronts,
+        box=box,
     )
     return LotSplit(lots, owner, np.full(len(lots), "paris"), inner, on, known)
 
@@ -649,6 +651,8 @@ class LotsParis(_Lots):
             deviation=self.p.deviation,
             min_frontage=self.p.min_frontage,
             min_area=self.p.min_area,
+            fronts=blocks.get("street_front"),
+            box=blocks.meta.get("bbox"),
         )
 
 
@@ -806,6 +810,8 @@ class LotsDistrict(_Lots):
                     deviation=v["deviation"],
                     min_frontage=min(v["min_frontage"], 2.0),
                     min_area=v["min_area"],
+                    fronts=fronts,
+                    box=box,
                 )
             outs.append(res)
             sels.append(sel)

@@ -54,7 +54,7 @@ from typing import NamedTuple
 import numpy as np
 import shapely
 
-from sengine.geom.boundary import polygon_parts
+from sengine.geom.boundary import polygon_parts, street_edges
 from sengine.geom.merge import merge_small
 from sengine.geom.polygons import threaded
 from sengine.geom.split import RingSet, split
@@ -389,6 +389,8 @@ def paris_lots(
     max_cuts=8,
     report=None,
     street=False,
+    fronts=None,
+    box=None,
 ):
     """Paris lots (§5.5, Fig. 9 left).
 
@@ -427,6 +429,16 @@ def paris_lots(
     street : bool
         Also return which boundary segment of each lot lies on its block's
         boundary, where the construction knows it.
+    fronts : array_like of object (n,), optional
+        Per block, the part of its boundary that faces a street (a
+        (Multi)LineString, e.g. ``blocks.landuse``'s ``street_front`` where
+        open land, water or a park was cut off it), or ``None``: all of it.
+        The rest is treated like a cut edge: the candidates along it have
+        no street and join the core, so the land behind the street lots
+        reaches it as one inner lot instead of lots fronting onto nothing.
+    box : tuple of float, optional
+        ``(xmin, ymin, xmax, ymax)``: block boundary on this box (the
+        extract's edge that closed the land round its streets) is no street.
 
     Returns
     -------
@@ -449,7 +461,9 @@ def paris_lots(
         )
     seeds = np.asarray(seeds, np.uint64)
     parts, own = polygon_parts(blocks, np.arange(n))
-    rs = RingSet.from_polygons(parts, flag=True)  # every block edge faces a street
+    rs = RingSet.from_polygons(parts, flag=True)  # every block edge faces a street ...
+    if fronts is not None or box is not None:  # ... but those on open land or the extract's edge
+        rs = RingSet(rs.xy, rs.ring, street_edges(rs, own, fronts, box), rs.poly, rs.n)
     keep = np.bincount(rs.poly, minlength=rs.n) > 0
     rs, own = rs.take(keep), own[keep]
     # piece key: 1 + the part's rank in its block (then 2 k + side after cuts): batch independent
