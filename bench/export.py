@@ -38,6 +38,7 @@ from _osm import osm_network  # noqa: E402
 from _results import write  # noqa: E402
 
 from sengine import Context  # noqa: E402
+from sengine.nodes.maps import plan_inputs  # noqa: E402
 from sengine.registry import get  # noqa: E402
 
 DEFAULT_OSM = HERE.parent.parent / "shared" / "data" / "liege_streets.osm.pbf"
@@ -47,11 +48,12 @@ TARGET = 3.0  # issue 16: GeoPackage and GeoParquet at least 3x faster to write 
 
 def grid_layers(tmp: Path, repeat: int) -> tuple[object, dict, dict]:
     plan, layers = grid_city(nx=31, ny=30, lots_per_side=4, height_map=tmp)
-    extrude = get("buildings.extrude")("buildings", {}, Context(seed=7, plan=plan))
+    extrude = get("buildings.extrude")("buildings", {}, Context(seed=7))
+    maps = plan_inputs(plan, extrude, base_dir=tmp)  # the height map on its port, as a network wires it
     best = float("inf")
     for _ in range(repeat):
         t = time.perf_counter()
-        layers["buildings"] = extrude.run(lots=layers["lots"])["buildings"]
+        layers["buildings"] = extrude.run(lots=layers["lots"], **maps)["buildings"]
         best = min(best, time.perf_counter() - t)
     return plan, layers, {"seconds_buildings_extrude": round(best, 4)}
 
@@ -79,7 +81,9 @@ def liege_layers(path: Path) -> tuple[object, dict, dict]:
 
 
 def time_formats(plan, layers: dict, repeat: int, tmp: Path) -> dict:
-    from sengine.nodes.export.city import export_layers
+    from sengine.nodes.export.city import export_layers, layers_frame
+
+    extent, lat_lon = layers_frame(layers)
 
     best: dict[str, float] = {}
     clean: float = float("inf")
@@ -88,7 +92,7 @@ def time_formats(plan, layers: dict, repeat: int, tmp: Path) -> dict:
         for fmt in FORMATS:
             out = tmp / f"{fmt}-{k}"
             out.mkdir()
-            rep = export_layers(out, layers, {fmt}, plan=plan)
+            rep = export_layers(out, layers, {fmt}, extent=extent, lat_lon=lat_lon)
             best[fmt] = min(best.get(fmt, float("inf")), rep["seconds"][fmt])
             clean = min(clean, rep["seconds"]["clean"])
             sizes[fmt] = sum(p.stat().st_size for p in out.iterdir())

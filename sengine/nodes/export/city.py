@@ -140,6 +140,14 @@ def city_origin(layers: dict[str, Layer], lat_lon, crs: str) -> tuple[np.ndarray
     return np.round(xy), (lat, lon)
 
 
+def layers_frame(layers: dict[str, Layer | None]) -> tuple[tuple | None, tuple[float, float]]:
+    """The city's planar extent and geographic origin (lat, lon), from the first layers' meta that hold them."""
+    metas = [lay.meta for lay in layers.values() if lay is not None]
+    extent = next((m["extent"] for m in metas if "extent" in m), None)
+    lat_lon = next((tuple(m["origin"]) for m in metas if "origin" in m), CityPlan().origin)
+    return extent, lat_lon
+
+
 def export_layers(
     out: Path,
     layers: dict[str, Layer | None],
@@ -551,9 +559,7 @@ class ExportCity(SENode):
             "bridges": bridges if bridges is not None and len(bridges) else None,
             "vegetation": vegetation,
         }
-        metas = [lay.meta for lay in layers.values() if lay is not None]
-        extent = next((m["extent"] for m in metas if "extent" in m), None)
-        lat_lon = next((tuple(m["origin"]) for m in metas if "origin" in m), CityPlan().origin)
+        extent, lat_lon = layers_frame(layers)
         report = export_layers(
             out,
             layers,
