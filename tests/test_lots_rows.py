@@ -302,6 +302,7 @@ COURTYARD_CORNER = shapely.from_wkt(
 @example([COURTYARD_EDGE], "size", (3.0, 3.0), (1, 2))
 @example([COURTYARD_CORNER], "size", (3.0, 3.0), (1, 1))
 @example([shapely.box(0, 0, 24, 28), shapely.box(0, 0, 50, 57)], "size", (25.0, 40.0), (2, 2))  # the first holds no lot
+@example([shapely.box(0, 1, 1, 3)], "count", (3.0, 3.0), (1, 1))  # 6 cells of 0.33 m2: merged to one lot
 def test_partition_random_blocks(polys, mode, size, cluster):
     """Random blocks and modes: an exact partition, valid lots, none under 1 m2 unless a whole tiny block;
     a size no block can hold is an error."""

@@ -64,13 +64,17 @@ def merge_small(polys, group, min_area, *, touch: float = TOUCH, cell=None, drop
     keep, grown, merged = np.arange(k), np.zeros(k, bool), 0
     if cell is not None:
         cell = (np.asarray(cell[0], np.int64), np.asarray(cell[1], np.int64))
-    for _ in range(4):  # a sliver whose best neighbour was merging itself goes in the next pass
-        polys, kept, took, done = _merge_pass(
-            polys, group[keep], min_area[keep], touch, None if cell is None else (cell[0][keep], cell[1][keep])
-        )
-        keep, grown, merged = keep[kept], grown[kept] | took, merged + done
-        if done == 0:
+    # neighbours by grid cell first; a piece that took others spans cells its own index does not name,
+    # so whatever is still small then looks for its neighbours by their outlines (a spatial index)
+    for by_cell in (True, False) if cell is not None else (False,):
+        if not by_cell and not (shapely.area(polys) < min_area[keep]).any():
             break
+        for _ in range(4):  # a sliver whose best neighbour was merging itself goes in the next pass
+            near = (cell[0][keep], cell[1][keep]) if by_cell else None
+            polys, kept, took, done = _merge_pass(polys, group[keep], min_area[keep], touch, near)
+            keep, grown, merged = keep[kept], grown[kept] | took, merged + done
+            if done == 0:
+                break
     # what is left under drop_below touches its neighbours at points at most: degenerate, dropped
     area = shapely.area(polys)
     gone = area < np.minimum(drop_below, min_area[keep])
@@ -133,11 +137,11 @@ def _merge_pass(polys, group, min_area, touch, cell=None):
     first = np.r_[True, i[1:] != i[:-1]] if len(i) else np.zeros(0, bool)
     i, j, shared = i[first], j[first], shared[first]
     # a small piece merges into a piece that is not itself merging away (no chains): a piece that a
-    # smaller one picked stays where it is and takes it; others wait for the next pass
+    # smaller one (or an equal one before it) picked stays where it is and takes it; others wait for the next pass
     sel = (shared > 0) & (area[i] > 0)
     i, j = i[sel], j[sel]
     stays = np.zeros(k, bool)
-    stays[j[area[i] < area[j]]] = True
+    stays[j[(area[i] < area[j]) | ((area[i] == area[j]) & (i < j))]] = True  # equal ones: by order
     moving = ~stays[i]
     i, j = i[moving], j[moving]
     sel = ~np.isin(j, i)

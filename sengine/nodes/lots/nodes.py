@@ -331,8 +331,7 @@ class _Lots(SENode):
             geoms,
             on=flags.on,
             known=flags.known,
-            box=blocks.meta.get("bbox"),
-            fronts=blocks.get("street_front"),
+            **_streets_of(blocks),
         )
         district = (
             np.asarray(blocks["district"], np.int64)[owner]
@@ -586,6 +585,11 @@ _P_SKELETON = {
 }
 
 
+def _streets_of(blocks: Layer) -> dict:
+    """Which of the blocks' sides face a street: ``fronts`` (their ``street_front``) and the extract's ``box``."""
+    return {"fronts": blocks.get("street_front"), "box": blocks.meta.get("bbox")}
+
+
 @register
 class LotsManhattan(_Lots):
     """Manhattan lots: two rows along the block's main axis, ``count`` or ``width`` per side (§5.5)."""
@@ -594,18 +598,7 @@ class LotsManhattan(_Lots):
     params = dict(_P_MANHATTAN)
 
     def split(self, blocks, report):
-        return _manhattan(
-            self,
-            blocks.geometry,
-            report,
-            count=self.p.count,
-            width=self.p.width,
-            min_depth=self.p.min_depth,
-            row_depth=self.p.row_depth,
-            min_area=self.p.min_area,
-            fronts=blocks.get("street_front"),
-            box=blocks.meta.get("bbox"),
-        )
+        return _manhattan(self, blocks.geometry, report, **_streets_of(blocks), **dict(self.p))
 
 
 @register
@@ -616,21 +609,7 @@ class LotsRecursive(_Lots):
     params = dict(_P_RECURSIVE)
 
     def split(self, blocks, report):
-        return _recursive(
-            self,
-            blocks.geometry,
-            blocks.ids,
-            report,
-            max_area=self.p.max_area,
-            min_area=self.p.min_area,
-            min_frontage=self.p.min_frontage,
-            row_depth=self.p.row_depth,
-            max_aspect=self.p.max_aspect,
-            jitter=self.p.jitter,
-            inner_lots=self.p.inner_lots,
-            fronts=blocks.get("street_front"),
-            box=blocks.meta.get("bbox"),
-        )
+        return _recursive(self, blocks.geometry, blocks.ids, report, **_streets_of(blocks), **dict(self.p))
 
 
 @register
@@ -641,19 +620,7 @@ class LotsParis(_Lots):
     params = dict(_P_PARIS)
 
     def split(self, blocks, report):
-        return _paris(
-            self,
-            blocks.geometry,
-            blocks.ids,
-            report,
-            segment=self.p.segment,
-            depth=self.p.depth,
-            deviation=self.p.deviation,
-            min_frontage=self.p.min_frontage,
-            min_area=self.p.min_area,
-            fronts=blocks.get("street_front"),
-            box=blocks.meta.get("bbox"),
-        )
+        return _paris(self, blocks.geometry, blocks.ids, report, **_streets_of(blocks), **dict(self.p))
 
 
 @register
@@ -664,15 +631,7 @@ class LotsSkeleton(_Lots):
     params = dict(_P_SKELETON)
 
     def split(self, blocks, report):
-        return _skeleton(
-            self,
-            blocks.geometry,
-            blocks.ids,
-            report,
-            fronts=blocks.get("street_front"),
-            box=blocks.meta.get("bbox"),
-            **dict(self.p),
-        )
+        return _skeleton(self, blocks.geometry, blocks.ids, report, **_streets_of(blocks), **dict(self.p))
 
 
 # district rule attribute -> node parameter
