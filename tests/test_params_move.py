@@ -463,7 +463,48 @@ def on_streets():
     return {"blocks": blocks(), "sidewalks": city["sidewalks"], "streets": city["streets"], "roads": roads()}
 
 
-CASES.append(Case("vegetation.trees", "avenue_min_width", 0.0, 12.0, count("vegetation"), -1, on_streets))
+LEVELS = ("district", "block", "lot", "patio")
+
+
+@cache
+def park_zones() -> Layer:
+    """Monaco's block parks (every 4th block) given each park level in turn, for the densities of each."""
+    p = parks()
+    return Layer(p.geometry, p.ids, p.parent, {"level": np.array([LEVELS[i % 4] for i in range(len(p))])})
+
+
+def on_trees():
+    return {**on_streets(), "parks": park_zones(), "buildings": buildings(), "regions": osm()["parks"]}
+
+
+V, T = "vegetation.trees", count("vegetation")
+VERSAILLES = (("region_pattern", "versailles"),)
+CASES += [
+    Case(V, "avenue_min_width", 0.0, 12.0, T, -1, on_streets),
+    Case(V, "spacing", 2.0, 10.0, T, -1, on_trees),
+    Case(V, "avenue_spacing", 6.0, 20.0, T, -1, on_streets),
+    Case(V, "avenue_offset", 0.5, 3.0, content("vegetation"), 0, on_streets),
+    Case(V, "avenue_clear", 2.0, 20.0, T, -1, on_streets),
+    Case(V, "corner", 20.0, 90.0, content("vegetation"), 0, on_streets),
+    *(Case(V, f"{z}_density", 0.001, 0.02, T, +1, on_trees) for z in (*LEVELS, "region")),
+    Case(V, "deviation", 0.0, 40.0, content("vegetation"), 0, on_trees),
+    Case(V, "clearance", 1.0, 8.0, T, -1, on_trees),
+    Case(V, "avenue_plants", "plane", "birch", content("vegetation"), 0, on_streets),
+    Case(V, "park_plants", "oak", "pine", content("vegetation"), 0, on_trees),
+    Case(V, "patio_plants", "birch", "cherry", content("vegetation"), 0, on_trees),
+    Case(V, "region_plants", "pine", "oak", content("vegetation"), 0, on_trees),
+    Case(V, "instances", 1, 7, content("vegetation"), 0, on_trees),
+    Case(V, "region_pattern", "scatter", "versailles", content("vegetation"), 0, on_trees),
+    Case(V, "versailles_depth", 1, 3, content("vegetation"), 0, on_trees, VERSAILLES),
+    Case("parks.block", "mode", "none", "every", count("parks"), +1, on_blocks),
+    Case("parks.block", "every", 20, 4, count("parks"), +1, on_blocks),
+    Case("parks.block", "share", 0.05, 0.3, count("parks"), +1, on_blocks, (("mode", "random"),)),
+    Case("parks.block", "min_area", 0.0, 5000.0, count("parks"), -1, on_blocks, (("every", 2),)),
+    Case("parks.lot", "mode", "none", "every", count("parks"), +1, on_lots_only),
+    Case("parks.lot", "every", 40, 5, count("parks"), +1, on_lots_only, (("mode", "every"),)),
+    Case("parks.lot", "share", 0.02, 0.3, count("parks"), +1, on_lots_only, (("mode", "random"),)),
+    Case("parks.lot", "min_area", 0.0, 800.0, count("parks"), -1, on_lots_only, (("mode", "every"), ("every", 2))),
+]
 CASES.append(Case("lots.district", "default", "manhattan", "paris", count("lots"), +1, on_blocks))
 
 ALLOWED: dict[str, str] = {
@@ -493,12 +534,8 @@ PENDING: dict[str, str] = {
         f"obj.roads.{p}": "needs an OBJ fixture (tests/test_objimport.py)"
         for p in ("up", "scale", "width", "road_class")
     },
-    **{f"parks.block.{p}": "open space (tests/test_openspace.py)" for p in ("mode", "every", "share", "min_area")},
     **{f"parks.district.{p}": "open space (tests/test_openspace.py)" for p in ("mode", "min_area")},
-    **{
-        f"parks.lot.{p}": "open space (tests/test_openspace.py)"
-        for p in ("mode", "every", "share", "ids", "use", "min_area")
-    },
+    **{f"parks.lot.{p}": "needs district rules and named lots (tests/test_openspace.py)" for p in ("ids", "use")},
     **{
         f"parks.patio.{p}": "open space (tests/test_openspace.py)"
         for p in ("mode", "gap", "front", "min_area", "min_width")
@@ -515,30 +552,6 @@ PENDING: dict[str, str] = {
     **{
         f"roads.image.{p}": "needs the road-map image (tests/test_roadimage.py)"
         for p in ("size", "color", "tolerance", "simplify", "min_length", "width", "road_class")
-    },
-    **{
-        f"vegetation.trees.{p}": "open space (tests/test_openspace.py)"
-        for p in (
-            "spacing",
-            "avenue_spacing",
-            "avenue_offset",
-            "avenue_clear",
-            "corner",
-            "district_density",
-            "block_density",
-            "lot_density",
-            "patio_density",
-            "region_density",
-            "deviation",
-            "clearance",
-            "avenue_plants",
-            "park_plants",
-            "patio_plants",
-            "region_plants",
-            "instances",
-            "region_pattern",
-            "versailles_depth",
-        )
     },
     "water.landuse.kind": "open space (tests/test_openspace.py)",
 }
