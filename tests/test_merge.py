@@ -1,0 +1,95 @@
+"""merge_small (sengine.geom.merge): small pieces of a partition join a neighbour of their group.
+
+Properties on random grids of pieces (cells of random sizes, several groups side by side), with the
+grid's cell index and without: the union of each group is unchanged, every piece is a valid polygon,
+no piece is under the threshold while it has a neighbour in its group to join, pieces never cross
+groups, and the counts returned add up.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from sengine.geom.merge import merge_small
+
+
+def grid_pieces(xs, ys, groups: int):
+    """Cells of a grid with column edges ``xs`` and row edges ``ys``, repeated for ``groups`` groups side by side."""
+    polys, group, ix, iy = [], [], [], []
+    width = xs[-1] - xs[0] + 10.0
+    for g in range(groups):
+        for i in range(len(xs) - 1):
+            for j in range(len(ys) - 1):
+                polys.append(shapely.box(xs[i] + g * width, ys[j], xs[i + 1] + g * width, ys[j + 1]))
+                group.append(g)
+                ix.append(i)
+                iy.append(j)
+    return np.array(polys, dtype=object), np.array(group), np.array(ix), np.array(iy)
+
+
+edges = st.lists(st.floats(0.2, 30.0), min_size=1, max_size=6).map(lambda w: np.r_[0.0, np.cumsum(w)])
+
+
+@settings(max_examples=120, deadline=None)
+@given(edges, edges, st.integers(1, 3), st.floats(0.5, 200.0), st.booleans())
+def test_small_pieces_join_a_neighbour_of_their_group(xs, ys, groups, min_area, by_cell):
+    polys, group, ix, iy = grid_pieces(xs, ys, groups)
+    out, keep, grown, merged, dropped = merge_small(polys, group, min_area, cell=(ix, iy) if by_cell else None)
+    # what is kept, in input order; every piece is there or merged or dropped
+    assert (np.diff(keep) > 0).all()
+    assert len(out) == len(keep) == len(grown) == len(polys) - merged - dropped
+    assert grown.sum() <= merged
+    assert shapely.is_valid(out).all() and (shapely.get_type_id(out) == 3).all()
+    # each group still covers what it covered (nothing dropped here: rectangles share whole sides)
+    assert dropped == 0
+    for g in range(groups):
+        before = shapely.union_all(polys[group == g])
+        after = out[group[keep] == g]
+        assert abs(shapely.area(after).sum() - before.area) <= 1e-6 * before.area
+        assert shapely.area(shapely.symmetric_difference(shapely.union_all(after), before)) <= 1e-6 * before.area
+    # a piece is under the threshold only when it is its group's only piece (nothing left to join)
+    area = shapely.area(out)
+    alone = np.bincount(group[keep], minlength=groups)[group[keep]] == 1
+    assert ((area >= min_area) | alone).all()
+    # a grown piece is larger than the piece it was
+    assert (area[grown] > shapely.area(polys[keep[grown]])).all()
+
+
+def test_a_sliver_joins_the_neighbour_it_shares_most_with():
+    # a 1 x 10 m sliver between a 10 x 10 m piece (whole side shared) and one touching 4 m of it
+    big = shapely.box(0, 0, 10, 10)
+    sliver = shapely.box(10, 0, 11, 10)
+    side = shapely.box(11, 6, 20, 10)
+    out, keep, grown, merged, dropped = merge_small(np.array([big, sliver, side]), np.zeros(3, int), 20.0)
+    assert merged == 1 and dropped == 0 and keep.tolist() == [0, 2]
+    assert grown.tolist() == [True, False]
+    assert out[0].equals(shapely.box(0, 0, 11, 10))
+
+
+def test_pieces_of_other_groups_are_no_neighbours():
+    a, b = shapely.box(0, 0, 1, 1), shapely.box(1, 0, 20, 10)
+    out, keep, grown, merged, dropped = merge_small(np.array([a, b]), np.array([0, 1]), 5.0)
+    assert merged == 0 and keep.tolist() == [0, 1] and not grown.any()
+
+
+@pytest.mark.parametrize("by_cell", [False, True])
+def test_equal_small_pieces_settle(by_cell):
+    # six equal 1/3 m2 cells of a 1 x 2 m block (lots.partition by count): none under 1 m2 is left,
+    # and under 1.5 m2 none but the whole block
+    polys, group, ix, iy = grid_pieces(np.array([0.0, 1 / 3, 2 / 3, 1.0]), np.array([0.0, 1.0, 2.0]), 1)
+    cell = (ix, iy) if by_cell else None
+    out, keep, grown, merged, dropped = merge_small(polys, group, 1.0, cell=cell)
+    assert (shapely.area(out) >= 1.0 - 1e-12).all() and merged == 6 - len(out)
+    out, keep, grown, merged, dropped = merge_small(polys, group, 1.5, cell=cell)
+    assert len(out) == 1 and merged == 5 and shapely.normalize(out[0]).equals(shapely.box(0, 0, 1, 2))
+
+
+def test_a_degenerate_sliver_touching_at_a_point_is_dropped():
+    big = shapely.box(0, 0, 100, 100)
+    speck = shapely.Polygon([(100, 100), (100.5, 100.5), (100, 100.9)])  # touches the big piece at a corner
+    out, keep, grown, merged, dropped = merge_small(np.array([big, speck]), np.zeros(2, int), 5.0)
+    assert dropped == 1 and merged == 0 and keep.tolist() == [0]
