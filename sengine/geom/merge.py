@@ -69,7 +69,7 @@ def merge_small(polys, group, min_area, *, touch: float = TOUCH, cell=None, drop
     for by_cell in (True, False) if cell is not None else (False,):
         if not by_cell and not (shapely.area(polys) < min_area[keep]).any():
             break
-        for _ in range(4):  # a sliver whose best neighbour was merging itself goes in the next pass
+        while True:  # a sliver whose best neighbour was merging itself goes in the next pass (pieces only go)
             near = (cell[0][keep], cell[1][keep]) if by_cell else None
             polys, kept, took, done = _merge_pass(polys, group[keep], min_area[keep], touch, near)
             keep, grown, merged = keep[kept], grown[kept] | took, merged + done
