@@ -9,7 +9,8 @@ Blocks come from
   ``configs/paris.xml`` when they exist, run up to their ``blocks`` node.
 
 Blocks are made once per case and cached (pickled ``Layer``) in the
-temporary folder.  Each lot node (``lots.skeleton``, ``lots.recursive``,
+temporary folder, keyed on the source file and on the code that makes them
+(``sengine/*.py``, ``geom``, ``nodes/osm``, ``roads``, ``blocks``).  Each lot node (``lots.skeleton``, ``lots.recursive``,
 ``lots.paris``, ``lots.manhattan``, and ``lots.partition`` once it exists;
 default parameters) then runs on them in a fresh process, so that
 ``peak_rss_mb`` (the process's peak resident memory, ``resource``) is its
@@ -26,8 +27,11 @@ block interior).
 
 Usage::
 
-    python bench/lots.py [--repeat 3] [--cases liege,manhattan,paris] [--baseline fd7a501]
+    python bench/lots.py [--repeat 3] [--cases liege,manhattan,paris]
                          [--methods lots.recursive,...] [--out bench/results/lots.json]
+
+To measure another revision, point ``SENGINE_BENCH_CODE`` at a copy of its
+package (``baseline_code(ref)`` makes one from git).
 """
 
 from __future__ import annotations
@@ -74,9 +78,21 @@ def _peak_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def _code_tag() -> str:
+    """A digest of the measured package's sources that make blocks (so a code change re-makes them)."""
+    h = hashlib.sha1()
+    for sub in ("sengine/geom", "sengine/nodes/osm", "sengine/nodes/roads", "sengine/nodes/blocks"):
+        for f in sorted((CODE / sub).rglob("*.py")):
+            h.update(f.read_bytes())
+    for f in sorted((CODE / "sengine").glob("*.py")):
+        h.update(f.read_bytes())
+    return h.hexdigest()[:12]
+
+
 def _cache_path(case: str, source: Path) -> Path:
     st = source.stat()
-    tag = hashlib.sha1(f"{source.resolve()}:{st.st_size}:{st.st_mtime_ns}".encode()).hexdigest()[:12]
+    key = f"{source.resolve()}:{st.st_size}:{st.st_mtime_ns}:{_code_tag()}"
+    tag = hashlib.sha1(key.encode()).hexdigest()[:12]
     return Path(tempfile.gettempdir()) / f"sengine_bench_lots_{case}_{tag}.pkl"
 
 
@@ -224,7 +240,6 @@ def main(argv=None) -> int:
     ap.add_argument("--cases", default="liege,manhattan,paris")
     ap.add_argument("--out", type=Path, default=ROOT / "bench/results/lots.json")
     ap.add_argument("--methods", default=",".join(METHODS))
-    ap.add_argument("--baseline", metavar="REF", help="also run the methods of this git revision, interleaved")
     ap.add_argument("--run", nargs=2, metavar=("CASE", "METHOD"), help=argparse.SUPPRESS)
     ap.add_argument("--prepare", metavar="CASE", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -248,7 +263,7 @@ def main(argv=None) -> int:
         print(prep.stdout.strip(), file=sys.stderr)
         from sengine.registry import names
 
-        for method in [m for m in METHODS if m.partition("?")[0] in names()]:
+        for method in [m for m in args.methods.split(",") if m.partition("?")[0] in names()]:
             proc = subprocess.run(
                 [sys.executable, __file__, "--run", case, method, "--repeat", str(args.repeat)],
                 capture_output=True,

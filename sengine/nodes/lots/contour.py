@@ -211,10 +211,11 @@ class Contour:
         # signed areas of the closed rings, local to each ring's first vertex
         start = np.cumsum(sizes) - sizes
         ring = np.repeat(np.arange(len(sizes)), sizes)
-        q = xy - xy[start][ring]
+        q = xy - xy[start[ring]]
         last = np.r_[ring[1:] != ring[:-1], True] if len(ring) else np.zeros(0, bool)
-        qn = np.r_[q[1:], q[:1]]
-        cr = np.where(last, 0.0, q[:, 0] * qn[:, 1] - q[:, 1] * qn[:, 0])
+        cr = np.zeros(len(ring))  # each coordinate's cross product with the next one of its ring (0: the last)
+        cr[:-1] = q[:-1, 0] * q[1:, 1] - q[:-1, 1] * q[1:, 0]
+        cr[last] = 0.0
         return polys, 0.5 * np.bincount(ring, weights=cr, minlength=len(sizes)), Marks(seg[~last], sizes - 1)
 
     def chains(self, p, ja, jb, step):
