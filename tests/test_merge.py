@@ -93,3 +93,30 @@ def test_a_degenerate_sliver_touching_at_a_point_is_dropped():
     speck = shapely.Polygon([(100, 100), (100.5, 100.5), (100, 100.9)])  # touches the big piece at a corner
     out, keep, grown, merged, dropped = merge_small(np.array([big, speck]), np.zeros(2, int), 5.0)
     assert dropped == 1 and merged == 0 and keep.tolist() == [0]
+
+
+@settings(max_examples=80, deadline=None)
+@given(edges, edges, st.integers(1, 3), st.floats(0.5, 200.0))
+def test_the_grid_cells_find_the_same_neighbours_as_the_outlines(xs, ys, groups, min_area):
+    # on a fresh grid (one cell a piece) a pass by cell index is a pass by spatial index, piece for piece
+    from sengine.geom.merge import TOUCH, _merge_pass
+
+    polys, group, ix, iy = grid_pieces(xs, ys, groups)
+    area = np.full(len(polys), min_area)
+    a = _merge_pass(polys, group, area, TOUCH, (ix, iy))
+    b = _merge_pass(polys, group, area, TOUCH, None)
+    assert np.array_equal(a[1], b[1]) and np.array_equal(a[2], b[2]) and a[3] == b[3]
+    assert all(p.equals(q) for p, q in zip(a[0], b[0]))
+
+
+def test_a_group_of_specks_is_kept_whole():
+    # pieces under drop_below that only touch at points are dropped only where they are a hair of their
+    # group's area: a group made of nothing else keeps them
+    specks = [shapely.box(0, 0, 0.5, 0.5), shapely.box(0.5, 0.5, 1.0, 1.0)]
+    out, keep, grown, merged, dropped = merge_small(np.array(specks), np.zeros(2, int), 5.0)
+    assert dropped == 0 and merged == 0 and len(out) == 2
+    # beside a large piece of another group, a speck of this group stays too
+    out, keep, grown, merged, dropped = merge_small(
+        np.array([*specks, shapely.box(10, 10, 110, 110)]), np.array([0, 0, 1]), 5.0
+    )
+    assert dropped == 0 and len(out) == 3

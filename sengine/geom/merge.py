@@ -127,19 +127,20 @@ def _merge_pass(polys, group, min_area, touch, cell=None):
         ok = np.ones(len(i), bool)
     ok &= (group[i] == group[j]) & (i != j)
     i, j = i[ok], j[ok]
-    # the neighbour sharing the longest boundary; a larger piece wins a tie, small ones come last
+    # the neighbour sharing the longest boundary; a larger piece wins a tie, then the first one (so the
+    # choice does not depend on the order the candidates were found in); small ones come last
     shared = shapely.length(
         shapely.intersection(shapely.boundary(polys[i]), shapely.boundary(polys[j]), grid_size=touch)
     )
+    side = (shared > 0) & (area[i] > 0)  # a neighbour touching at a point only is none
+    i, j, shared = i[side], j[side], shared[side]
     big_j = area[j] >= min_area[j]
-    o = np.lexsort((-area[j], -shared, ~big_j, i))
-    i, j, shared = i[o], j[o], shared[o]
+    o = np.lexsort((j, -area[j], -shared, ~big_j, i))
+    i, j = i[o], j[o]
     first = np.r_[True, i[1:] != i[:-1]] if len(i) else np.zeros(0, bool)
-    i, j, shared = i[first], j[first], shared[first]
+    i, j = i[first], j[first]
     # a small piece merges into a piece that is not itself merging away (no chains): a piece that a
     # smaller one (or an equal one before it) picked stays where it is and takes it; others wait for the next pass
-    sel = (shared > 0) & (area[i] > 0)
-    i, j = i[sel], j[sel]
     stays = np.zeros(k, bool)
     stays[j[(area[i] < area[j]) | ((area[i] == area[j]) & (i < j))]] = True  # equal ones: by order
     moving = ~stays[i]
