@@ -35,6 +35,7 @@ import mapbox_earcut
 import numpy as np
 
 from .mesh import Rings, fill_skipped, split_t_junctions
+from .skeleton_faces import hip_solids
 
 __all__ = ["skeleton_solids", "available"]
 
@@ -99,10 +100,22 @@ def skeleton_solids(
         Polygons the skeleton could not be computed for (not in the mesh).
     """
     ext = _extension()
+    polys = np.asarray(polys, np.int64)
     vs, fs, vp, fk, failed = [], [], [], [], []
     off = 0
+    slow = polys
+    if ext is not None and polys.size:
+        sub = _subset(rings, polys)
+        with _quiet_stderr():
+            v, f, p, k, bad = hip_solids(ext, sub, eave[polys], rise[polys], base[polys], np.asarray(gable)[polys])
+        vs.append(v)
+        fs.append(f)
+        vp.append(polys[p])
+        fk.append(k)
+        off = len(v)
+        slow = polys[bad]
     with _quiet_stderr():  # CGAL prints its refusals; they are counted here (failed) and fall back
-        for p in np.asarray(polys, np.int64).tolist():
+        for p in slow.tolist():  # what the batch could not build: CGAL's own extrusion, one by one
             out = None if ext is None else _one(ext, rings, p, float(eave[p]), float(rise[p]), float(base[p]), gable[p])
             if out is None:
                 failed.append(p)
@@ -117,6 +130,22 @@ def skeleton_solids(
         e = np.empty(0, np.int64)
         return np.empty((0, 3)), np.empty((0, 3), np.int64), e, np.empty(0, np.uint8), np.asarray(failed, np.int64)
     return np.concatenate(vs), np.concatenate(fs), np.concatenate(vp), np.concatenate(fk), np.asarray(failed, np.int64)
+
+
+def _subset(rings: Rings, sel: np.ndarray) -> Rings:
+    """The polygons ``sel`` of ``rings`` as their own :class:`Rings`."""
+    r0, r1 = rings.poly_ring[sel], rings.poly_ring[sel + 1]
+    nr = r1 - r0
+    ring_ids = np.repeat(r0 - np.concatenate([[0], np.cumsum(nr)[:-1]]), nr) + np.arange(nr.sum())
+    lens = np.diff(rings.ring_start)[ring_ids]
+    starts = rings.ring_start[ring_ids]
+    vid = np.repeat(starts - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(lens.sum())
+    return Rings(
+        rings.xy[vid],
+        np.concatenate([[0], np.cumsum(lens)]).astype(np.int64),
+        np.concatenate([[0], np.cumsum(nr)]).astype(np.int64),
+        np.asarray(sel, np.int64),
+    )
 
 
 def _one(ext, rings: Rings, p: int, eave: float, rise: float, base: float, gable: bool):
