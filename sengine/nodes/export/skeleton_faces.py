@@ -102,24 +102,46 @@ def hip_solids(ext, rings: Rings, eave: np.ndarray, rise: np.ndarray, base: np.n
     bad[ring_poly[short]] = True
     qk = np.ascontiguousarray(q[kidx])
     bad |= ~_valid(qk, kstart, rings.poly_ring, bad)
-    pts, ids, edges, cnt, ecnt, bad = _skeletons(ext, qk, kstart, rings.poly_ring, bad)
-    nk = kstart[rings.poly_ring[1:]] - kstart[rings.poly_ring[:-1]]  # kept contour vertices per polygon
+    pts, ids, edges, etype, cnt, ecnt, bad = _skeletons(ext, qk, kstart, rings.poly_ring, bad)
     row_poly = np.repeat(np.arange(n_poly), cnt)
-    row0 = np.concatenate([[0], np.cumsum(cnt)])
-    rloc = np.arange(len(pts)) - row0[row_poly]
-    contour = rloc < nk[row_poly]
-    kid = np.where(contour, kstart[rings.poly_ring[:-1]][row_poly] + rloc, -1)  # kept vertex of a contour row
-    ok_rows = ~contour | ((ids == rloc) & (pts == qk[np.maximum(kid, 0)]).all(axis=1))
-    bad[row_poly[~ok_rows]] = True
     # edge ids to rows
     key = row_poly * (1 << 32) + ids
     order = np.argsort(key, kind="stable")
     epoly = np.repeat(np.arange(n_poly), ecnt)
     ekey = epoly[:, None] * (1 << 32) + edges
-    at = np.minimum(np.searchsorted(key[order], ekey), len(key) - 1)
-    found = key[order][at] == ekey
+    at = np.minimum(np.searchsorted(key[order], ekey), max(len(key) - 1, 0))
+    found = key[order][at] == ekey if len(key) else np.ones(ekey.shape, bool)
     bad[epoly[~found.all(axis=1)]] = True
-    erow = order[at]
+    erow = order[at] if len(key) else at
+    # the contour CGAL kept (it may leave out collinear vertices too): rows on boundary edges, found
+    # among the kept vertices by their coordinates (CGAL hands them back exactly)
+    contour = np.zeros(len(pts), bool)
+    contour[erow[etype == 2].ravel()] = True
+    crow = np.flatnonzero(contour)
+    kpoly = ring_poly[kring]
+    allp = np.concatenate([kpoly, row_poly[crow]])
+    allxy = np.concatenate([qk, pts[crow]])
+    src = np.concatenate([np.zeros(len(qk), np.int8), np.ones(len(crow), np.int8)])
+    o = np.lexsort((src, allxy[:, 1], allxy[:, 0], allp))
+    sp = np.flatnonzero(src[o] == 1)
+    prev_o = o[np.maximum(sp - 1, 0)]
+    match = (sp > 0) & (src[prev_o] == 0) & (allp[prev_o] == allp[o[sp]]) & (allxy[prev_o] == allxy[o[sp]]).all(axis=1)
+    bad[allp[o[sp[~match]]]] = True
+    kid = np.full(len(pts), -1)
+    kid[crow[o[sp] - len(qk)]] = np.where(match, prev_o, 0)
+    orig = kidx[kid[crow]]  # ring vertex of each contour row
+    # the next contour row along its ring
+    oc = np.argsort(orig, kind="stable")
+    rc = vring[orig[oc]]
+    cf = np.ones(len(oc), bool)
+    cf[1:] = rc[1:] != rc[:-1]
+    cfs = np.flatnonzero(cf)
+    clast = np.concatenate([cfs[1:], [len(oc)]]) - 1
+    cn = np.arange(1, len(oc) + 1)
+    cn[clast] = cfs
+    cnext = np.full(len(pts), -1)
+    cnext[crow[oc]] = crow[oc[cn]]
+    nk = np.bincount(row_poly[crow], minlength=n_poly)  # contour vertices per polygon
 
     # 2. one vertex per point (simultaneous events), then the faces of the plane graph
     canon = np.arange(len(pts))
@@ -149,12 +171,8 @@ def hip_solids(ext, rings: Rings, eave: np.ndarray, rise: np.ndarray, base: np.n
     label = _cycles(hnext)
 
     # 3. one footprint edge per face; heights
-    cu, cv = contour[hu], contour[hv]
-    knext = np.arange(1, len(kidx) + 1)
-    knext[kstart[1:] - 1] = kstart[:-1]
-    ku, kv = kid[hu], kid[hv]
-    eave_h = cu & cv & (knext[np.maximum(ku, 0)] == kv)
-    rev_h = cu & cv & (knext[np.maximum(kv, 0)] == ku)
+    eave_h = contour[hu] & (cnext[hu] == hv)
+    rev_h = contour[hv] & (cnext[hv] == hu)
     hpoly = row_poly[hu]
     n_lab = len(hnext)
     size = np.bincount(label, minlength=n_lab)
@@ -375,9 +393,9 @@ def _valid(qk: np.ndarray, kstart: np.ndarray, poly_ring: np.ndarray, bad: np.nd
 
 
 def _skeletons(ext, qk, kstart, poly_ring, bad):
-    """CGAL's interior straight skeleton of every polygon not ``bad``: rows, ids, edges and counts."""
+    """CGAL's interior straight skeleton of every polygon not ``bad``: rows, ids, edges, edge types, counts."""
     n_poly = len(poly_ring) - 1
-    pts, ids, edges = [], [], []
+    pts, ids, edges, types = [], [], [], []
     cnt = np.zeros(n_poly, np.int64)
     ecnt = np.zeros(n_poly, np.int64)
     one, holes = ext.create_interior_straight_skeleton, ext.create_interior_straight_skeleton_with_holes
@@ -386,23 +404,26 @@ def _skeletons(ext, qk, kstart, poly_ring, bad):
         r0, r1 = pr[p], pr[p + 1]
         try:
             if r1 - r0 == 1:
-                sv, si, se, _ = one(qk[ks[r0] : ks[r0 + 1]])
+                sv, si, se, st = one(qk[ks[r0] : ks[r0 + 1]])
             else:
-                sv, si, se, _ = holes(qk[ks[r0] : ks[r0 + 1]], [qk[ks[r] : ks[r + 1]] for r in range(r0 + 1, r1)])
+                sv, si, se, st = holes(qk[ks[r0] : ks[r0 + 1]], [qk[ks[r] : ks[r + 1]] for r in range(r0 + 1, r1)])
         except Exception:  # CGAL refuses degenerate input
             bad[p] = True
             continue
         pts.append(sv)
         ids += si
         edges.append(se)
+        types += st
         cnt[p] = len(sv)
         ecnt[p] = len(se)
     if not pts:
-        return np.empty((0, 2)), np.empty(0, np.int64), np.empty((0, 2), np.int64), cnt, ecnt, bad
+        e = np.empty(0, np.int64)
+        return np.empty((0, 2)), e, np.empty((0, 2), np.int64), e, cnt, ecnt, bad
     return (
         np.concatenate(pts)[:, :2],
         np.asarray(ids, np.int64),
         np.concatenate(edges).astype(np.int64),
+        np.asarray(types, np.int8),
         cnt,
         ecnt,
         bad,
