@@ -83,6 +83,8 @@ def hip_solids(ext, rings: Rings, eave: np.ndarray, rise: np.ndarray, base: np.n
         Polygons not built here (not in the mesh).
     """
     n_poly = rings.n_polys
+    eave, rise, base = (np.asarray(a, np.float64).reshape(n_poly) for a in (eave, rise, base))
+    gable = np.asarray(gable, bool).reshape(n_poly)
     xy = rings.xy
     m = len(xy)
     vpoly = rings.vertex_poly()
@@ -263,7 +265,7 @@ def hip_solids(ext, rings: Rings, eave: np.ndarray, rise: np.ndarray, base: np.n
         plan[ap[go]] = pa[go] + tt[go, None] * dv[go]
         wall[cand[go]] = True
 
-    # 5. triangles: convex faces and gable walls fanned from the vertex after b, the others by earcut
+    # 5. triangles
     f_of = fid
     nxt_s = np.where(j + 1 < flen[fid], np.arange(len(seq)) + 1, fo[fid])
     prv_s = np.empty_like(nxt_s)
@@ -272,10 +274,15 @@ def hip_solids(ext, rings: Rings, eave: np.ndarray, rise: np.ndarray, base: np.n
     e1 = plan[seq[nxt_s]] - plan[seq]
     cross = e0[:, 0] * e1[:, 1] - e0[:, 1] * e1[:, 0]
     reflex = cross < -CONVEX_TOL * np.hypot(*e0.T) * np.hypot(*e1.T)
-    convex = (np.bincount(f_of, weights=reflex, minlength=len(faces)) == 0) | wall
-    fan = convex[fid]
-    # rotate each fanned face to start at index run + 1 (the first skeleton node)
+    n_reflex = np.bincount(f_of, weights=reflex, minlength=len(faces))
+    # convex faces and gable walls: fanned from the first skeleton node (index run + 1); one reflex
+    # vertex: fanned from it (two convex pieces); the others go through earcut
+    convex = (n_reflex <= 1) | wall
     sh = run + 1
+    one = (n_reflex == 1) & ~wall
+    rpos = np.zeros(len(faces), np.int64)
+    rpos[f_of[reflex]] = j[reflex]
+    sh = np.where(one, rpos, sh)
     rot = seq[fo[fid] + (j + sh[fid]) % flen[fid]]
     ntri = np.where(convex, flen - 2, 0)
     tf = np.repeat(np.arange(len(faces)), ntri)
@@ -290,7 +297,6 @@ def hip_solids(ext, rings: Rings, eave: np.ndarray, rise: np.ndarray, base: np.n
             tri = tri[:, [0, 2, 1]]
         tris = fill_skipped([face.tolist()], face[tri].tolist()) if len(tri) else []
         extra.append(np.asarray(tris, np.int64).reshape(-1, 3))
-    del fan, rot
     if extra:
         more = np.concatenate(extra)
         roof_tri = np.concatenate([roof_tri, more])
