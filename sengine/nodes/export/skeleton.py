@@ -104,16 +104,18 @@ def skeleton_solids(
     vs, fs, vp, fk, failed = [], [], [], [], []
     off = 0
     slow = polys
-    if ext is not None and polys.size:
-        sub = _subset(rings, polys)
+    for engine in ("wavefront", "cgal"):  # the batch: our own wavefront first, CGAL for what it hands back
+        if ext is None or not slow.size:
+            break
+        sub = _subset(rings, slow)
         with _quiet_stderr():
-            v, f, p, k, bad = hip_solids(ext, sub, eave[polys], rise[polys], base[polys], np.asarray(gable)[polys])
+            v, f, p, k, bad = hip_solids(ext, sub, eave[slow], rise[slow], base[slow], np.asarray(gable)[slow], engine)
         vs.append(v)
-        fs.append(f)
-        vp.append(polys[p])
+        fs.append(f + off)
+        vp.append(slow[p])
         fk.append(k)
-        off = len(v)
-        slow = polys[bad]
+        off += len(v)
+        slow = slow[bad]
     with _quiet_stderr():  # CGAL prints its refusals; they are counted here (failed) and fall back
         for p in slow.tolist():  # what the batch could not build: CGAL's own extrusion, one by one
             out = None if ext is None else _one(ext, rings, p, float(eave[p]), float(rise[p]), float(base[p]), gable[p])

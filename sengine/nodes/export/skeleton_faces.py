@@ -42,6 +42,7 @@ import numpy as np
 import shapely
 
 from .mesh import Rings, fill_skipped, triangulate
+from .wavefront import MAX_VERTICES, wavefront_skeletons
 
 __all__ = ["hip_solids", "SNAP", "FLAT_TURN"]
 
@@ -51,13 +52,16 @@ SNAP = 1e-3
 FLAT_TURN = np.radians(0.1)
 #: Skeleton nodes closer than this (grid units) are one vertex (CGAL's simultaneous events).
 MERGE = 1e-4
-#: A node's distances to the edge lines of its faces may differ by this much (grid units).
-AGREE = 1e-2
+#: A node's distances to the edge lines of its faces may differ by this much (grid units): CGAL's
+#: nodes are exact to rounding; :mod:`.wavefront` takes nearly opposite edges for opposite.
+AGREE = {"cgal": 1e-2, "wavefront": 2.0}
 #: A face turning right by less than this (sine) at a vertex still counts as convex.
 CONVEX_TOL = np.sin(np.radians(0.2))
 
 
-def hip_solids(ext, rings: Rings, eave: np.ndarray, rise: np.ndarray, base: np.ndarray, gable: np.ndarray):
+def hip_solids(
+    ext, rings: Rings, eave: np.ndarray, rise: np.ndarray, base: np.ndarray, gable: np.ndarray, engine: str = "cgal"
+):
     """Closed solids with a hip (or gable) roof over every polygon of ``rings``.
 
     Parameters
@@ -70,6 +74,10 @@ def hip_solids(ext, rings: Rings, eave: np.ndarray, rise: np.ndarray, base: np.n
         Per polygon: wall top, roof rise and ground height (m).
     gable : numpy.ndarray of bool, shape (p,)
         Per polygon: turn the end triangles into gables.
+    engine : {"cgal", "wavefront"}
+        Who computes the skeleton: CGAL, or :mod:`.wavefront` (one-ring
+        polygons of at most :data:`~.wavefront.MAX_VERTICES` vertices; the
+        others are handed back).
 
     Returns
     -------
@@ -104,7 +112,18 @@ def hip_solids(ext, rings: Rings, eave: np.ndarray, rise: np.ndarray, base: np.n
     bad[ring_poly[short]] = True
     qk = np.ascontiguousarray(q[kidx])
     bad |= ~_valid(qk, kstart, rings.poly_ring, bad)
-    pts, ids, edges, etype, cnt, ecnt, bad = _skeletons(ext, qk, kstart, rings.poly_ring, bad)
+    if engine == "wavefront":
+        nk0 = kstart[rings.poly_ring[1:]] - kstart[rings.poly_ring[:-1]]
+        bad |= (np.diff(rings.poly_ring) != 1) | (nk0 > MAX_VERTICES)
+        pts, ids, edges, etype, cnt, ecnt, gave_up = wavefront_skeletons(
+            qk, kstart, rings.poly_ring, np.flatnonzero(~bad)
+        )
+        bad[gave_up] = True
+    else:
+        pts, ids, edges, etype, cnt, ecnt, bad = _skeletons(ext, qk, kstart, rings.poly_ring, bad)
+    if not len(pts):
+        e = np.empty(0, np.int64)
+        return np.empty((0, 3)), np.empty((0, 3), np.int64), e, np.empty(0, np.uint8), np.arange(n_poly)
     row_poly = np.repeat(np.arange(n_poly), cnt)
     # edge ids to rows
     key = row_poly * (1 << 32) + ids
@@ -202,8 +221,8 @@ def hip_solids(ext, rings: Rings, eave: np.ndarray, rise: np.ndarray, base: np.n
     np.maximum.at(tmax, hu[inner_h], t[inner_h])
     np.minimum.at(tmin, hu[inner_h], t[inner_h])
     used = np.isfinite(tmax)
-    bad[row_poly[used & ~contour & ((tmax - tmin > AGREE) | (tmin <= 0))]] = True
-    bad[row_poly[used & contour & (np.maximum(np.abs(tmax), np.abs(tmin)) > AGREE)]] = True
+    bad[row_poly[used & ~contour & ((tmax - tmin > AGREE[engine]) | (tmin <= 0))]] = True
+    bad[row_poly[used & contour & (np.maximum(np.abs(tmax), np.abs(tmin)) > AGREE[engine])]] = True
     node_t = np.where(used & ~contour, tmax, 0.0) * SNAP  # m from the eave's line
     zmax = np.zeros(n_poly)
     np.maximum.at(zmax, row_poly, node_t)
@@ -216,13 +235,17 @@ def hip_solids(ext, rings: Rings, eave: np.ndarray, rise: np.ndarray, base: np.n
     out_id[nodes] = m + np.arange(len(nodes))
     out_id[contour] = kidx[kid[contour]]
     plan = np.concatenate([local, pts[nodes] * SNAP])  # plan coordinates, local to each polygon (m)
+    vpoly_plan = np.concatenate([vpoly, row_poly[nodes]])
 
     # 4. faces as vertex sequences starting at their eave, the left-out ring vertices put back
     faces = np.flatnonzero(inner & ~bad[lab_poly])
     fpoly = lab_poly[faces]
     fsize = size[faces]
     start = estart[faces]
-    K = int(fsize.max()) if len(faces) else 0
+    if not len(faces):
+        e = np.empty(0, np.int64)
+        return np.empty((0, 3)), np.empty((0, 3), np.int64), e, np.empty(0, np.uint8), np.arange(n_poly)
+    K = int(fsize.max())
     cyc = np.empty((len(faces), K), np.int64)
     cur = start.copy()
     for k in range(K):
@@ -301,6 +324,12 @@ def hip_solids(ext, rings: Rings, eave: np.ndarray, rise: np.ndarray, base: np.n
         more = np.concatenate(extra)
         roof_tri = np.concatenate([roof_tri, more])
         roof_kind = np.concatenate([roof_kind, np.full(len(more), 2, np.uint8)])
+
+    # no roof triangle folds over (a skeleton that came out wrong): every one turns left in plan
+    tp = plan[roof_tri]
+    e2 = ((tp[:, 1] - tp[:, 0]) ** 2).sum(1) + ((tp[:, 2] - tp[:, 1]) ** 2).sum(1)
+    folded = (_area2(tp) < -1e-3 * e2) & (roof_kind == 2)  # not the slivers between nodes a hair apart
+    bad[vpoly_plan[roof_tri[folded, 0]]] = True
 
     # 6. the solid: heights, walls, floor; each polygon checked closed
     n_top = m + len(nodes)
