@@ -50,8 +50,10 @@ __all__ = ["hip_solids", "SNAP", "FLAT_TURN"]
 SNAP = 1e-3
 #: Vertices turning by less than this (rad) are left out of the skeleton and put back on the eave.
 FLAT_TURN = np.radians(0.1)
-#: Skeleton nodes closer than this (grid units) are one vertex (CGAL's simultaneous events).
-MERGE = 1e-4
+#: Skeleton nodes closer than this (grid units) are one vertex: CGAL's simultaneous events give
+#: several a hair apart; :mod:`.wavefront` events a tenth of a millimetre apart (wings of nearly one
+#: width) are one event, as CGAL's exact arithmetic finds them.
+MERGE = {"cgal": 1e-4, "wavefront": 1.0}
 #: A node's distances to the edge lines of its faces may differ by this much (grid units): CGAL's
 #: nodes are exact to rounding; :mod:`.wavefront` takes nearly opposite edges for opposite.
 AGREE = {"cgal": 1e-2, "wavefront": 2.0}
@@ -167,7 +169,7 @@ def hip_solids(
     # 2. one vertex per point (simultaneous events), then the faces of the plane graph
     canon = np.arange(len(pts))
     node = np.flatnonzero(~contour & ~bad[row_poly])
-    canon[node] = node[_clusters(pts[node], row_poly[node], MERGE)]
+    canon[node] = node[_clusters(pts[node], row_poly[node], MERGE[engine])]
     eu, ev = canon[erow[:, 0]], canon[erow[:, 1]]
     live = (eu != ev) & ~bad[epoly]
     eu, ev = eu[live], ev[live]
