@@ -49,7 +49,12 @@ def wavefront_skeletons(qk: np.ndarray, kstart: np.ndarray, poly_ring: np.ndarra
     counts are 0).
     """
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # events that never come: inf
-        return _wavefront(qk, kstart, poly_ring, todo)
+        try:
+            return _wavefront(qk, kstart, poly_ring, todo)
+        except OverflowError:  # more wavefront vertices than the pool holds (never seen): all to CGAL
+            n_poly = len(poly_ring) - 1
+            e, z = np.empty(0, np.int64), np.zeros(n_poly, np.int64)
+            return np.empty((0, 2)), e, np.empty((0, 2), np.int64), np.empty(0, np.int8), z, z.copy(), todo
 
 
 def _wavefront(qk, kstart, poly_ring, todo):
