@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 from shapely.geometry import Polygon, box
 
 from sengine.nodes.export import roofs, skeleton
-from sengine.nodes.export.mesh import ring_arrays
+from sengine.nodes.export.mesh import ring_arrays, triangulate
 from sengine.nodes.export.skeleton_faces import hip_solids
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -233,3 +233,26 @@ def test_same_footprints_same_bytes_whatever_comes_with_them():
     assert np.array_equal(a.vertices, b.vertices[keep])
     fk = b.face_feature() < 40
     assert np.array_equal(a.faces, b.faces[fk])
+
+
+@SETTINGS
+@given(g=concave())
+def test_caps_of_concave_footprints_tile_them(g):
+    """Floors and flat roofs (fans from a reflex vertex, star fans, earcut): the footprint's area, no fold, no crack."""
+    note(g.wkt)
+    rings = ring_arrays(np.array([g], object))
+    tri = triangulate(rings)
+    p = rings.xy[tri] - rings.xy[0]
+    area2 = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (
+        p[:, 2, 0] - p[:, 0, 0]
+    )
+    assert area2.sum() / 2 == pytest.approx(g.area, rel=1e-9)
+    assert (area2 >= -1e-9 * g.area).all()
+    assert set(np.unique(tri)) == set(range(len(rings.xy)))
+    # every edge inside has its twin; the others are the rings' own edges, once each
+    m = len(rings.xy)
+    e = tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    fwd, rev = set((e[:, 0] * m + e[:, 1]).tolist()), e[:, 1] * m + e[:, 0]
+    lone = e[~np.isin(rev, list(fwd))]
+    nxt = rings.next_vertex()
+    assert (nxt[lone[:, 0]] == lone[:, 1]).all() and len(lone) == m

@@ -203,6 +203,15 @@ def triangulate(rings: Rings) -> np.ndarray:
         s_, n_, r_ = np.repeat(s, nt), np.repeat(n, nt), np.repeat(rv - s, nt)
         parts.append(np.column_stack([r_ + s_, (r_ + k) % n_ + s_, (r_ + k + 1) % n_ + s_]))
     fan = fan | fan1
+    # small rings seen whole from one of their vertices (star-shaped from it): the fan from the first such
+    # vertex, every triangle turning left (the rays sweep round it once, no T-junction); earcut for the rest
+    star = (n_rings == 1) & (n_right >= 2) & (ring_len[first_ring] <= STAR_MAX)
+    if star.any():
+        tri, ok = _star_fans(xy, rings.ring_start[first_ring[star]], ring_len[first_ring[star]])
+        if tri is not None:
+            parts.append(tri)
+            star[np.flatnonzero(star)[~ok]] = False
+            fan = fan | star
     # earcut for the rest; it winds all of a polygon's triangles one way: turned counter-clockwise
     # together, by their total area (a triangle's own sign is noise when it is flat, and turning
     # it alone would wind it against its neighbours: a crack)
@@ -236,6 +245,44 @@ def triangulate(rings: Rings) -> np.ndarray:
             order = np.argsort(np.concatenate([rest, cut[origin]]), kind="stable")
             tri = np.concatenate([tri[rest], fixed])[order]
     return tri
+
+
+#: Rings of at most this many vertices are tried as stars before earcut.
+STAR_MAX = 16
+
+
+def _star_fans(xy: np.ndarray, start: np.ndarray, n: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+    """Fans of the rings ``start[i] .. start[i] + n[i]`` from the first vertex whose fan has only left turns.
+
+    Rings are taken by vertex count, each count in one numpy pass over every
+    apex.  Returns the triangles of the rings that have such a vertex and
+    which rings do.
+    """
+    ok = np.zeros(len(start), bool)
+    out = []
+    for nn in np.unique(n).tolist():
+        sel = np.flatnonzero(n == nn)
+        st = start[sel]
+        pts = xy[st[:, None] + np.arange(nn)] - xy[st][:, None, :]  # (p, nn, 2), relative to the first vertex
+        a = np.arange(nn)[:, None]
+        j = np.arange(1, nn - 1)[None, :]
+        ib, ic = (a + j) % nn, (a + j + 1) % nn  # (apex, k)
+        d1 = pts[:, ib] - pts[:, :, None, :]
+        d2 = pts[:, ic] - pts[:, :, None, :]
+        area2 = d1[..., 0] * d2[..., 1] - d1[..., 1] * d2[..., 0]
+        ext = np.abs(pts).max(axis=(1, 2))
+        good = (area2 > 1e-12 * (ext**2)[:, None, None]).all(axis=2)
+        has = good.any(axis=1)
+        if not has.any():
+            continue
+        ok[sel[has]] = True
+        best = np.argmax(good[has], axis=1)
+        apex = np.broadcast_to(best[:, None], (len(best), nn - 2))
+        out.append(np.stack([apex, ib[best], ic[best]], axis=2) + st[has, None, None])
+    if not out:
+        return None, ok
+    tri = np.concatenate([t.reshape(-1, 3) for t in out])
+    return tri, ok
 
 
 def split_t_junctions(
