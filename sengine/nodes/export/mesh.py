@@ -177,9 +177,12 @@ def triangulate(rings: Rings) -> np.ndarray:
     cross = e0[:, 0] * e1[:, 1] - e0[:, 1] * e1[:, 0]
     scale = np.hypot(*e0.T) * np.hypot(*e1.T)
     right_turn = cross < -1e-9 * scale
-    ring_bad = np.bincount(rings.vertex_ring(), weights=right_turn, minlength=len(ring_len)) > 0
     first_ring = rings.poly_ring[:-1]
-    fan = (n_rings == 1) & ~ring_bad[first_ring]
+    n_right = np.bincount(rings.vertex_ring(), weights=right_turn, minlength=len(ring_len))[first_ring]
+    fan = (n_rings == 1) & (n_right == 0)
+    # a ring with one reflex vertex is two convex pieces (cut along an edge at it, extended): its fan from
+    # that vertex stays inside and, like a convex fan, has no T-junction
+    fan1 = (n_rings == 1) & (n_right == 1)
 
     parts = []
     # vectorized fans: (s, s+k, s+k+1), k = 1 .. n-2
@@ -190,6 +193,25 @@ def triangulate(rings: Rings) -> np.ndarray:
         start = np.repeat(s, nt)
         k = np.arange(nt.sum()) - np.repeat(np.cumsum(nt) - nt, nt) + 1
         parts.append(np.column_stack([start, start + k, start + k + 1]))
+    if fan1.any():  # fans from the reflex vertex: (r, r+k, r+k+1) around the ring
+        vpoly0 = rings.vertex_poly()
+        rv = np.flatnonzero(right_turn & fan1[vpoly0])
+        s = rings.ring_start[first_ring[vpoly0[rv]]]
+        n = ring_len[first_ring[vpoly0[rv]]]
+        nt = n - 2
+        k = np.arange(nt.sum()) - np.repeat(np.cumsum(nt) - nt, nt) + 1
+        s_, n_, r_ = np.repeat(s, nt), np.repeat(n, nt), np.repeat(rv - s, nt)
+        parts.append(np.column_stack([r_ + s_, (r_ + k) % n_ + s_, (r_ + k + 1) % n_ + s_]))
+    fan = fan | fan1
+    # small rings seen whole from one of their vertices (star-shaped from it): the fan from the first such
+    # vertex, every triangle turning left (the rays sweep round it once, no T-junction); earcut for the rest
+    star = (n_rings == 1) & (n_right >= 2) & (ring_len[first_ring] <= STAR_MAX)
+    if star.any():
+        tri, ok = _star_fans(xy, rings.ring_start[first_ring[star]], ring_len[first_ring[star]])
+        if tri is not None:
+            parts.append(tri)
+            star[np.flatnonzero(star)[~ok]] = False
+            fan = fan | star
     # earcut for the rest; it winds all of a polygon's triangles one way: turned counter-clockwise
     # together, by their total area (a triangle's own sign is noise when it is flat, and turning
     # it alone would wind it against its neighbours: a crack)
@@ -223,6 +245,44 @@ def triangulate(rings: Rings) -> np.ndarray:
             order = np.argsort(np.concatenate([rest, cut[origin]]), kind="stable")
             tri = np.concatenate([tri[rest], fixed])[order]
     return tri
+
+
+#: Rings of at most this many vertices are tried as stars before earcut.
+STAR_MAX = 16
+
+
+def _star_fans(xy: np.ndarray, start: np.ndarray, n: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
+    """Fans of the rings ``start[i] .. start[i] + n[i]`` from the first vertex whose fan has only left turns.
+
+    Rings are taken by vertex count, each count in one numpy pass over every
+    apex.  Returns the triangles of the rings that have such a vertex and
+    which rings do.
+    """
+    ok = np.zeros(len(start), bool)
+    out = []
+    for nn in np.unique(n).tolist():
+        sel = np.flatnonzero(n == nn)
+        st = start[sel]
+        pts = xy[st[:, None] + np.arange(nn)] - xy[st][:, None, :]  # (p, nn, 2), relative to the first vertex
+        a = np.arange(nn)[:, None]
+        j = np.arange(1, nn - 1)[None, :]
+        ib, ic = (a + j) % nn, (a + j + 1) % nn  # (apex, k)
+        d1 = pts[:, ib] - pts[:, :, None, :]
+        d2 = pts[:, ic] - pts[:, :, None, :]
+        area2 = d1[..., 0] * d2[..., 1] - d1[..., 1] * d2[..., 0]
+        ext = np.abs(pts).max(axis=(1, 2))
+        good = (area2 > 1e-12 * (ext**2)[:, None, None]).all(axis=2)
+        has = good.any(axis=1)
+        if not has.any():
+            continue
+        ok[sel[has]] = True
+        best = np.argmax(good[has], axis=1)
+        apex = np.broadcast_to(best[:, None], (len(best), nn - 2))
+        out.append(np.stack([apex, ib[best], ic[best]], axis=2) + st[has, None, None])
+    if not out:
+        return None, ok
+    tri = np.concatenate([t.reshape(-1, 3) for t in out])
+    return tri, ok
 
 
 def split_t_junctions(
@@ -265,8 +325,10 @@ def split_t_junctions(
         if not len(tri):
             break
         e = tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-        key = e[:, 0] * m + e[:, 1]
-        lone = ~np.isin(e[:, 1] * m + e[:, 0], key) & (nxt[e[:, 0]] != e[:, 1])
+        key = np.sort(e[:, 0] * m + e[:, 1])
+        rev = e[:, 1] * m + e[:, 0]
+        at = np.minimum(np.searchsorted(key, rev), len(key) - 1)
+        lone = (key[at] != rev) & (nxt[e[:, 0]] != e[:, 1])
         if not lone.any():
             break
         done = np.zeros(len(tri), bool)

@@ -30,7 +30,7 @@ flat       prism (:func:`sengine.nodes.export.mesh.extrude`) any
 shed       one plane (:mod:`.envelope`)                      any
 gable      planes of the eaves along the ridge (:mod:`.envelope`); convex
            straight skeleton, ends turned to gables          concave, with holes
-           (:mod:`.skeleton`)
+           (:mod:`.skeleton`: :mod:`.wavefront`, else CGAL)
 hip        lowest of the edge planes (:mod:`.envelope`);     convex
            straight skeleton (:mod:`.skeleton`)              concave, with holes
 pyramid    edge planes through one apex (:mod:`.envelope`);  convex

@@ -1,0 +1,258 @@
+"""Hip and gable roofs built in batch from the interior straight skeleton (export/skeleton_faces.py).
+
+Each roof is checked on its own indices: a closed, consistently wound solid,
+over its footprint, with one pitch on every hip face, no vertex higher than
+the pitch times its distance to the outline (so the ridge at most the pitch
+times the largest inscribed radius), and the same volume as CGAL's own
+extrusion of the skeleton (the construction it replaces) within a
+millimetre-grid tolerance.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+import pytest
+import shapely
+import shapely.affinity
+import trimesh
+from _city import monaco_lots
+from hypothesis import HealthCheck, given, note, settings
+from hypothesis import strategies as st
+from shapely.geometry import Polygon, box
+
+from sengine.nodes.export import roofs, skeleton
+from sengine.nodes.export.mesh import ring_arrays, triangulate
+from sengine.nodes.export.skeleton_faces import hip_solids
+
+SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+EAVE, RISE = 10.0, 3.0
+
+
+@st.composite
+def concave(draw):
+    """Concave footprints as cities have them: L, U, T, stairs, holed, thin, tiny, unions of rectangles."""
+    shape = draw(st.sampled_from(["L", "U", "T", "stairs", "holed", "union", "star"]))
+    w = draw(st.floats(4.0, 30.0))
+    ln = w * draw(st.floats(1.0, 4.0))
+    scale = draw(st.sampled_from([1.0, 1.0, 1.0, 0.08, 0.25]))  # tiny and thin ones too
+    if shape == "L":
+        a = w * draw(st.floats(0.1, 0.8))
+        g = Polygon([(0, 0), (ln, 0), (ln, a), (a, a), (a, ln), (0, ln)])
+    elif shape == "U":
+        a = w * draw(st.floats(0.1, 0.45))
+        g = Polygon([(0, 0), (ln, 0), (ln, w), (ln - a, w), (ln - a, a), (a, a), (a, w), (0, w)])
+    elif shape == "T":
+        a = w * draw(st.floats(0.1, 0.45))
+        g = box(0, 0, ln, a).union(box(ln / 2 - a / 2, 0, ln / 2 + a / 2, w + a))
+    elif shape == "stairs":
+        k = draw(st.integers(2, 5))
+        steps = np.cumsum(draw(st.lists(st.floats(2.0, 10.0), min_size=k, max_size=k)))
+        pts = [(0, 0), (steps[-1], 0)]
+        for i in range(k - 1, -1, -1):
+            x0 = steps[i - 1] if i > 0 else 0.0
+            pts += [(steps[i], steps[k - 1 - i]), (x0, steps[k - 1 - i])]
+        g = Polygon(pts).buffer(0)
+    elif shape == "holed":
+        a = draw(st.floats(0.15, 0.35))
+        g = box(0, 0, ln, w).difference(box(ln * a, w * a, ln * (1 - a), w * (1 - a)))
+    elif shape == "union":
+        rs = [
+            shapely.affinity.rotate(
+                box(0, 0, draw(st.floats(3, 30)), draw(st.floats(3, 15))), draw(st.floats(0, 90)), origin=(0, 0)
+            )
+            for _ in range(draw(st.integers(2, 3)))
+        ]
+        rs = [shapely.affinity.translate(r, draw(st.floats(0, 8)), draw(st.floats(0, 8))) for r in rs]
+        g = shapely.union_all(rs)
+        if g.geom_type != "Polygon":
+            g = max(shapely.get_parts(g), key=lambda p: p.area)
+    else:
+        k = draw(st.integers(5, 8))
+        t = np.linspace(0, 2 * np.pi, 2 * k, endpoint=False)
+        r = np.where(np.arange(2 * k) % 2 == 0, ln, ln * draw(st.floats(0.4, 0.8)))
+        g = Polygon(np.column_stack([r * np.cos(t), r * np.sin(t)]))
+    g = shapely.affinity.scale(g, scale, scale, origin=(0, 0))
+    g = shapely.affinity.rotate(g, draw(st.floats(0, 180)), origin=(0, 0))
+    g = shapely.affinity.translate(g, draw(st.floats(-1e3, 1e3)) + 680_000.0, draw(st.floats(-1e3, 1e3)) + 5_600_000.0)
+    if not (g.is_valid and g.area > 0.5):
+        g = shapely.affinity.translate(
+            Polygon([(0, 0), (10, 0), (10, 4), (4, 4), (4, 10), (0, 10)]), 680_000, 5_600_000
+        )
+    return shapely.normalize(g)
+
+
+def batch(g, gable=False, engine="cgal"):
+    """The batch construction alone on ``g``: (vertices, faces, face_kind) or ``None`` if it handed it back."""
+    sub = ring_arrays(np.array([g], object))
+    with skeleton._quiet_stderr():
+        v, f, _, k, bad = hip_solids(skeleton._extension(), sub, [EAVE], [RISE], [0.0], np.array([gable]), engine)
+    return None if bad.size else (v, f, k)
+
+
+def extrusion(g, gable=False):
+    """CGAL's extrusion of the skeleton, the construction the batch replaces (``None`` if CGAL refuses)."""
+    sub = ring_arrays(np.array([g], object))
+    with skeleton._quiet_stderr():
+        return skeleton._one(skeleton._extension(), sub, 0, EAVE, RISE, 0.0, gable)
+
+
+def closed(v, f) -> trimesh.Trimesh:
+    tm = trimesh.Trimesh(v, f, process=False)
+    assert tm.is_watertight and tm.is_winding_consistent and tm.volume > 0
+    return tm
+
+
+def roof_volume(tm, g) -> float:
+    return tm.volume - g.area * EAVE
+
+
+ENGINES = pytest.mark.parametrize("engine", ["cgal", "wavefront"])
+
+
+@ENGINES
+@SETTINGS
+@given(g=concave())
+def test_a_hip_roof_is_closed_over_its_footprint_at_one_pitch_and_as_cgal_extrudes_it(engine, g):
+    note(g.wkt)
+    out = batch(g, engine=engine)
+    old = extrusion(g)
+    if out is None:  # handed back (the caller then asks CGAL): CGAL only where its extrusion struggles too
+        assert engine == "wavefront" or old is None or shapely.get_num_coordinates(g) > 12
+        return
+    v, f, k = out
+    tm = closed(v, f)
+    # over the footprint, between eave and ridge, the ridge reached
+    assert shapely.buffer(g, 2e-3).contains(shapely.multipoints(v[:, :2]))
+    top = v[f[k == 2].ravel(), 2]
+    assert top.min() == pytest.approx(EAVE, abs=1e-9) and top.max() == pytest.approx(EAVE + RISE, abs=1e-9)
+    # one pitch on every hip face, no steeper than the rise over the largest inscribed radius
+    t = v[f[k == 2]]
+    nrm = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    plan = np.abs(nrm[:, 2]) / 2
+    big = plan > 0.05 * plan.max()
+    slope = np.hypot(nrm[big, 0], nrm[big, 1]) / nrm[big, 2]
+    assert (nrm[big, 2] > 0).all(), "roof faces look up"
+    assert np.ptp(slope) <= 2e-2 * slope.max() + 1e-6, slope
+    # the wavefront never runs ahead of the disc around a point: a vertex stands at most the pitch times
+    # its distance to the outline above the eave, so the ridge at most the pitch times the largest inscribed radius
+    pitch = slope.mean()
+    d = shapely.distance(g.boundary, shapely.points(v[:, :2]))
+    assert (v[:, 2] - EAVE <= pitch * d * (1 + 2e-2) + 2e-3 * pitch + 1e-9).all()
+    r = shapely.length(shapely.maximum_inscribed_circle(g, 1e-3))
+    assert RISE <= pitch * r * (1 + 2e-2) + 2e-3 * pitch
+    if old is not None:  # the same roof as CGAL's extrusion: the grids differ by a millimetre
+        ref = closed(old[0], old[1])
+        tol = 2e-3 * g.length * RISE / max(r, 1e-3) * 10 + 1e-3 * roof_volume(ref, g)
+        assert roof_volume(tm, g) == pytest.approx(roof_volume(ref, g), abs=tol)
+
+
+@ENGINES
+@SETTINGS
+@given(g=concave())
+def test_a_gable_roof_is_closed_with_vertical_gables(engine, g):
+    note(g.wkt)
+    out = batch(g, gable=True, engine=engine)
+    if out is None:
+        return
+    v, f, k = out
+    closed(v, f)
+    walls = v[f[k == 1]]
+    upper = walls[:, :, 2].max(axis=1) > EAVE + 1e-9  # the gable triangles above the eave
+    nrm = np.cross(walls[upper, 1] - walls[upper, 0], walls[upper, 2] - walls[upper, 0])
+    assert np.abs(nrm[:, 2]).max(initial=0.0) <= 1e-6 * np.abs(nrm).max(initial=1.0)
+
+
+@ENGINES
+def test_the_classic_shapes_have_their_closed_form_roofs(engine):
+    """An L 10 m x 10 m with arms 4 m wide: the roof rises 3 m over 2 m, its volume integrated face by face.
+
+    Faces of the outer edges 10 m long: trapezoids, each 1.5 x 44/3 m3; of the
+    4 m end edges: triangles, 1.5 x 8/3; of the inner edges: 6 m wide strips,
+    1.5 x 12; twice each: 88 m3 over the eave.
+    """
+    g = Polygon([(0, 0), (10, 0), (10, 4), (4, 4), (4, 10), (0, 10)])
+    v, f, k = batch(g, engine=engine)
+    tm = closed(v, f)
+    assert roof_volume(tm, g) == pytest.approx(88.0, rel=1e-12)
+    assert len(v) == 6 + 3 + 6  # eave ring, three skeleton nodes, floor ring
+    # the holed rectangle: a ring roof, as CGAL's extrusion draws it
+    g = box(0, 0, 20, 10).difference(box(5, 3, 15, 7))
+    if engine == "wavefront":
+        assert batch(g, engine=engine) is None  # holes: CGAL's
+        g = Polygon([(0, 0), (30, 0), (30, 12), (22, 12), (22, 4), (8, 4), (8, 12), (0, 12)])  # a U instead
+    v, f, k = batch(g, engine=engine)
+    assert closed(v, f).volume == pytest.approx(closed(*extrusion(g)[:2]).volume, rel=1e-9)
+
+
+@lru_cache(maxsize=1)
+def _monaco_concave():
+    g = monaco_lots().geometry
+    concave = ~np.isclose(shapely.area(shapely.convex_hull(g)), shapely.area(g), rtol=1e-9)
+    return g[concave]
+
+
+@pytest.mark.parametrize("engine, handed_back", [("cgal", 0.05), ("wavefront", 0.15)])
+def test_monaco_concave_footprints_go_through_the_batch_as_cgal_extrudes_them(engine, handed_back):
+    g = _monaco_concave()
+    sub = ring_arrays(g)
+    n = sub.n_polys
+    assert n > 100
+    eave, rise = np.full(n, EAVE), np.full(n, RISE)
+    with skeleton._quiet_stderr():
+        v, f, vp, k, bad = hip_solids(skeleton._extension(), sub, eave, rise, np.zeros(n), np.zeros(n, bool), engine)
+    assert bad.size <= handed_back * n, f"{bad.size} of {n} handed back"
+    fp = vp[f[:, 0]]
+    checked = 0
+    for p in range(0, n, max(1, n // 60)):
+        if p in set(bad.tolist()):
+            continue
+        vs = np.flatnonzero(vp == p)
+        remap = np.full(len(v), -1)
+        remap[vs] = np.arange(len(vs))
+        tm = closed(v[vs], remap[f[fp == p]])
+        with skeleton._quiet_stderr():
+            old = skeleton._one(skeleton._extension(), sub, p, EAVE, RISE, 0.0, False)
+        if old is None:
+            continue
+        ref = closed(old[0], old[1])
+        gp = g[sub.feature[p]]
+        assert roof_volume(tm, gp) == pytest.approx(roof_volume(ref, gp), rel=2e-2, abs=0.05 * gp.length * 1e-2), p
+        checked += 1
+    assert checked > 30
+
+
+def test_same_footprints_same_bytes_whatever_comes_with_them():
+    """A footprint's roof does not depend on the other footprints of the batch (the order of its vertices neither)."""
+    g = _monaco_concave()
+    heights = np.full(len(g), 20.0)
+    a = roofs.building_solids(g[:40], heights[:40], roof=["hip"] * 40)
+    b = roofs.building_solids(g[:80], heights[:80], roof=["hip"] * 80)
+    keep = b.vertex_feature < 40
+    assert np.array_equal(a.vertices, b.vertices[keep])
+    fk = b.face_feature() < 40
+    assert np.array_equal(a.faces, b.faces[fk])
+
+
+@SETTINGS
+@given(g=concave())
+def test_caps_of_concave_footprints_tile_them(g):
+    """Floors and flat roofs (fans from a reflex vertex, star fans, earcut): the footprint's area, no fold, no crack."""
+    note(g.wkt)
+    rings = ring_arrays(np.array([g], object))
+    tri = triangulate(rings)
+    p = rings.xy[tri] - rings.xy[0]
+    area2 = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (
+        p[:, 2, 0] - p[:, 0, 0]
+    )
+    assert area2.sum() / 2 == pytest.approx(g.area, rel=1e-9)
+    assert (area2 >= -1e-9 * g.area).all()
+    assert set(np.unique(tri)) == set(range(len(rings.xy)))
+    # every edge inside has its twin; the others are the rings' own edges, once each
+    m = len(rings.xy)
+    e = tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    fwd, rev = set((e[:, 0] * m + e[:, 1]).tolist()), e[:, 1] * m + e[:, 0]
+    lone = e[~np.isin(rev, list(fwd))]
+    nxt = rings.next_vertex()
+    assert (nxt[lone[:, 0]] == lone[:, 1]).all() and len(lone) == m
