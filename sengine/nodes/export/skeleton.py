@@ -15,10 +15,12 @@ The roofs are built in three tiers, each taking what the one before hands back:
    24 vertices together in numpy passes, and :mod:`.skeleton_faces` turns them
    into solids in batch, checking every face (8,640 of 8,900 concave Liège
    footprints, 1.0 s);
-2. the same batch on CGAL's interior skeleton, one call a footprint (holes,
-   many vertices: 260 of them, 1.4 ms each);
+2. the same batch on CGAL's interior skeleton, one call a footprint (many
+   vertices: 260 of them, 1.4 ms each);
 3. CGAL's own extrusion of the skeleton, one footprint at a time
-   (:func:`_one`, about 30 of them, 6 ms each).
+   (:func:`_one`, about 30 of them, 6 ms each), and every footprint with a
+   hole: CGAL's interior skeleton with holes crashed the process on a
+   sliver hole (a segmentation fault, which no ``try`` catches).
 
 Before, every concave footprint took the third tier: 1.6 ms each, 14.8 s for
 those 8,900.
