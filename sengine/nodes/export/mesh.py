@@ -33,6 +33,8 @@ __all__ = [
     "triangulate",
     "fill_skipped",
     "split_t_junctions",
+    "subset_rings",
+    "cluster_points",
     "extrude",
     "flat",
     "ribbons",
@@ -623,3 +625,55 @@ def drop_collapsed(faces: np.ndarray, *extra: np.ndarray, merged: np.ndarray | N
     count = np.bincount(inv[ok], minlength=len(net))
     ok &= ~((count[inv] >= 2) & (net[inv] == 0))
     return (faces[ok], *(e[ok] for e in extra))
+
+
+def subset_rings(rings: Rings, sel: np.ndarray) -> Rings:
+    """The polygons ``sel`` of ``rings`` as their own :class:`Rings`."""
+    r0, r1 = rings.poly_ring[sel], rings.poly_ring[sel + 1]
+    nr = r1 - r0
+    ring_ids = np.repeat(r0 - np.concatenate([[0], np.cumsum(nr)[:-1]]), nr) + np.arange(nr.sum())
+    lens = np.diff(rings.ring_start)[ring_ids]
+    starts = rings.ring_start[ring_ids]
+    vid = np.repeat(starts - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(lens.sum())
+    return Rings(
+        rings.xy[vid],
+        np.concatenate([[0], np.cumsum(lens)]).astype(np.int64),
+        np.concatenate([[0], np.cumsum(nr)]).astype(np.int64),
+        np.asarray(sel, np.int64),
+    )
+
+
+def cluster_points(p: np.ndarray, tol: float, group: np.ndarray | None = None) -> np.ndarray:
+    """Per point, the first (lowest) index of the points (of its ``group``) within ``tol`` of it, chained.
+
+    Single linkage along a sweep in x: CGAL's simultaneous events give several skeleton nodes at
+    one point, computed apart by a few units in the last place.
+    """
+    k = len(p)
+    group = np.zeros(k, np.int64) if group is None else group
+    order = np.lexsort((p[:, 0], group))
+    q, gq = p[order], group[order]
+    a_, b_ = [], []
+    j = 1
+    while j < k:
+        near = (gq[j:] == gq[:-j]) & (q[j:, 0] - q[:-j, 0] <= tol)
+        if not near.any():
+            break
+        i = np.flatnonzero(near)
+        close = np.abs(q[i + j] - q[i]).max(axis=1) <= tol
+        a_.append(order[i[close]])
+        b_.append(order[i[close] + j])
+        j += 1
+    label = np.arange(k)
+    if a_:
+        a, b = np.concatenate(a_), np.concatenate(b_)
+        while True:  # propagate the smallest label along the pairs until nothing changes
+            mn = np.minimum(label[a], label[b])
+            new = label.copy()
+            np.minimum.at(new, a, mn)
+            np.minimum.at(new, b, mn)
+            new = new[new]
+            if np.array_equal(new, label):
+                break
+            label = new
+    return label

@@ -63,7 +63,7 @@ from sengine.geom.polygons import obb_frame
 
 from . import mesh
 from .envelope import envelope_solids
-from .mesh import Rings, ring_arrays
+from .mesh import Rings, ring_arrays, subset_rings
 from .skeleton import skeleton_solids
 
 __all__ = [
@@ -354,24 +354,8 @@ def _convex(rings: Rings) -> np.ndarray:
     return ~bad_ring[rings.poly_ring[:-1]]
 
 
-def _subset(rings: Rings, sel: np.ndarray) -> Rings:
-    """The polygons ``sel`` of ``rings`` as their own :class:`Rings`."""
-    r0, r1 = rings.poly_ring[sel], rings.poly_ring[sel + 1]
-    nr = r1 - r0
-    ring_ids = np.repeat(r0 - np.concatenate([[0], np.cumsum(nr)[:-1]]), nr) + np.arange(nr.sum())
-    lens = np.diff(rings.ring_start)[ring_ids]
-    starts = rings.ring_start[ring_ids]
-    vid = np.repeat(starts - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(lens.sum())
-    return Rings(
-        rings.xy[vid],
-        np.concatenate([[0], np.cumsum(lens)]).astype(np.int64),
-        np.concatenate([[0], np.cumsum(r1 - r0)]).astype(np.int64),
-        np.asarray(sel, np.int64),
-    )
-
-
 def _envelope(rings: Rings, sel: np.ndarray, planes: np.ndarray, eave, rise, base, bounds=None) -> tuple:
-    sub = _subset(rings, sel)
+    sub = subset_rings(rings, sel)
     v, f, vp, fk = envelope_solids(sub, planes, eave[sel], rise[sel], base[sel], bounds)
     return v, f, sel[vp], fk
 

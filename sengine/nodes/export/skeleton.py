@@ -48,7 +48,7 @@ import sys
 import mapbox_earcut
 import numpy as np
 
-from .mesh import Rings, fill_skipped, split_t_junctions
+from .mesh import Rings, cluster_points, fill_skipped, split_t_junctions, subset_rings
 from .skeleton_faces import hip_solids
 
 __all__ = ["skeleton_solids", "available"]
@@ -121,7 +121,7 @@ def skeleton_solids(
     for engine in ("wavefront", "cgal"):  # the batch: our own wavefront first, CGAL for what it hands back
         if ext is None or not slow.size:
             break
-        sub = _subset(rings, slow)
+        sub = subset_rings(rings, slow)
         with _quiet_stderr():
             v, f, p, k, bad = hip_solids(ext, sub, eave[slow], rise[slow], base[slow], np.asarray(gable)[slow], engine)
         vs.append(v)
@@ -146,22 +146,6 @@ def skeleton_solids(
         e = np.empty(0, np.int64)
         return np.empty((0, 3)), np.empty((0, 3), np.int64), e, np.empty(0, np.uint8), np.asarray(failed, np.int64)
     return np.concatenate(vs), np.concatenate(fs), np.concatenate(vp), np.concatenate(fk), np.asarray(failed, np.int64)
-
-
-def _subset(rings: Rings, sel: np.ndarray) -> Rings:
-    """The polygons ``sel`` of ``rings`` as their own :class:`Rings`."""
-    r0, r1 = rings.poly_ring[sel], rings.poly_ring[sel + 1]
-    nr = r1 - r0
-    ring_ids = np.repeat(r0 - np.concatenate([[0], np.cumsum(nr)[:-1]]), nr) + np.arange(nr.sum())
-    lens = np.diff(rings.ring_start)[ring_ids]
-    starts = rings.ring_start[ring_ids]
-    vid = np.repeat(starts - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(lens.sum())
-    return Rings(
-        rings.xy[vid],
-        np.concatenate([[0], np.cumsum(lens)]).astype(np.int64),
-        np.concatenate([[0], np.cumsum(nr)]).astype(np.int64),
-        np.asarray(sel, np.int64),
-    )
 
 
 def _one(ext, rings: Rings, p: int, eave: float, rise: float, base: float, gable: bool):
@@ -199,7 +183,7 @@ def _one(ext, rings: Rings, p: int, eave: float, rise: float, base: float, gable
     # CGAL may give several skeleton nodes at one point, or a hair apart (simultaneous events): one vertex
     high = np.flatnonzero(~low)
     canon = np.arange(len(sv))
-    canon[high] = high[_clusters(sv[high], MERGE)]
+    canon[high] = high[cluster_points(sv[high], MERGE)]
     high = np.unique(canon[high])
     vid[high] = n + np.arange(len(high))
     roof = []
@@ -272,37 +256,6 @@ def _one(ext, rings: Rings, p: int, eave: float, rise: float, base: float, gable
 #: Skeleton nodes closer than this (m) are one vertex: CGAL's simultaneous events
 #: give several nodes at one point, computed apart by a few units in the last place.
 MERGE = 1e-7
-
-
-def _clusters(p: np.ndarray, tol: float) -> np.ndarray:
-    """Per point, the first (lowest) index of the points within ``tol`` of it, chained (single linkage)."""
-    k = len(p)
-    order = np.argsort(p[:, 0], kind="stable")
-    q = p[order]
-    a_, b_ = [], []
-    j = 1
-    while j < k:
-        near = q[j:, 0] - q[:-j, 0] <= tol
-        if not near.any():
-            break
-        i = np.flatnonzero(near)
-        close = np.abs(q[i + j] - q[i]).max(axis=1) <= tol
-        a_.append(order[i[close]])
-        b_.append(order[i[close] + j])
-        j += 1
-    label = np.arange(k)
-    if a_:
-        a, b = np.concatenate(a_), np.concatenate(b_)
-        while True:  # propagate the smallest label along the pairs until nothing changes
-            m = np.minimum(label[a], label[b])
-            new = label.copy()
-            np.minimum.at(new, a, m)
-            np.minimum.at(new, b, m)
-            new = new[new]
-            if np.array_equal(new, label):
-                break
-            label = new
-    return label
 
 
 #: Grid (m) the footprint is snapped to for CGAL: on arbitrary doubles its exact

@@ -41,7 +41,7 @@ import mapbox_earcut
 import numpy as np
 import shapely
 
-from .mesh import Rings, fill_skipped, triangulate
+from .mesh import Rings, cluster_points, fill_skipped, triangulate
 from .wavefront import MAX_VERTICES, wavefront_skeletons
 
 __all__ = ["hip_solids", "SNAP", "FLAT_TURN"]
@@ -169,7 +169,7 @@ def hip_solids(
     # 2. one vertex per point (simultaneous events), then the faces of the plane graph
     canon = np.arange(len(pts))
     node = np.flatnonzero(~contour & ~bad[row_poly])
-    canon[node] = node[_clusters(pts[node], row_poly[node], MERGE[engine])]
+    canon[node] = node[cluster_points(pts[node], MERGE[engine], row_poly[node])]
     eu, ev = canon[erow[:, 0]], canon[erow[:, 1]]
     live = (eu != ev) & ~bad[epoly]
     eu, ev = eu[live], ev[live]
@@ -468,37 +468,6 @@ def _skeletons(ext, qk, kstart, poly_ring, bad):
         ecnt,
         bad,
     )
-
-
-def _clusters(p: np.ndarray, group: np.ndarray, tol: float) -> np.ndarray:
-    """Per point, the first index (into ``p``) of the points of its group within ``tol`` of it, chained."""
-    k = len(p)
-    order = np.lexsort((p[:, 0], group))
-    q, gq = p[order], group[order]
-    a_, b_ = [], []
-    j = 1
-    while j < k:
-        near = (gq[j:] == gq[:-j]) & (q[j:, 0] - q[:-j, 0] <= tol)
-        if not near.any():
-            break
-        i = np.flatnonzero(near)
-        close = np.abs(q[i + j] - q[i]).max(axis=1) <= tol
-        a_.append(order[i[close]])
-        b_.append(order[i[close] + j])
-        j += 1
-    label = np.arange(k)
-    if a_:
-        a, b = np.concatenate(a_), np.concatenate(b_)
-        while True:
-            mn = np.minimum(label[a], label[b])
-            new = label.copy()
-            np.minimum.at(new, a, mn)
-            np.minimum.at(new, b, mn)
-            new = new[new]
-            if np.array_equal(new, label):
-                break
-            label = new
-    return label
 
 
 def _cycles(nxt: np.ndarray) -> np.ndarray:
