@@ -20,6 +20,7 @@ from sengine.errors import NodeError, ParameterError
 from sengine.node import Context
 from sengine.nodes.export.gltf import glb_bytes
 from sengine.nodes.vegetation import avenue_points, distr, tree_lines, versailles_split
+from sengine.nodes.vegetation.distr import far_from
 from sengine.registry import get
 
 # -- Distr(density, deviation) -------------------------------------------------------------------
@@ -113,6 +114,26 @@ def test_minimum_spacing_holds_and_points_stay_inside(polys, density, spacing):
     # below random packing density the count is met
     if density * spacing**2 < 0.3 and (shapely.area(geoms) > 20 * spacing**2).all():
         assert len(xy) >= 0.97 * wanted.sum()
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(polygons, min_size=1, max_size=3), st.floats(0.5, 6.0), st.integers(0, 2**31))
+def test_points_keep_clear_of_fixed_points(polys, spacing, seed):
+    """Trees placed before (avenues) are obstacles: no new point within ``spacing`` of one."""
+    geoms = np.array([shapely.affinity.translate(p, 1000 * i, 0) for i, p in enumerate(polys)], dtype=object)
+    geoms = geoms[~shapely.is_empty(geoms)]
+    box = shapely.bounds(geoms)
+    rng = np.random.default_rng(seed)
+    fixed = rng.uniform(box[:, :2].min(0), box[:, 2:].max(0), size=(400, 2))
+    xy, _, _ = distr(geoms, np.arange(len(geoms)), 0.05, 0.0, seed=seed, spacing=spacing, fixed=fixed)
+    if len(xy):
+        d, _ = cKDTree(fixed).query(xy, k=1)
+        assert d.min() >= spacing - 1e-9
+    # far_from answers the same from the points or from their tree, and refuses what lies too near
+    near = cKDTree(fixed).query(fixed + 0.25 * spacing, k=1)[0] < spacing
+    assert near.all()
+    assert not far_from(fixed + 0.25 * spacing, fixed, spacing).any()
+    assert not far_from(fixed + 0.25 * spacing, cKDTree(fixed), spacing).any()
 
 
 # -- avenue trees and Versailles -----------------------------------------------------------------

@@ -82,11 +82,17 @@ def hard_core(xy: np.ndarray, r: float, mark: np.ndarray, fixed: np.ndarray | No
     return keep
 
 
-def far_from(xy: np.ndarray, fixed: np.ndarray, r: float) -> np.ndarray:
-    """Which points lie at least ``r`` from every ``fixed`` point."""
-    if len(xy) == 0 or len(fixed) == 0 or r <= 0:
+def far_from(xy: np.ndarray, fixed, r: float) -> np.ndarray:
+    """Which points lie at least ``r`` from every ``fixed`` point.
+
+    ``fixed`` is an (k, 2) array or a :class:`scipy.spatial.cKDTree` of one,
+    built once by a caller that asks many times.
+    """
+    if fixed is not None and not isinstance(fixed, cKDTree):
+        fixed = cKDTree(fixed) if len(fixed) else None
+    if len(xy) == 0 or fixed is None or r <= 0:
         return np.ones(len(xy), bool)
-    d, _ = cKDTree(fixed).query(xy, k=1, distance_upper_bound=r)
+    d, _ = fixed.query(xy, k=1, distance_upper_bound=r)
     return ~(d < r)
 
 
@@ -159,6 +165,8 @@ def distr(
     drawn = np.zeros(n, np.int64)
     acc_xy, acc_reg, acc_mark = [np.empty((0, 2))], [np.empty(0, np.int64)], [np.empty(0)]
     placed = np.asarray(fixed, np.float64).reshape(-1, 2) if fixed is not None else np.empty((0, 2))
+    # the fixed points' tree once, not a round (400,000 avenue trees on whole Liège: 0.1 s a build)
+    placed = cKDTree(placed) if spacing > 0 and len(placed) else None
     for _ in range(max(int(rounds), 1)):
         need = wanted - got
         if not (need > 0).any():
@@ -179,7 +187,7 @@ def distr(
             ok[ok] = accept(x[ok], y[ok])
         x, y, reg, u3 = x[ok], y[ok], reg[ok], u3[ok]
         xy = np.column_stack([x, y])
-        keep = hard_core(xy, spacing, u3, fixed=np.concatenate([placed, *acc_xy]) if spacing > 0 else None)
+        keep = hard_core(xy, spacing, u3, fixed=np.concatenate(acc_xy)) & far_from(xy, placed, spacing)
         xy, reg, u3 = xy[keep], reg[keep], u3[keep]
         # each region keeps the candidates with the smallest marks, up to its need
         order = np.lexsort((u3, reg))
