@@ -116,6 +116,17 @@ def test_extra_layers(helsinki, monaco):
     assert len(none["buildings"]) == 0 and len(none["roads"]) == len(helsinki[0]["roads"])
 
 
+def test_buildings_take_their_use_from_the_building_tag(monaco):
+    """building=apartments is housing, building=hotel commerce; building=yes says nothing."""
+    b = monaco[0]["buildings"]
+    uses = np.asarray(b["use"]).astype(str)
+    counts = {u: int((uses == u).sum()) for u in np.unique(uses)}
+    # the file: 420 apartments, 44 residential, 5 house, 1 terrace; 25 commercial, 19 retail, 12 hotel ...
+    assert counts["residential"] >= 470
+    assert counts["commercial"] >= 56 and counts["educational"] >= 10
+    assert 600 < counts[""] < 800  # building=yes (639), churches, hospitals, construction sites
+
+
 def test_path_from_the_plan():
     plan = CityPlan(maps={"osm": MapSpec("osm", OAKLAND, {}, "city.xml:3")})
     node = get("osm.read")("majorRoads", {}, Context(plan=plan))

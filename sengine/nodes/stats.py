@@ -13,8 +13,9 @@ oriented bounding box.
 the whole city the built footprint, the gross floor area (GFA: footprint
 times floors), the floor area ratio (FAR = GFA / site area), the coverage
 (footprint / site area) and the residents the floor area would house
-(residential floor area / 50 m2 when the buildings carry a ``use``; all of
-it otherwise) with the retail floor area they demand (2.7 m2 each, 000
+(residential floor area / 50 m2 when the buildings carry a ``use``, the
+floor area of unknown use counted as housing in the share the known uses
+have, :func:`housing_floor_area`; all of it when no building has a use) with the retail floor area they demand (2.7 m2 each, 000
 §5.2.4).  A building is counted on the lots it stands on, in proportion to
 the area it covers there: a real building across two lots counts on each
 with its part, so no building counts for more than its lots hold.  The
@@ -172,6 +173,34 @@ HOUSING = ("residential", "mixed")
 RETAIL_PER_RESIDENT = 2.7  #: m2 of retail floor area a resident demands (000 §5.2.4, Statistics Finland)
 
 
+def housing_floor_area(uses: np.ndarray, floor_area: np.ndarray, site: np.ndarray, n_sites: int):
+    """Residential floor area per site, and the share of the unknown-use floor area counted as housing.
+
+    A building of no known use (``""``: OpenStreetMap's ``building=yes``)
+    houses residents in the proportion the city's buildings of known use do:
+    its floor area times residential / known floor area (1 when no
+    building has a known use, so that a city of untagged buildings counts
+    all of it, as before).
+
+    Parameters
+    ----------
+    uses : numpy.ndarray of str
+        Land use of each (building, site) piece.
+    floor_area : numpy.ndarray of float
+        Floor area of each piece (m2).
+    site : numpy.ndarray of int
+        Row of each piece's site (lot).
+    n_sites : int
+        Number of sites.
+    """
+    home = np.isin(uses, HOUSING)
+    unknown = uses == ""
+    known = float(floor_area[~unknown].sum())
+    share = float(floor_area[home].sum()) / known if known > 0 else 1.0
+    weight = np.where(home, 1.0, 0.0) + np.where(unknown, share, 0.0)
+    return np.bincount(site, weights=floor_area * weight, minlength=n_sites), share
+
+
 def _summary(site_area, foot, gfa, m2_per_resident: float, housing=None) -> dict:
     a, f, g = float(np.sum(site_area)), float(np.sum(foot)), float(np.sum(gfa))
     h = g if housing is None else float(np.sum(housing))
@@ -325,8 +354,7 @@ class StatsPlanning(SENode):
             bi, si, part = shares
             uses = np.asarray(buildings["use"]).astype(str)
             floor_area = part * _floors(buildings)[bi]
-            home = np.isin(uses[bi], HOUSING)
-            housing = np.bincount(si[home], weights=floor_area[home], minlength=len(lots))
+            housing, unknown_share = housing_floor_area(uses[bi], floor_area, si, len(lots))
         out_lots = lots.with_columns(**planning_columns(lot_area, foot, gfa))
         all_foot = float(shapely.area(buildings.geometry).sum()) if len(buildings) else 0.0
         report = {
@@ -347,6 +375,7 @@ class StatsPlanning(SENode):
                 for d in np.unique(district)
             }
         if uses is not None:
+            report["unknown_use_housing_share"] = round(unknown_share, 4)
             bi, _, part = shares
             floor_area = part * _floors(buildings)[bi]
             report["uses"] = {

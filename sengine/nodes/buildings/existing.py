@@ -77,6 +77,8 @@ def map_buildings(real: Layer, lots: Layer | None, first_id: int) -> Layer:
         "osm_id": real.get("osm_id", np.full(n, -1, np.int64)),
         "name": real.get("name", np.full(n, "", dtype=object)),
         "height_source": real.get("height_source", np.full(n, "height", dtype=object)),
+        # the map's land use of the building (building=apartments -> residential), "" when it says none
+        "use": real.get("use", np.full(n, "", dtype=object)),
     }
     return Layer(
         real.geometry,

@@ -247,6 +247,7 @@ def polygons_layer(ext: OsmExtract, kind: str, meta: dict, *, floor_height: floa
         osm_id=osm_id,
         name=names,
         height_source=source.astype(object),
+        use=np.array([a["use"] for a in attrs], dtype=object),
     )
 
 

@@ -57,6 +57,21 @@ LANDUSE = {
     ("amenity", "college"): "educational",
     ("amenity", "kindergarten"): "educational",
 }
+#: OSM ``building`` values -> the building's land use (wiki "Key:building", its typology table);
+#: ``yes`` and the civic, religious and other types say no use and count as unknown.
+BUILDING_USE = {
+    **dict.fromkeys(
+        (
+            "apartments", "residential", "house", "detached", "semidetached_house", "terrace",
+            "bungalow", "dormitory", "cabin", "farm", "houseboat", "static_caravan",
+        ),
+        "residential",
+    ),
+    **dict.fromkeys(("commercial", "retail", "supermarket", "kiosk", "hotel"), "commercial"),
+    **dict.fromkeys(("office", "government"), "office"),
+    **dict.fromkeys(("industrial", "warehouse", "manufacture", "factory", "hangar", "depot"), "industrial"),
+    **dict.fromkeys(("school", "university", "college", "kindergarten"), "educational"),
+}  # fmt: skip
 POLYGON_KINDS = ("water", "parks", "buildings", "landuse")
 _NUM = re.compile(r"^\s*([0-9]+(?:[.,][0-9]+)?)\s*(m|ft|')?\s*$")
 #: The tags kept per way besides ``highway`` (``tunnel`` holds ``covered`` when untagged).
@@ -374,6 +389,8 @@ def _area_callback(wkb, extras: frozenset[str], polygons: dict):
         elif ("leisure", tags.get("leisure")) in _PARKS:
             kind = "parks"
         use = LANDUSE.get(("landuse", tags.get("landuse"))) or LANDUSE.get(("amenity", tags.get("amenity")))
+        if kind == "buildings":  # the building's own type first (building=apartments), then its landuse / amenity
+            use = BUILDING_USE.get(tags.get("building", "").strip().lower()) or use
         if kind is None and use is not None:
             kind = "landuse"
         if kind is None or kind not in extras:
