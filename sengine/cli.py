@@ -137,9 +137,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--scheduler",
         default="local",
-        choices=("local", "dask"),
-        help="with --shards: where the shards run, local processes (default) or a Dask LocalCluster of "
-        "--workers processes (pip install 'sengine[dask]')",
+        metavar="local|dask|tcp://HOST:PORT",
+        help="with --shards: where the shards run, local processes (default), a Dask LocalCluster of "
+        "--workers processes, or an existing Dask cluster (pip install 'sengine[dask]'; its workers "
+        "must see the output folder's path)",
     )
     _common(p)
 

@@ -115,6 +115,12 @@ class _Bound:
 ProgressFn = Callable[[int, int, str, str, int, float], None]  # or a sengine.progress.Progress
 
 
+def layer_area(outputs: Mapping[str, Layer], count: int) -> float:
+    """The area ``stats.json`` gives a node: its first output layer's (m2), 0 when it made nothing."""
+    first = next(iter(outputs.values()), None)
+    return first.area() if first is not None and count else 0.0
+
+
 class Network:
     """A DAG of registered nodes.
 
@@ -512,15 +518,13 @@ class Network:
                 for port_name, lay in result.layers.items():
                     registry.check_kind(lay, node.outputs[port_name].kind, where=f"{node.where} output {port_name!r}")
             layers[node_id] = dict(result.layers)
-            first = next(iter(layers[node_id].values()), None)
             count = node.counted(layers[node_id])
             if node.outputs and not node.source_for:  # sinks (exporters) and the plan's inputs count no features
                 counts[node_id] = count
             seconds[node_id] = round(dt, 4)
-            if first is not None and count:
-                area = first.area()
-                if area > 0:
-                    areas[node_id] = round(area, 1)
+            area = layer_area(layers[node_id], count)
+            if area > 0:
+                areas[node_id] = round(area, 1)
             if result.report:
                 report[node_id] = result.report
             log.info("%s (%s): %d features in %.3f s", node_id, node.name, count, dt)

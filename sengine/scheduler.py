@@ -28,6 +28,7 @@ import logging
 import os
 import re
 from collections.abc import Callable, Iterator, Sequence
+from functools import partial
 from typing import Any
 
 from .errors import ConfigError, SEngineError
@@ -50,23 +51,31 @@ class Scheduler:
         Tasks that run side by side.
     task_workers : int
         Processes a task may use itself.
+    inherits : bool
+        Tasks see this process's memory as it was when they started (they
+        run here, or in processes forked from here): a large object the
+        caller keeps in a module global reaches them without being sent.
     """
 
     name = "local"
     slots = 1
     task_workers = 1
+    inherits = True
 
-    def run(self, fn: Callable[[Any], Any], args: Sequence[Any]) -> Iterator[Outcome]:
-        """Yield ``(index, ok, value)`` for each task as it finishes (``value``: its result or exception)."""
+    def run(self, fn: Callable[..., Any], args: Sequence[Any], shared: Any = None) -> Iterator[Outcome]:
+        """Yield ``(index, ok, value)`` for each task as it finishes (``value``: its result or exception).
+
+        Each task is ``fn(arg)``, or ``fn(arg, shared)`` when ``shared`` is
+        given: one object every task reads, sent to each worker once where
+        the scheduler can (Dask scatters it).
+        """
         raise NotImplementedError
 
     def stop(self) -> None:
-        """Stop every task still running or waiting (an interrupt)."""
         """Kill the running tasks now (an interrupt); the scheduler is closed afterwards."""
 
     def close(self) -> None:
         """Release the workers once every task is done."""
-        """Release the workers once every task finished."""
 
     def __enter__(self) -> Scheduler:
         return self
@@ -83,11 +92,12 @@ class InProcess(Scheduler):
     def __init__(self, workers: int = 1):
         self.task_workers = max(1, int(workers))
 
-    def run(self, fn, args):
+    def run(self, fn, args, shared=None):
         """Run ``fn(arg)`` for each of ``args``; yield ``(index, ok, result or error)`` as each finishes."""
+        call = fn if shared is None else partial(_with_shared, fn, shared)
         for i, arg in enumerate(args):
             try:
-                yield i, True, fn(arg)
+                yield i, True, call(arg)
             except Exception as exc:  # noqa: BLE001 (the caller records it and goes on)
                 yield i, False, exc
 
@@ -107,17 +117,20 @@ class LocalProcesses(Scheduler):
         from .parallel import can_fork, worker_setup
 
         self.slots = max(1, int(workers))
-        context = multiprocessing.get_context("fork" if can_fork() else "spawn")
+        self.inherits = can_fork()
+        context = multiprocessing.get_context("fork" if self.inherits else "spawn")
         self._pool = ProcessPoolExecutor(
             self.slots, mp_context=context, initializer=worker_setup, initargs=(os.getpid(),)
         )
 
-    def run(self, fn, args):
+    def run(self, fn, args, shared=None):
         """Run ``fn(arg)`` for each of ``args``; yield ``(index, ok, result or error)`` as each finishes."""
         from concurrent.futures import as_completed
         from concurrent.futures.process import BrokenProcessPool
 
-        futures = {self._pool.submit(fn, arg): i for i, arg in enumerate(args)}
+        # spawned workers get the shared object with each task (pickled each time: fine for a few tasks)
+        extra = () if shared is None else (shared,)
+        futures = {self._pool.submit(fn, arg, *extra): i for i, arg in enumerate(args)}
         for f in as_completed(futures):
             exc = f.exception()
             if isinstance(exc, BrokenProcessPool):
@@ -167,6 +180,8 @@ class DaskScheduler(Scheduler):
                 "--scheduler dask needs Dask's distributed scheduler: pip install 'sengine[dask]'"
             ) from None
         self.name = address or "dask"
+        # a cluster's own workers are forked from here only on this machine, where forking is safe
+        self.inherits = False
         self._cluster = None
         self._futures: list = []
         if address is None:
@@ -176,6 +191,7 @@ class DaskScheduler(Scheduler):
 
             self.slots = max(1, int(workers))
             method = "fork" if can_fork() else dask.config.get("distributed.worker.multiprocessing-method")
+            self.inherits = method == "fork"
             with dask.config.set(_LOCAL_CLUSTER | {"distributed.worker.multiprocessing-method": method}):
                 self._cluster = LocalCluster(
                     n_workers=self.slots,
@@ -198,11 +214,13 @@ class DaskScheduler(Scheduler):
                 raise SEngineError(f"cannot reach the Dask scheduler at {address}: {exc}") from None
             self.slots = max(1, sum(w.get("nthreads", 1) for w in self._client.scheduler_info()["workers"].values()))
 
-    def run(self, fn, args):
+    def run(self, fn, args, shared=None):
         """Run ``fn(arg)`` for each of ``args``; yield ``(index, ok, result or error)`` as each finishes."""
         from distributed import as_completed
 
-        self._futures = [self._client.submit(fn, arg, pure=False) for arg in args]
+        # the shared object goes to every worker once; each task gets it from its worker's memory
+        extra = () if shared is None else (self._client.scatter(shared, broadcast=True, hash=False),)
+        self._futures = [self._client.submit(fn, arg, *extra, pure=False) for arg in args]
         index = {f.key: i for i, f in enumerate(self._futures)}
         for f in as_completed(self._futures):
             if f.status == "finished":
@@ -235,6 +253,10 @@ class DaskScheduler(Scheduler):
             if self._cluster is not None:
                 self._cluster.close()
                 self._cluster = None
+
+
+def _with_shared(fn, shared, arg):
+    return fn(arg, shared)
 
 
 def check_scheduler(spec: str) -> str:

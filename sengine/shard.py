@@ -16,8 +16,9 @@ network cuts it: along the areas enclosed by major roads.  The run goes:
    it (lots, buildings, planning ...) runs on the shard alone.  The sinks
    (``export.city``) write the shard's part
    (:meth:`~sengine.node.SENode.write_shard`).  Shards run on the
-   scheduler (:mod:`sengine.scheduler`: local processes or Dask), each in
-   one process, so peak memory is the whole-city street graph plus one
+   scheduler (:mod:`sengine.scheduler`: local processes, a Dask
+   LocalCluster or a Dask cluster elsewhere, whose workers get the whole
+   city's layers once each), each in one process, so peak memory is the whole-city street graph plus one
    shard per worker;
 3. **the files**: the sinks join the parts in shard order
    (:meth:`~sengine.node.SENode.finish_shards`), streaming them into
@@ -143,17 +144,22 @@ def _inputs(city: _City, node_id: str, layers: Mapping[str, Mapping[str, Layer]]
     return kwargs
 
 
-def _run_shard(k: int) -> dict:
-    """Shard ``k``: the tracer and every node after it on the shard's enclosures, the sinks' parts written."""
-    from .network import _run_node
+def _run_shard(k: int, city: _City | None = None) -> dict:
+    """Shard ``k``: the tracer and every node after it on the shard's enclosures, the sinks' parts written.
 
-    city = _CITY
+    ``city`` comes with the task where the worker did not inherit
+    :data:`_CITY` (a Dask cluster elsewhere, spawned processes).
+    """
+    from .network import _run_node, layer_area
+
+    city = city if city is not None else _CITY
     if city is None:
-        raise SEngineError("a shard task ran where the city was not made (a remote Dask cluster is not supported)")
+        raise SEngineError("a shard task ran where the city was not made and none was sent")
     t0 = time.perf_counter()
     layers: dict[str, dict[str, Layer]] = dict(city.city_layers)
     counts: dict[str, int] = {}
     seconds: dict[str, float] = {}
+    areas: dict[str, float] = {}
     reports: dict[str, dict] = {}
     for node_id in city.shard_nodes:
         node = city.bound.nodes[node_id]
@@ -170,6 +176,7 @@ def _run_shard(k: int) -> dict:
         seconds[node_id] = time.perf_counter() - t
         layers[node_id] = dict(result.layers)
         counts[node_id] = node.counted(result.layers)
+        areas[node_id] = layer_area(result.layers, counts[node_id])
         if result.report:
             reports[node_id] = dict(result.report)
     parts = {}
@@ -181,6 +188,7 @@ def _run_shard(k: int) -> dict:
     return {
         "shard": k,
         "counts": counts,
+        "areas": areas,
         "seconds": seconds,
         "reports": reports,
         "parts": parts,
@@ -216,7 +224,8 @@ def run_sharded(
         As :meth:`sengine.network.Network.run`; ``workers`` processes run
         the shards side by side.
     scheduler : str
-        ``local`` or ``dask`` (:func:`sengine.scheduler.make_scheduler`).
+        ``local``, ``dask`` or a Dask cluster's address ``tcp://HOST:PORT``
+        (:func:`sengine.scheduler.make_scheduler`); checked before any work.
 
     Returns
     -------
@@ -224,12 +233,13 @@ def run_sharded(
         The whole city's layers (not the shards') and the stats.
     """
     global _CITY
-    from .network import Result, _move_into, _output_folder, _run_node, _write_json
-    from .scheduler import make_scheduler
+    from .network import Result, _move_into, _output_folder, _run_node, _write_json, layer_area
+    from .scheduler import check_scheduler, make_scheduler
 
     t_start = time.perf_counter()
     seed = net.seed if seed is None else int(seed)
     formats = registry.check_formats(formats)
+    scheduler = check_scheduler(scheduler)
     out_dir = Path(out)
     tmp = _output_folder(out_dir)
     try:
@@ -278,6 +288,7 @@ def run_sharded(
         layers: dict[str, dict[str, Layer]] = {}
         counts: dict[str, int] = {}
         secs: dict[str, float] = {}
+        node_areas: dict[str, float] = {}  # stats.json's "areas" ("areas" below are the enclosures)
         report: dict[str, Any] = {}
         n_total = len(city_nodes)
         for i, node_id in enumerate(city_nodes, 1):
@@ -289,8 +300,12 @@ def run_sharded(
             result = _run_node(node, kwargs, workers)
             dt = time.perf_counter() - t0
             layers[node_id] = dict(result.layers)
-            if node.outputs and not node.source_for:
-                counts[node_id] = node.counted(result.layers)
+            count = node.counted(result.layers)
+            if node.outputs and not node.source_for:  # the plan's inputs count no features, but have an area
+                counts[node_id] = count
+            area = layer_area(result.layers, count)
+            if area > 0:
+                node_areas[node_id] = round(area, 1)
             secs[node_id] = round(dt, 4)
             if result.report:
                 report[node_id] = result.report
@@ -317,7 +332,8 @@ def run_sharded(
         t_join = 0.0
         with make_scheduler(scheduler, workers, len(groups)) as sched:
             done = 0
-            for idx, ok, value in sched.run(_run_shard, range(len(groups))):
+            shared = None if sched.inherits else _CITY  # a remote cluster's workers get the city once each
+            for idx, ok, value in sched.run(_run_shard, range(len(groups)), shared=shared):
                 if not ok:
                     raise value
                 outcomes[idx] = value
@@ -332,6 +348,9 @@ def run_sharded(
         shard_wall = time.perf_counter() - t_shards
         for node_id in shard_nodes:
             counts[node_id] = int(sum(o["counts"].get(node_id, 0) for o in outcomes))
+            area = sum(o["areas"].get(node_id, 0.0) for o in outcomes)
+            if area > 0:
+                node_areas[node_id] = round(area, 1)
             secs[node_id] = round(sum(o["seconds"].get(node_id, 0.0) for o in outcomes), 4)
             reps = [o["reports"][node_id] for o in outcomes if node_id in o["reports"]]
             if reps:
@@ -360,6 +379,7 @@ def run_sharded(
             "seed": seed,
             "shards": len(groups),
             "counts": counts,
+            "areas": node_areas,
             "seconds": secs,
             "report": report,
         }

@@ -51,3 +51,23 @@ def run_cli(*args: str, cwd: Path | None = None, env: dict | None = None) -> sub
 @pytest.fixture
 def cli():
     return run_cli
+
+
+@pytest.fixture(scope="module")
+def remote_cluster():
+    """The address of a Dask cluster whose workers share nothing with this process.
+
+    Two worker processes spawned (not forked) from a fresh interpreter, as on
+    another machine: they see the same file system, nothing of the caller's
+    memory.  ``--scheduler tcp://...`` joins it.
+    """
+    pytest.importorskip("distributed")
+    import dask
+    from distributed import LocalCluster
+
+    with dask.config.set({"distributed.worker.multiprocessing-method": "spawn"}):
+        cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
+    try:
+        yield cluster.scheduler_address
+    finally:
+        cluster.close()

@@ -183,6 +183,19 @@ def test_manifest_times_seeds_then_rerun_skips_redoes_and_forces(maps, tmp_path)
 
 
 @pytest.mark.slow
+def test_a_cluster_elsewhere_makes_the_same_variants(maps, tmp_path, remote_cluster):
+    """--scheduler tcp://: workers that inherited nothing make the same bytes as one local process."""
+    args = ["--maps", "landuse=lu/flip*.png", "district=d/flip*.png"]
+    runs, said = {}, {}
+    for name, extra in {"one": ["--workers", "1"], "remote": ["--scheduler", remote_cluster]}.items():
+        res = batch(tmp_path / name, *args, *extra, cwd=maps)
+        assert res.returncode == 0, res.stderr
+        runs[name], said[name] = files(tmp_path / name), res.stdout
+    assert len(runs["one"]) == 2 * 2 and runs["remote"] == runs["one"]
+    assert f"({remote_cluster})" in said["remote"]
+
+
+@pytest.mark.slow
 def test_map_sets_sweeps_and_same_bytes_on_every_scheduler(maps, tmp_path):
     pytest.importorskip("distributed")
     args = ["--maps", "landuse=lu/flip*.png", "district=d/flip*.png", "--set", "lots.depth=10,20"]

@@ -112,6 +112,10 @@ def test_sharded_metropolis_is_byte_identical_to_the_unsharded_one(tmp_path, cap
     b = json.loads((shards / "stats.json").read_text())
     assert a["counts"] == b["counts"] and b["shards"] == 6
     assert a["counts"]["lots"] > 3000
+    # each node's area too, summed shard by shard (float sums in another order: to the 0.1 m2 rounding)
+    assert a["areas"].keys() == b["areas"].keys() and "lots" in b["areas"]
+    for node_id, area in a["areas"].items():
+        assert b["areas"][node_id] == pytest.approx(area, rel=1e-9, abs=0.11), node_id
     city_a, city_b = a["report"]["planning"]["city"], b["report"]["planning"]["city"]
     for key in ("site_area_m2", "floor_area_m2", "far", "coverage"):
         assert city_b[key] == pytest.approx(city_a[key], rel=1e-6, abs=0.11)
@@ -195,3 +199,22 @@ def test_shards_on_a_dask_local_cluster_give_the_same_bytes(tmp_path, capsys):
     assert status == 0 and not err.strip(), err
     for name in [f"{t}.parquet" for t in TABLES]:
         assert (tmp_path / "local" / name).read_bytes() == (tmp_path / "dask" / name).read_bytes(), name
+
+
+@pytest.mark.slow
+def test_shards_on_a_cluster_elsewhere_give_the_same_bytes(tmp_path, capsys, remote_cluster):
+    """Workers that inherited nothing (a cluster at tcp://) get the whole city once each and write the same files."""
+    base = [METROPOLIS, "--scale", "0.004", "--format", "parquet", "-q", "--shards", "3", "--workers", "2"]
+    assert _run(["run", *base, "-o", tmp_path / "local"], capsys)[0] == 0
+    status, err = _run(["run", *base, "-o", tmp_path / "remote", "--scheduler", remote_cluster], capsys)
+    assert status == 0 and not err.strip(), err
+    for name in [f"{t}.parquet" for t in TABLES]:
+        assert (tmp_path / "local" / name).read_bytes() == (tmp_path / "remote" / name).read_bytes(), name
+
+
+def test_a_bad_scheduler_is_refused_before_any_work(tmp_path, capsys):
+    status, err = _run(
+        ["run", METROPOLIS, "--scale", "0.004", "-o", tmp_path / "o", "--shards", "3", "--scheduler", "yarn"], capsys
+    )
+    assert status == 2 and err.count("\n") == 1 and "tcp://HOST:PORT" in err
+    assert not (tmp_path / "o").exists()
