@@ -888,3 +888,14 @@ def test_parameter_moves_the_output(case: Case):
         assert b < a, what
     else:
         assert a != b, what
+
+
+def test_bridges_with_no_snap_end_on_a_road():
+    """snap 0 (allowed by its bounds) raised a ValueError; now each bridge still ends on a road of the far bank."""
+    out = run("roads.bridges", {"snap": 0.0}, **paris_streets())
+    roads = out["roads"]
+    bridge = np.asarray(roads["bridge"], bool)
+    assert bridge.sum() == len(out["bridges"]) == out.report["bridges"] >= 1
+    far = shapely.get_point(roads.geometry[bridge], -1)
+    gap = shapely.distance(far[:, None], roads.geometry[~bridge][None, :]).min(axis=1)
+    assert gap.max() < 1e-6, gap
