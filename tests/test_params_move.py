@@ -2,7 +2,9 @@
 
 For each built-in node's declared parameter, :data:`CASES` runs the node on a
 small real input (the Monaco extract of configs/data: its roads, blocks, lots
-and buildings; the districts demo's plan for the map-driven nodes) at two
+and buildings; the districts and Paris demos' plans, maps and river for the
+map-driven nodes and the bridges; the road-map demo's image, and OBJ exports of
+Monaco's streets and lots, written by the test into its temporary folder) at two
 values and asserts that a measure of the output moves in the documented
 direction: ``+1`` the measure grows from the first value to the second, ``-1``
 it shrinks, ``0`` it changes (a choice with no order).  A parameter that cannot
