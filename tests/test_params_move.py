@@ -2,7 +2,9 @@
 
 For each built-in node's declared parameter, :data:`CASES` runs the node on a
 small real input (the Monaco extract of configs/data: its roads, blocks, lots
-and buildings; the districts demo's plan for the map-driven nodes) at two
+and buildings; the districts and Paris demos' plans, maps and river for the
+map-driven nodes and the bridges; the road-map demo's image, and OBJ exports of
+Monaco's streets and lots, written by the test into its temporary folder) at two
 values and asserts that a measure of the output moves in the documented
 direction: ``+1`` the measure grows from the first value to the second, ``-1``
 it shrinks, ``0`` it changes (a choice with no order).  A parameter that cannot
@@ -507,6 +509,332 @@ CASES += [
 ]
 CASES.append(Case("lots.district", "default", "manhattan", "paris", count("lots"), +1, on_blocks))
 
+
+# ---------------------------------------------------------------------------
+# the plan-driven nodes: the districts and Paris demos' maps and rules
+# ---------------------------------------------------------------------------
+
+
+@cache
+def paris_plan():
+    load_entry_points()
+    return load_config(ROOT / "configs" / "paris.xml").plan
+
+
+@cache
+def major(plan: str) -> dict:
+    """roads.districts on a demo's plan (its areas, major roads, parks and land use)."""
+    return dict(run("roads.districts", {}, {"districts": districts_plan, "paris": paris_plan}[plan]()))
+
+
+@cache
+def paris_streets() -> dict:
+    """The Paris demo's streets (roads.minor) and its river (water.landuse): the bridges' inputs."""
+    m = major("paris")
+    streets = run("roads.minor", {}, paris_plan(), areas=m["areas"], roads=m["roads"])["roads"]
+    return {"roads": streets, "water": run("water.landuse", {}, landuse=m["landuse"])["water"]}
+
+
+def on_major(plan: str) -> Callable[[], dict]:
+    return lambda: {"areas": major(plan)["areas"], "roads": major(plan)["roads"]}
+
+
+def off_grid(port: str, step: float = 1.0) -> Callable:
+    """Mean distance (m) of the vertex coordinates from the nearest multiple of ``step``."""
+
+    def f(out):
+        xy = shapely.get_coordinates(out[port].geometry)
+        return float(np.abs(xy - np.rint(xy / step) * step).mean())
+
+    f.__name__ = f"off_grid({port}, {step:g} m)"
+    return f
+
+
+def vertices(port: str) -> Callable:
+    def f(out):
+        return int(shapely.get_num_coordinates(out[port].geometry).sum())
+
+    f.__name__ = f"vertices({port})"
+    return f
+
+
+def mean_x(port: str) -> Callable:
+    """Mean x (m) of the layer's vertices: where in the city its features lie."""
+
+    def f(out):
+        return float(shapely.get_coordinates(out[port].geometry)[:, 0].mean())
+
+    f.__name__ = f"mean_x({port})"
+    return f
+
+
+def majors(port: str) -> Callable:
+    def f(out):
+        return int(np.asarray(out[port]["major"], bool).sum())
+
+    f.__name__ = f"majors({port})"
+    return f
+
+
+MAJOR = (("mode", "all"),)
+CASES += [
+    Case("roads.districts", "merge", 0.0, 0.6, count("areas"), -1, plan=districts_plan),
+    Case("roads.districts", "simplify", 0.0, 4.0, vertices("outline"), -1, plan=districts_plan),
+    Case("roads.districts", "grid", 0.001, 1.0, off_grid("roads"), -1, plan=districts_plan),
+    Case("roads.minor", "merge", 0.0, 0.6, report("blocks_estimate"), -1, on_major("districts"), plan=districts_plan),
+    Case("roads.minor", "grid", 0.001, 1.0, off_grid("roads"), -1, on_major("districts"), plan=districts_plan),
+    Case("water.landuse", "kind", "water", "lake", area("water"), -1, lambda: {"landuse": major("paris")["landuse"]}),
+    Case("parks.district", "mode", "all", "none", count("parks"), -1, lambda: {"parks": major("paris")["parks"]}),
+    Case(
+        "parks.district",
+        "min_area",
+        0.0,
+        200_000.0,
+        count("parks"),
+        -1,
+        lambda: {"parks": major("paris")["parks"], "areas": major("paris")["areas"]},
+    ),
+    Case("roads.bridges", "max_span", 100.0, 250.0, count("bridges"), +1, paris_streets),
+    Case("roads.bridges", "crossings", 1, 3, count("bridges"), +1, paris_streets),
+    Case("roads.bridges", "min_gap", 50.0, 1500.0, count("bridges"), -1, paris_streets, (("crossings", 20),)),
+    # far ends that snap onto a road end split no bank road (snap 0 raised a ValueError from STRtree.query_nearest)
+    Case("roads.bridges", "snap", 0.0, 120.0, report("bank_roads_split"), -1, paris_streets),
+    Case("roads.bridges", "thickness", 1.0, 3.0, mean("bridges", "thickness"), +1, paris_streets),
+]
+
+
+# ---------------------------------------------------------------------------
+# open space on Monaco: patios among the massing buildings, lot parks by id and by district use
+# ---------------------------------------------------------------------------
+
+
+def on_patios():
+    return {"blocks": blocks(), "buildings": buildings()}
+
+
+@cache
+def zoned_lots() -> tuple[Layer, Layer]:
+    """Monaco's lots in two districts by lot id parity, and the district rules: residential, commercial."""
+    from sengine import Rule
+    from sengine.nodes.maps import rules_layer
+
+    lay = lots()
+    rules = rules_layer(
+        [
+            Rule("district", {"name": "homes", "use": "residential"}, ""),
+            Rule("district", {"name": "shops", "use": "commercial"}, ""),
+        ]
+    )
+    return lay.with_columns(district=(lay.ids % 2).astype(np.int64)), rules
+
+
+def clearance(out) -> float:
+    """Least distance (m) from a patio to a building (Monaco's massing)."""
+    return float(shapely.distance(out["parks"].geometry, shapely.union_all(buildings().geometry)).min())
+
+
+def narrowest(out) -> float:
+    """Width (m) of the narrowest patio: the diameter of its largest inscribed circle."""
+    radius = shapely.length(shapely.maximum_inscribed_circle(out["parks"].geometry, 0.05))
+    return float(2 * radius.min())
+
+
+PATIOS = (("mode", "all"),)
+CASES += [
+    Case("parks.patio", "mode", "none", "all", count("parks"), +1, on_patios),
+    Case("parks.patio", "gap", 0.5, 3.0, clearance, +1, on_patios, PATIOS),
+    Case("parks.patio", "front", 0.0, 10.0, area("parks"), +1, on_patios, PATIOS),
+    Case("parks.patio", "min_area", 10.0, 500.0, count("parks"), -1, on_patios, PATIOS),
+    Case("parks.patio", "min_width", 1.0, 10.0, narrowest, +1, on_patios, PATIOS),
+    Case(
+        "parks.lot",
+        "ids",
+        "",
+        lambda: ",".join(str(i) for i in lots().ids[:40:4]),
+        count("parks"),
+        +1,
+        on_lots_only,
+        (("mode", "ids"),),
+    ),
+    Case(
+        "parks.lot",
+        "use",
+        "",
+        "residential",
+        count("parks"),
+        -1,
+        lambda: dict(zip(("lots", "district_rules"), zoned_lots(), strict=True)),
+        (("mode", "every"), ("every", 5)),
+    ),
+]
+
+
+# ---------------------------------------------------------------------------
+# files made by the test from the real inputs: OBJ exports of Monaco, variants of the road-map image
+# ---------------------------------------------------------------------------
+
+FIXTURES: dict[str, Path] = {}
+
+
+@pytest.fixture(scope="module", autouse=True)
+def fixture_dir(tmp_path_factory):
+    FIXTURES["dir"] = tmp_path_factory.mktemp("params_move")
+    yield
+    FIXTURES.clear()
+
+
+def hillside(xy: np.ndarray) -> np.ndarray:
+    """OBJ vertices, Y up (Blender's export), of plan points on a slope rising 10 % to the north (m)."""
+    return np.column_stack([xy[:, 0], 0.1 * xy[:, 1], -xy[:, 1]])
+
+
+def fixture(name: str) -> Callable[[], str]:
+    """The path of test file ``name``, written on first use into the module's temporary folder."""
+
+    def path() -> str:
+        if name not in FIXTURES:
+            FIXTURES[name] = WRITERS[name](FIXTURES["dir"] / name)
+        return str(FIXTURES[name])
+
+    return path
+
+
+def write_obj_roads(path: Path) -> Path:
+    """Monaco's cleaned streets as OBJ line elements (``l``) on a hillside."""
+    geoms = roads().geometry
+    xy, part = shapely.get_coordinates(geoms, return_index=True)
+    out = [f"v {x:.3f} {y:.3f} {z:.3f}" for x, y, z in hillside(xy)]
+    starts = np.r_[0, np.flatnonzero(np.diff(part)) + 1, len(part)]
+    out += ["l " + " ".join(map(str, range(a + 1, b + 1))) for a, b in zip(starts[:-1], starts[1:], strict=True)]
+    path.write_text("\n".join(out) + "\n")
+    return path
+
+
+def write_obj_lots(path: Path) -> Path:
+    """Monaco's lots as OBJ triangles (constrained Delaunay) on a hillside, one object of its own vertices per lot."""
+    tris = shapely.constrained_delaunay_triangles(lots().geometry)
+    parts, lot = shapely.get_parts(tris, return_index=True)
+    xy = shapely.get_coordinates(shapely.get_exterior_ring(parts)).reshape(-1, 4, 2)[:, :3]
+    out, k = [], 1
+    for i in np.unique(lot):
+        verts, inverse = np.unique(np.round(xy[lot == i].reshape(-1, 2), 3), axis=0, return_inverse=True)
+        out.append(f"o lot{i}")
+        out += [f"v {x:.3f} {y:.3f} {z:.3f}" for x, y, z in hillside(verts)]
+        out += [f"f {a} {b} {c}" for a, b, c in inverse.reshape(-1, 3) + k]
+        k += len(verts)
+    path.write_text("\n".join(out) + "\n")
+    return path
+
+
+def roadmap_rgb() -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(ROOT / "configs" / "maps" / "roadmap.png").convert("RGB")).copy()
+
+
+def write_roadmap_jpeg(path: Path) -> Path:
+    """The road-map demo's image saved as a JPEG: compression greys the streets' edges."""
+    from PIL import Image
+
+    Image.fromarray(roadmap_rgb()).save(path, format="JPEG", quality=60)
+    return path
+
+
+def write_roadmap_two(path: Path) -> Path:
+    """The road-map demo's image with the streets of its western half drawn red."""
+    from PIL import Image
+
+    rgb = roadmap_rgb()
+    west = rgb[:, : rgb.shape[1] // 2]
+    west[(west == 255).all(axis=2)] = (255, 0, 0)
+    Image.fromarray(rgb).save(path)
+    return path
+
+
+WRITERS = {
+    "roads.obj": write_obj_roads,
+    "lots.obj": write_obj_lots,
+    "roadmap.jpg": write_roadmap_jpeg,
+    "roadmap_two.png": write_roadmap_two,
+}
+
+
+def roadmap_plan():
+    """The road-map demo's plan (3 x 2 km; its <map kind="roads"> replaced by each case's maps.image)."""
+    from sengine import CityPlan
+
+    return CityPlan(size=(3000.0, 2000.0))
+
+
+def through(node: str, port: str, measure: Callable, inputs: Callable[[], dict] = dict, **params) -> Callable:
+    """``measure`` of node ``node`` run on the ``map`` output handed to its input ``port``."""
+
+    def f(out):
+        return measure(run(node, params, None, **{port: out["map"]}, **inputs()))
+
+    f.__name__ = f"{node}({port}).{measure.__name__}"
+    return f
+
+
+@cache
+def grid_lots() -> Layer:
+    """Square 100 m lots over the Paris demo's 4.5 x 3 km extent (where its height map is sampled)."""
+    x, y = np.meshgrid(np.arange(0.0, 4500.0, 100.0), np.arange(0.0, 3000.0, 100.0))
+    return Layer.from_geoms(shapely.box(x.ravel() + 5, y.ravel() + 5, x.ravel() + 95, y.ravel() + 95))
+
+
+HEIGHT = (("kind", "height"), ("src", "maps/paris_height.png"))
+HEIGHTS = through("buildings.extrude", "height_map", mean(B, "height"), lambda: {"lots": grid_lots()}, variation=0.0)
+ROADMAP = (("kind", "roads"), ("src", fixture("roadmap.jpg")))
+IMAGE = (("path", "maps/roadmap.png"), ("size", (3000.0, 2000.0)))
+CASES += [
+    Case("maps.image", "min", 0.0, 30.0, HEIGHTS, +1, base=HEIGHT + (("max", 40.0),), plan=paris_plan),
+    Case("maps.image", "max", 20.0, 60.0, HEIGHTS, +1, base=HEIGHT + (("min", 12.0),), plan=paris_plan),
+    Case(
+        "maps.image",
+        "tolerance",
+        20.0,
+        96.0,
+        through("roads.image", "roads_map", count("roads")),
+        -1,
+        base=ROADMAP,
+        plan=roadmap_plan,
+    ),
+    Case(
+        "maps.image",
+        "color",
+        "#ffffff",
+        "#ff0000",
+        through("roads.image", "roads_map", mean_x("roads")),
+        -1,
+        base=(("kind", "roads"), ("src", fixture("roadmap_two.png"))),
+        plan=roadmap_plan,
+    ),
+    Case("roads.image", "size", (1500.0, 1000.0), (3000.0, 2000.0), length("roads"), +1, base=IMAGE[:1]),
+    Case(
+        "roads.image",
+        "color",
+        "#ffffff",
+        "#ff0000",
+        mean_x("roads"),
+        -1,
+        base=(("path", fixture("roadmap_two.png")), IMAGE[1]),
+    ),
+    Case("roads.image", "tolerance", 20.0, 96.0, count("roads"), -1, base=(("path", fixture("roadmap.jpg")), IMAGE[1])),
+    Case("roads.image", "simplify", 0.5, 20.0, vertices("roads"), -1, base=IMAGE),
+    Case("roads.image", "min_length", 0.0, 200.0, count("roads"), -1, base=IMAGE),
+    Case("roads.image", "width", 8.0, 20.0, mean("roads", "width"), +1, base=IMAGE),
+    Case("roads.image", "road_class", "minor", "major", majors("roads"), +1, base=IMAGE),
+    Case("obj.roads", "up", "y", "z", length("roads"), -1, base=(("path", fixture("roads.obj")),)),
+    Case("obj.roads", "scale", 1.0, 2.0, length("roads"), +1, base=(("path", fixture("roads.obj")),)),
+    Case("obj.roads", "width", 8.0, 20.0, mean("roads", "width"), +1, base=(("path", fixture("roads.obj")),)),
+    Case("obj.roads", "road_class", "minor", "major", majors("roads"), +1, base=(("path", fixture("roads.obj")),)),
+    Case("obj.lots", "up", "y", "z", area("lots"), -1, base=(("path", fixture("lots.obj")),)),
+    Case("obj.lots", "scale", 1.0, 2.0, area("lots"), +1, base=(("path", fixture("lots.obj")),)),
+    Case("obj.lots", "min_area", 1.0, 400.0, count("lots"), -1, base=(("path", fixture("lots.obj")),)),
+]
+
+
 ALLOWED: dict[str, str] = {
     "maps.file.kind": "names what the file is; another kind is another source node type, not another output",
     "maps.file.src": "the input file itself",
@@ -522,39 +850,8 @@ ALLOWED: dict[str, str] = {
     "export.city.lod": "export.city writes files and returns no layer (tests/test_export.py checks its files)",
 }
 
-# Not yet covered here (each has tests of its own behaviour elsewhere, but no two-value test yet): listed so
-# that the gap is visible and a new parameter still fails the module.  To be moved into CASES.
-PENDING: dict[str, str] = {
-    **{
-        f"maps.image.{p}": "needs an image fixture per kind (tests/test_maps.py)"
-        for p in ("min", "max", "tolerance", "color")
-    },
-    **{f"obj.lots.{p}": "needs an OBJ fixture (tests/test_objimport.py)" for p in ("up", "scale", "min_area")},
-    **{
-        f"obj.roads.{p}": "needs an OBJ fixture (tests/test_objimport.py)"
-        for p in ("up", "scale", "width", "road_class")
-    },
-    **{f"parks.district.{p}": "open space (tests/test_openspace.py)" for p in ("mode", "min_area")},
-    **{f"parks.lot.{p}": "needs district rules and named lots (tests/test_openspace.py)" for p in ("ids", "use")},
-    **{
-        f"parks.patio.{p}": "open space (tests/test_openspace.py)"
-        for p in ("mode", "gap", "front", "min_area", "min_width")
-    },
-    **{
-        f"roads.bridges.{p}": "needs a river crossing (paris demo; tests/test_openspace.py)"
-        for p in ("max_span", "crossings", "min_gap", "snap", "thickness")
-    },
-    **{
-        f"roads.districts.{p}": "needs the districts plan (tests/test_districts.py)"
-        for p in ("merge", "simplify", "grid")
-    },
-    **{f"roads.minor.{p}": "needs the districts plan (tests/test_districts.py)" for p in ("merge", "grid")},
-    **{
-        f"roads.image.{p}": "needs the road-map image (tests/test_roadimage.py)"
-        for p in ("size", "color", "tolerance", "simplify", "min_length", "width", "road_class")
-    },
-    "water.landuse.kind": "open space (tests/test_openspace.py)",
-}
+# Not yet covered here: listed so that a gap is visible and a new parameter still fails the module.
+PENDING: dict[str, str] = {}
 
 
 def all_params() -> set[str]:
@@ -581,13 +878,26 @@ def test_every_parameter_is_covered():
 def test_parameter_moves_the_output(case: Case):
     plan = case.plan() if case.plan else None
     inputs = case.inputs()
-    base = dict(case.base)
-    a = case.measure(run(case.node, {**base, case.param: case.lo}, plan, **inputs))
-    b = case.measure(run(case.node, {**base, case.param: case.hi}, plan, **inputs))
-    what = f"{case.node} {case.param}: {case.measure.__name__} {a!r} at {case.lo!r} -> {b!r} at {case.hi!r}"
+    value = lambda v: v() if callable(v) else v  # noqa: E731  (files the test writes, ids of its inputs)
+    base = {k: value(v) for k, v in case.base}
+    lo, hi = value(case.lo), value(case.hi)
+    a = case.measure(run(case.node, {**base, case.param: lo}, plan, **inputs))
+    b = case.measure(run(case.node, {**base, case.param: hi}, plan, **inputs))
+    what = f"{case.node} {case.param}: {case.measure.__name__} {a!r} at {lo!r} -> {b!r} at {hi!r}"
     if case.sign > 0:
         assert b > a, what
     elif case.sign < 0:
         assert b < a, what
     else:
         assert a != b, what
+
+
+def test_bridges_with_no_snap_end_on_a_road():
+    """snap 0 (allowed by its bounds) raised a ValueError; now each bridge still ends on a road of the far bank."""
+    out = run("roads.bridges", {"snap": 0.0}, **paris_streets())
+    roads = out["roads"]
+    bridge = np.asarray(roads["bridge"], bool)
+    assert bridge.sum() == len(out["bridges"]) == out.report["bridges"] >= 1
+    far = shapely.get_point(roads.geometry[bridge], -1)
+    gap = shapely.distance(far[:, None], roads.geometry[~bridge][None, :]).min(axis=1)
+    assert gap.max() < 1e-6, gap

@@ -164,7 +164,10 @@ class MapsImage(SENode):
             min=-1.0,
             max=442.0,
             unit="1",
-            doc="largest RGB distance from a legend colour; -1: 0 for lossless files, 60 for lossy ones",
+            doc=(
+                "largest RGB distance from a legend colour (road maps: from the streets' colour); -1: 0 for"
+                " lossless files, 60 for lossy ones (road maps: roads.image's own tolerance)"
+            ),
         ),
         "color": Param("str", "", doc="road maps: colour of the streets (empty: the road node's own)"),
     }

@@ -116,11 +116,13 @@ def bridge_candidates(roads, major, water, *, max_span: float = 250.0, snap: flo
     beyond = shapely.points(far + d[which] * 2.0)
     out = (span < max_span - 1.0) & ~shapely.intersects(beyond, water[wi[which]])
     which, far, span = which[out], far[out], span[out]
-    # snap the far end onto the nearest road end of the far bank
+    # snap the far end onto the nearest road end of the far bank (snap 0: only a road end or road right there;
+    # STRtree.query_nearest refuses a max_distance of 0)
+    reach = max(float(snap), 1e-6)
     if len(which):
         ends_all = np.concatenate([first, last])
         (src, tgt), _ = shapely.STRtree(shapely.points(ends_all)).query_nearest(
-            shapely.points(far), max_distance=snap, return_distance=True
+            shapely.points(far), max_distance=reach, return_distance=True
         )
         snapped = far.copy()
         firsts = np.r_[True, src[1:] != src[:-1]] if len(src) else np.zeros(0, bool)  # one end per bridge
@@ -132,7 +134,7 @@ def bridge_candidates(roads, major, water, *, max_span: float = 250.0, snap: flo
         loose = np.flatnonzero(~at_end)
         if len(loose):
             (li, ri), _ = shapely.STRtree(roads).query_nearest(
-                shapely.points(far[loose]), max_distance=snap, return_distance=True
+                shapely.points(far[loose]), max_distance=reach, return_distance=True
             )
             one = np.r_[True, li[1:] != li[:-1]] if len(li) else np.zeros(0, bool)
             li, ri = li[one], ri[one]
