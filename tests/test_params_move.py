@@ -282,6 +282,26 @@ def on_existing():
     return {"buildings": buildings(), "existing": osm()["buildings"], "lots": lots()}
 
 
+def on_context():
+    return {"lots": lots(), "existing": osm()["buildings"]}
+
+
+def _fitted(out):
+    return out.report["lots_fitted"]
+
+
+def _low_rise(out):
+    return out.report["low_rise_lots"]
+
+
+def _floors_sum(out):
+    return float(np.nansum(out["lots"]["floors"]))
+
+
+def _bars_only(out):
+    return int((np.asarray(out["lots"]["typology"]).astype(str) == "I").sum())
+
+
 def on_stats():
     return {"lots": lots(), "buildings": buildings(), "blocks": blocks()}
 
@@ -383,6 +403,11 @@ CASES: list[Case] = [
     Case("buildings.check", "height_class", "", "I", content(B), 0, on_check),
     Case("buildings.existing", "keep", "both", "generated", count(B), -1, on_existing),
     Case("buildings.existing", "overlap", 1.0, 1e6, count(B), +1, on_existing),
+    Case("buildings.context", "radius", 20.0, 500.0, _fitted, +1, on_context),
+    Case("buildings.context", "min_neighbours", 1, 30, _fitted, -1, on_context),
+    Case("buildings.context", "neighbours", 1, 40, _floors_sum, 0, on_context, base=(("min_neighbours", 1),)),
+    Case("buildings.context", "low_rise", 0, 30, _low_rise, +1, on_context),
+    Case("buildings.context", "low_rise_typology", "I:3,L", "I", _bars_only, +1, on_context, base=(("low_rise", 30),)),
     # stats and filters
     Case("stats.planning", "m2_per_resident", 25.0, 100.0, lambda out: out.report["city"]["residents"], -1, on_stats),
     Case("stats.planning", "walls", False, True, lambda out: len(out.report), +1, on_stats),
