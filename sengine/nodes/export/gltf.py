@@ -472,8 +472,7 @@ def _property_table(name: str, layer: Layer, add_view, *, compact: bool = False,
             props[pid] = {"type": "SCALAR", "componentType": "FLOAT64"}
             values[pid] = {"values": add_view(col.astype("<f8").tobytes())}
         else:
-            text = ["" if v is None or (isinstance(v, float) and not np.isfinite(v)) else str(v) for v in col.tolist()]
-            data = [t.encode("utf-8") for t in text]
+            data = _utf8(col)
             offsets = np.concatenate([[0], np.cumsum([len(d) for d in data])]).astype("<u4")
             props[pid] = {"type": "STRING"}
             # every value empty: a bufferView of 0 bytes is invalid glTF (the Khronos validator's
@@ -489,9 +488,33 @@ def _property_table(name: str, layer: Layer, add_view, *, compact: bool = False,
     return {"name": name, "properties": props}, {"class": name, "count": len(layer), "properties": values}
 
 
+def _utf8(col: np.ndarray) -> list[bytes]:
+    """Each value's UTF-8 text (None and non-finite floats empty); each distinct value encoded once."""
+    memo: dict = {}
+
+    def text(v) -> bytes:
+        if v is None or (isinstance(v, float) and not np.isfinite(v)):
+            return b""
+        return str(v).encode("utf-8")
+
+    out = []
+    for v in col.tolist():
+        try:
+            key = (type(v), v)  # 1, 1.0 and True are equal keys but different texts
+            b = memo.get(key)
+            if b is None:
+                b = memo[key] = text(v)
+        except TypeError:  # an unhashable value (a list): no memo
+            b = text(v)
+        out.append(b)
+    return out
+
+
 def _enum_column(col: np.ndarray):
     """A text column of at most 255 distinct non-empty names: (sorted names, code per row); else None."""
-    text = np.array(["" if v is None else str(v) for v in col.tolist()], dtype=object)
+    obj = col if col.dtype.kind == "O" else col.astype(object)
+    text = obj.astype(str)  # str() of each value, in C: a fixed-width array sorts without Python comparisons
+    text[np.equal(obj, None)] = ""
     names, codes = np.unique(text, return_inverse=True)
     if len(names) > 255 or (names == "").any():
         return None
