@@ -390,21 +390,30 @@ def export_layers(
                 ),
             )
         )
-    # the buildings' roofs, which several 3D writers draw alike, are made once before the writers start
+    # the buildings' roofs, which several 3D writers draw alike, are made once, by this process, while
+    # the workers write the files that need no roofs; the 3D writers then start (forked: they inherit them)
     b = layers.get("buildings")
-    solid_writers = {"glb", "obj", "cityjson", "html"} & {fmt for fmt, _, _ in jobs}
+    solid_writers = _SOLID & {fmt for fmt, _, _ in jobs}
     share = lod >= 2 and len(solid_writers) >= 2 and b is not None and len(b) and "height" in b.attrs
-    if share:
-        progress.expect(len(b), "roofs")
     # progress: every job counts the features it writes, the chunked writers chunk by chunk
     weights = [_weight(layers, fmt, name) for fmt, name, _ in jobs]
-    with roofs.shared_solids(b, lod) if share else contextlib.nullcontext():
-        progress.advance(len(b) if share else 0)
-        progress.expect(sum(weights), "features")
-        done = run_jobs(
-            [partial(_timed, write, 0 if fmt in _CHUNKED else w) for (fmt, _, write), w in zip(jobs, weights)],
-            workers,
-        )
+    timed = [partial(_timed, write, 0 if fmt in _CHUNKED else w) for (fmt, _, write), w in zip(jobs, weights)]
+    progress.expect(sum(weights) + (len(b) if share else 0), "features")
+    if not share:
+        done = run_jobs(timed, workers)
+    else:
+        solid = [fmt in _SOLID for fmt, _, _ in jobs]
+        with contextlib.ExitStack() as stack:
+
+            def make_roofs() -> None:  # job 0: always this process's, first
+                stack.enter_context(roofs.shared_solids(b, lod))
+                progress.advance(len(b))
+
+            flat = run_jobs([make_roofs] + [j for j, s in zip(timed, solid) if not s], workers)[1:]
+            solids = run_jobs([j for j, s in zip(timed, solid) if s], workers)
+        flat.reverse()
+        solids.reverse()
+        done = [solids.pop() if s else flat.pop() for s in solid]
     report: dict = {fmt: {} for fmt in FORMATS if any(f == fmt for f, _, _ in jobs)}
     seconds = dict.fromkeys(report, 0.0)
     for (fmt, name, _), (result, dt) in zip(jobs, done, strict=True):
@@ -446,6 +455,8 @@ def north_angle(crs: str, lat_lon: tuple[float, float]) -> float:
     return float(np.degrees(np.arctan2(dx, dy))) if np.isfinite([dx, dy]).all() and (dx or dy) else 0.0
 
 
+#: Writers that draw the buildings' solids (:func:`sengine.nodes.export.roofs.layer_solids`).
+_SOLID = frozenset({"glb", "obj", "cityjson", "html"})
 #: Writers that count their features chunk by chunk (:func:`sengine.progress.advance`); the others when done.
 _CHUNKED = frozenset({"geojson", "gpkg", "parquet"})
 
