@@ -390,16 +390,18 @@ def export_layers(
                 ),
             )
         )
-    # the buildings' roofs, which several 3D writers draw alike, are made once, by this process, while
-    # the workers write the files that need no roofs; the 3D writers then start (forked: they inherit them)
+    # What several 3D writers draw alike is made once: the buildings' roofs by this process, the flat
+    # polygons and ribbons of the glb and the page by any, while the workers write the files that need
+    # neither; the 3D writers then start (forked: they inherit them).
     b = layers.get("buildings")
-    solid_writers = _SOLID & {fmt for fmt, _, _ in jobs}
-    share = lod >= 2 and len(solid_writers) >= 2 and b is not None and len(b) and "height" in b.attrs
+    asked = {fmt for fmt, _, _ in jobs}
+    share = lod >= 2 and len(_SOLID & asked) >= 2 and b is not None and len(b) and "height" in b.attrs
+    surfaces = {"glb", "html"} <= asked
     # progress: every job counts the features it writes, the chunked writers chunk by chunk
     weights = [_weight(layers, fmt, name) for fmt, name, _ in jobs]
     timed = [partial(_timed, write, 0 if fmt in _CHUNKED else w) for (fmt, _, write), w in zip(jobs, weights)]
     progress.expect(sum(weights) + (len(b) if share else 0), "features")
-    if not share:
+    if not (share or surfaces):
         done = run_jobs(timed, workers)
     else:
         solid = [fmt in _SOLID for fmt, _, _ in jobs]
@@ -409,7 +411,13 @@ def export_layers(
                 stack.enter_context(roofs.shared_solids(b, lod))
                 progress.advance(len(b))
 
-            flat = run_jobs([make_roofs] + [j for j, s in zip(timed, solid) if not s], workers)[1:]
+            first = [make_roofs] if share else []
+            if surfaces:
+                first.append(partial(gltf.make_surfaces, layers, line_width=line_width))
+            made = run_jobs(first + [j for j, s in zip(timed, solid) if not s], workers)
+            if surfaces:
+                stack.enter_context(gltf.shared_surfaces(layers, made[len(first) - 1], line_width=line_width))
+            flat = made[len(first) :]
             solids = run_jobs([j for j, s in zip(timed, solid) if s], workers)
         flat.reverse()
         solids.reverse()

@@ -40,7 +40,8 @@ from __future__ import annotations
 import json
 import logging
 import struct
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -114,17 +115,77 @@ def _layer_mesh(name: str, layer: Layer, *, line_width: float = 1.0, lod: int = 
             log.info("%s: %s", name, ", ".join(f"{k}: {v:,}" for k, v in sorted(solids.notes.items())))
         return solids.vertices, solids.faces, solids.vertex_feature
     parts = []
+    flat, ribbons = layer_surfaces(name, layer, line_width=line_width)
     if polys.any():
         if "height" in layer.attrs:
             h = np.nan_to_num(np.asarray(layer["height"], np.float64)[polys])
             base = np.asarray(layer.get("base", np.zeros(len(layer))), np.float64)[polys]
             parts.append(mesh.extrude(geoms[polys], h, base=base)[:2])
         else:
-            parts.append(mesh.flat(geoms[polys], LEVELS.get(name, 0.1))[:2])
+            parts.append(flat[:2])
     if lines.any():
-        parts.append(mesh.ribbons(geoms[lines], line_width, LEVELS.get(name, 0.25))[:2])
+        parts.append(ribbons[:2])
     v, f = mesh.merge(*parts)
     return v, f, None
+
+
+_SURFACES: dict[tuple[int, str, float], tuple[Layer, tuple]] = {}  # (id(layer), name, line width) -> (layer, made)
+
+
+def layer_surfaces(name: str, layer: Layer, *, line_width: float = 1.0) -> tuple[tuple | None, tuple | None]:
+    """The flat polygons (when the layer has no ``height``) and the line ribbons of a layer, each ``(v, f, row)``.
+
+    ``v`` are vertices (planar x, y, z up; m) at the layer's :data:`LEVELS`,
+    ``f`` triangles, ``row`` each vertex's row in the layer; None where the
+    layer has no such geometry.  The glb and the html page draw them alike:
+    inside :func:`shared_surfaces` they are the ones made there (read-only).
+    """
+    made = _SURFACES.get((id(layer), name, float(line_width)))
+    if made is not None and made[0] is layer:
+        return made[1]
+    geoms = layer.geometry
+    types = shapely.get_type_id(geoms) if len(geoms) else np.empty(0, int)
+    lines = np.isin(types, (1, 2, 5))
+    polys = np.isin(types, (3, 6))
+    flat = ribbons = None
+    if polys.any() and "height" not in layer.attrs:
+        rows = np.flatnonzero(polys)
+        v, f, vf = mesh.flat(geoms[polys], LEVELS.get(name, 0.1))
+        flat = (v, f, rows[vf])
+    if lines.any():
+        rows = np.flatnonzero(lines)
+        v, f, vf = mesh.ribbons(geoms[lines], line_width, LEVELS.get(name, 0.25))
+        ribbons = (v, f, rows[vf])
+    return flat, ribbons
+
+
+def make_surfaces(layers: Mapping[str, Layer], *, line_width: float = 1.0) -> dict[str, tuple]:
+    """:func:`layer_surfaces` of every layer but the trees and the buildings (for :func:`shared_surfaces`)."""
+    return {
+        name: layer_surfaces(name, lay, line_width=line_width)
+        for name, lay in layers.items()
+        if lay is not None and len(lay) and name not in ("vegetation", "buildings")
+    }
+
+
+@contextmanager
+def shared_surfaces(layers: Mapping[str, Layer], made: dict[str, tuple], *, line_width: float = 1.0) -> Iterator[None]:
+    """Within the block, :func:`layer_surfaces` of ``layers`` are those of ``made`` (:func:`make_surfaces`'s).
+
+    The glb and the html page of one export triangulate the same lots,
+    blocks and streets: made once (in whichever process), they are handed
+    to both writers, forked inside the block.  Writers must not change the arrays.
+    """
+    keys = []
+    for name, value in made.items():
+        key = (id(layers[name]), name, float(line_width))
+        _SURFACES[key] = (layers[name], value)
+        keys.append(key)
+    try:
+        yield
+    finally:
+        for key in keys:
+            _SURFACES.pop(key, None)
 
 
 def _offset(vertices: list[np.ndarray]) -> np.ndarray:
