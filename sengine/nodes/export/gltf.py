@@ -550,23 +550,18 @@ def _property_table(name: str, layer: Layer, add_view, *, compact: bool = False,
 
 
 def _utf8(col: np.ndarray) -> list[bytes]:
-    """Each value's UTF-8 text (None and non-finite floats empty); each distinct value encoded once."""
-    memo: dict = {}
-
-    def text(v) -> bytes:
-        if v is None or (isinstance(v, float) and not np.isfinite(v)):
-            return b""
-        return str(v).encode("utf-8")
-
+    """Each value's UTF-8 text (None and non-finite floats empty); each distinct text value encoded once."""
+    memo: dict[str, bytes] = {}
     out = []
     for v in col.tolist():
-        try:
-            key = (type(v), v)  # 1, 1.0 and True are equal keys but different texts
-            b = memo.get(key)
+        if type(v) is str:  # the common case: a few distinct names (only str: 0.0 == -0.0, 1 == True ...)
+            b = memo.get(v)
             if b is None:
-                b = memo[key] = text(v)
-        except TypeError:  # an unhashable value (a list): no memo
-            b = text(v)
+                b = memo[v] = v.encode("utf-8")
+        elif v is None or (isinstance(v, float) and not np.isfinite(v)):
+            b = b""
+        else:
+            b = str(v).encode("utf-8")
         out.append(b)
     return out
 
