@@ -19,12 +19,30 @@ Issue 16's target: GeoPackage and GeoParquet each at least 3x faster to
 write than GeoJSON on whole Liège (``ratio_geojson_over_gpkg``,
 ``ratio_geojson_over_parquet``).  Writes ``bench/results/export.json``.
 
-    python bench/export.py [--repeat 3] [--osm PATH.osm.pbf] [--city grid|liege|both]
+``--city e2e`` times instead the command users run on whole Liège,
+``sengine osm FILE -o OUT`` with the default outputs (roofs, trees, the 3D
+page), at ``--lod 1`` and ``--lod 2`` in turn, each a fresh process: wall
+seconds from process start to the files written, CPU seconds, peak resident
+memory (``os.wait4``), megabytes written and the executor's seconds per node
+(``stats.json``).  ``ratio_lod2_over_lod1`` is the roofs' own cost measured
+in one run.  ``--compare "PYTHON [PATH]"`` interleaves another checkout (its
+Python, and the folder put first on ``PYTHONPATH``), for before / after
+ratios under the same load.  Issue 12's target: LoD 2 within 1.3x of the
+whole-city time when it was filed (21-27.5 s).  Writes
+``bench/results/export_e2e.json``.
+
+    python bench/export.py [--repeat 3] [--osm PATH.osm.pbf] [--city grid|liege|both|e2e]
+                           [--compare "PYTHON [PATH]"] [--workers N]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import shlex
+import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -156,13 +174,83 @@ def bbox_query(tmp: Path, k: int, lots) -> dict:
     }
 
 
+def e2e_run(python: str, path: str | None, osm: Path, lod: int, workers: int, tmp: Path) -> dict:
+    """``sengine osm OSM -o OUT --lod LOD`` in a fresh process: wall and CPU seconds, peak MB, MB written."""
+    out = tmp / f"e2e-{lod}"
+    env = dict(os.environ)
+    if path:
+        env["PYTHONPATH"] = path + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    cmd = [python, "-m", "sengine", "osm", str(osm), "-o", str(out), "--lod", str(lod), "--quiet"]
+    cmd += ["--workers", str(workers)]
+    t = time.perf_counter()
+    proc = subprocess.Popen(cmd, cwd=path or HERE.parent, env=env, stderr=subprocess.PIPE, text=True)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t
+    err = proc.stderr.read()
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode:
+        shutil.rmtree(out, ignore_errors=True)
+        return {"error": err.strip().splitlines()[-1] if err.strip() else proc.returncode}
+    files = {p.name: p.stat().st_size for p in out.iterdir()}
+    stats = json.loads((out / "stats.json").read_text())
+    shutil.rmtree(out)
+    return {
+        "wall_seconds": round(wall, 2),
+        "cpu_seconds": round(usage.ru_utime + usage.ru_stime, 2),  # the process and the workers it waited for
+        "peak_rss_mb": round(usage.ru_maxrss / 1024.0, 1),
+        "mb_written": round(sum(files.values()) / 1e6, 1),
+        "mb_per_file": {k: round(v / 1e6, 1) for k, v in sorted(files.items())},
+        "node_seconds": stats.get("seconds", {}),
+    }
+
+
+def e2e(osm: Path, repeat: int, workers: int, compare: str | None) -> dict:
+    """Whole-city runs at LoD 1 and 2 (and ``compare``'s), interleaved; the best wall time of each is kept."""
+    routes = {"sengine": (sys.executable, None)}
+    if compare:
+        python, *rest = shlex.split(compare)
+        routes["compare"] = (python, rest[0] if rest else None)
+    best: dict = {}
+    with tempfile.TemporaryDirectory(dir=os.environ.get("SENGINE_BENCH_TMP")) as tmp:
+        for _ in range(repeat):
+            for route, (python, path) in routes.items():
+                for lod in (1, 2):
+                    r = e2e_run(python, path, osm, lod, workers, Path(tmp))
+                    print(route, lod, json.dumps({k: v for k, v in r.items() if k != "mb_per_file"}), file=sys.stderr)
+                    key = f"{route}_lod{lod}"
+                    if "error" in r or r["wall_seconds"] < best.get(key, {}).get("wall_seconds", float("inf")):
+                        best[key] = r
+    result = {"osm": osm.name, "repeat": repeat, "workers": workers, "runs": best, "compare": compare or ""}
+    for route in routes:
+        one, two = best.get(f"{route}_lod1", {}), best.get(f"{route}_lod2", {})
+        if "wall_seconds" in one and "wall_seconds" in two:
+            result[f"{route}_ratio_lod2_over_lod1"] = round(two["wall_seconds"] / one["wall_seconds"], 2)
+    if compare:
+        for lod in (1, 2):
+            a, b = best.get(f"compare_lod{lod}", {}), best.get(f"sengine_lod{lod}", {})
+            if "wall_seconds" in a and "wall_seconds" in b:
+                result[f"speedup_lod{lod}"] = round(a["wall_seconds"] / b["wall_seconds"], 2)
+                result[f"cpu_speedup_lod{lod}"] = round(a["cpu_seconds"] / b["cpu_seconds"], 2)
+    return result
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--osm", type=Path, default=DEFAULT_OSM, help="whole Liège (or another city) as .osm.pbf")
-    ap.add_argument("--city", choices=("grid", "liege", "both"), default="both")
-    ap.add_argument("--out", type=Path, default=HERE / "results" / "export.json")
+    ap.add_argument("--city", choices=("grid", "liege", "both", "e2e"), default="both")
+    ap.add_argument("--out", type=Path, default=None, help="default: bench/results/export.json (export_e2e.json)")
+    ap.add_argument("--compare", help='e2e: another checkout to interleave, "PYTHON [PATH]"')
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="e2e: --workers of each run")
     args = ap.parse_args()
+    if args.city == "e2e":
+        if not args.osm.exists():
+            sys.exit(f"bench/export.py: {args.osm} not found (--osm PATH)")
+        results = e2e(args.osm, args.repeat, args.workers, args.compare)
+        write(args.out or HERE / "results" / "export_e2e.json", "export_e2e", results)
+        print(json.dumps(results, indent=1, sort_keys=True))
+        return
+    args.out = args.out or HERE / "results" / "export.json"
     get("export.city")  # loads the built-in nodes (sengine.nodes)
     results: dict = {"target_ratio": TARGET, "repeat": args.repeat}
     with tempfile.TemporaryDirectory() as tmp:
@@ -182,8 +270,6 @@ def main() -> None:
                 min(r["ratio_geojson_over_gpkg"], r["ratio_geojson_over_parquet"]) >= TARGET
             )
     write(args.out, "export", results)
-    import json
-
     print(json.dumps(results, indent=1, sort_keys=True))
 
 

@@ -7,7 +7,9 @@ Runs, each in a fresh process so that its peak memory is its own:
 * ``scale10``: the same maps and rules on a city of 10x the area (both
   sides times sqrt(10)), to see how each stage scales;
 * ``cli``: ``sengine run CONFIG -o OUT`` as a subprocess, wall time from
-  process start to the files written (imports and exports included).  Time
+  process start to the files written (imports and exports included), and its
+  CPU seconds; ``--compare "PYTHON [PATH]"`` runs another checkout in turn
+  (before / after ratios under the same load; issue 13's target: 2 s).  Time
   the command users run with ``--sengine``: the ``sengine`` of a venv made
   with ``pip install .`` loads compiled bytecode, while ``python -m sengine``
   from a checkout compiles the project's modules when bytecode is not kept
@@ -20,7 +22,7 @@ Results go to ``bench/results/manhattan.json``.
 Usage::
 
     python bench/manhattan.py [--repeat 3] [--seed 7] [--workers N] [--sengine PATH]
-                              [--out bench/results/manhattan.json]
+                              [--compare "PYTHON [PATH]"] [--cli-only] [--out bench/results/manhattan.json]
 """
 
 from __future__ import annotations
@@ -28,7 +30,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import resource
+import shlex
 import statistics
 import subprocess
 import sys
@@ -76,32 +80,65 @@ def case(name: str, seed: int, repeat: int, workers: int) -> dict:
     return best
 
 
-def cli(seed: int, repeat: int, workers: int, exe: list[str]) -> dict:
-    """``sengine run`` in a fresh process: wall seconds from process start to the files written."""
-    times = []
+def cli(seed: int, repeat: int, workers: int, exe: list[str], compare: list[str] | None = None) -> dict:
+    """``sengine run`` in a fresh process: wall seconds from process start to the files written.
+
+    ``compare`` (``[PYTHON, PATH]``: another checkout's Python and the folder
+    put first on ``PYTHONPATH``) is run in turn with ``exe``, so that both
+    see the same load; ``speedup`` is its best time over ``exe``'s.
+    """
+    routes = {"sengine": (exe, None)}
+    if compare:
+        routes["compare"] = ([compare[0], "-m", "sengine"], compare[1] if len(compare) > 1 else None)
+    times: dict[str, list[float]] = {k: [] for k in routes}
+    cpu: dict[str, list[float]] = {k: [] for k in routes}
+    files = []
     for _ in range(repeat):
-        with tempfile.TemporaryDirectory() as tmp:
-            out = Path(tmp) / "out"
-            t = time.perf_counter()
-            proc = subprocess.run(
-                [*exe, "run", str(CONFIG), "-o", str(out), "--seed", str(seed), "--workers", str(workers), "--quiet"],
-                capture_output=True,
-                text=True,
-                cwd=ROOT,
-            )
-            wall = time.perf_counter() - t
-            if proc.returncode != 0:
-                return {"error": proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else proc.returncode}
-            files = sorted(p.name for p in out.iterdir())
-        times.append(wall)
-    return {
-        "wall_seconds": round(min(times), 4),
-        "median_seconds": round(statistics.median(times), 4),
-        "all_seconds": [round(t, 3) for t in times],
+        for route, (cmd, path) in routes.items():
+            env = dict(os.environ)
+            if path:
+                env["PYTHONPATH"] = path
+            with tempfile.TemporaryDirectory() as tmp:
+                out = Path(tmp) / "out"
+                args = [*cmd, "run", str(CONFIG), "-o", str(out), "--seed", str(seed)]
+                t = time.perf_counter()
+                proc = subprocess.Popen(
+                    [*args, "--workers", str(workers), "--quiet"],
+                    stderr=subprocess.PIPE,
+                    text=True,
+                    cwd=path or ROOT,
+                    env=env,
+                )
+                _, status, usage = os.wait4(proc.pid, 0)
+                wall = time.perf_counter() - t
+                err = proc.stderr.read()
+                if os.waitstatus_to_exitcode(status) != 0:
+                    return {"error": err.strip().splitlines()[-1] if err.strip() else status}
+                if route == "sengine":
+                    files = sorted(p.name for p in out.iterdir())
+            times[route].append(wall)
+            cpu[route].append(usage.ru_utime + usage.ru_stime)
+    result = {
+        "wall_seconds": round(min(times["sengine"]), 4),
+        "median_seconds": round(statistics.median(times["sengine"]), 4),
+        "all_seconds": [round(t, 3) for t in times["sengine"]],
+        "cpu_seconds": round(min(cpu["sengine"]), 3),
         "workers": workers,
         "command": " ".join(exe),
         "files": files,
     }
+    if compare:
+        result["compare"] = {
+            "command": " ".join(compare),
+            "wall_seconds": round(min(times["compare"]), 4),
+            "median_seconds": round(statistics.median(times["compare"]), 4),
+            "all_seconds": [round(t, 3) for t in times["compare"]],
+            "cpu_seconds": round(min(cpu["compare"]), 3),
+        }
+        result["speedup"] = round(min(times["compare"]) / min(times["sengine"]), 3)
+        result["speedup_median"] = round(statistics.median(times["compare"]) / statistics.median(times["sengine"]), 3)
+        result["cpu_speedup"] = round(min(cpu["compare"]) / min(cpu["sengine"]), 3)
+    return result
 
 
 def main() -> None:
@@ -119,13 +156,18 @@ def main() -> None:
         help="the sengine command to time in the cli case, e.g. the one of a venv made with "
         "`pip install .` (compiled bytecode, as users run it); default: python -m sengine",
     )
+    ap.add_argument(
+        "--compare",
+        help='cli case: another checkout run in turn, "PYTHON [PATH]" (its Python, and the folder put on PYTHONPATH)',
+    )
+    ap.add_argument("--cli-only", action="store_true", help="only the cli case")
     ap.add_argument("--case", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.case:
         print(json.dumps(case(args.case, args.seed, args.repeat, args.workers)))
         return
     results = {}
-    for name in ("api", "scale10"):
+    for name in () if args.cli_only else ("api", "scale10"):
         proc = subprocess.run(
             [
                 sys.executable,
@@ -149,7 +191,7 @@ def main() -> None:
             results[name] = json.loads(proc.stdout.strip().splitlines()[-1])
         print(name, json.dumps(results[name]))
     exe = [args.exe] if args.exe else [sys.executable, "-m", "sengine"]
-    results["cli"] = cli(args.seed, args.repeat, args.workers, exe)
+    results["cli"] = cli(args.seed, args.repeat, args.workers, exe, shlex.split(args.compare) if args.compare else None)
     print("cli", json.dumps(results["cli"]))
     api = results.get("api", {})
     if "counts" in api:

@@ -390,21 +390,38 @@ def export_layers(
                 ),
             )
         )
-    # the buildings' roofs, which several 3D writers draw alike, are made once before the writers start
+    # What several 3D writers draw alike is made once: the buildings' roofs by this process, the flat
+    # polygons and ribbons of the glb and the page by any, while the workers write the files that need
+    # neither; the 3D writers then start (forked: they inherit them).
     b = layers.get("buildings")
-    solid_writers = {"glb", "obj", "cityjson", "html"} & {fmt for fmt, _, _ in jobs}
-    share = lod >= 2 and len(solid_writers) >= 2 and b is not None and len(b) and "height" in b.attrs
-    if share:
-        progress.expect(len(b), "roofs")
+    asked = {fmt for fmt, _, _ in jobs}
+    share = lod >= 2 and len(_SOLID & asked) >= 2 and b is not None and len(b) and "height" in b.attrs
+    surfaces = {"glb", "html"} <= asked
     # progress: every job counts the features it writes, the chunked writers chunk by chunk
     weights = [_weight(layers, fmt, name) for fmt, name, _ in jobs]
-    with roofs.shared_solids(b, lod) if share else contextlib.nullcontext():
-        progress.advance(len(b) if share else 0)
-        progress.expect(sum(weights), "features")
-        done = run_jobs(
-            [partial(_timed, write, 0 if fmt in _CHUNKED else w) for (fmt, _, write), w in zip(jobs, weights)],
-            workers,
-        )
+    timed = [partial(_timed, write, 0 if fmt in _CHUNKED else w) for (fmt, _, write), w in zip(jobs, weights)]
+    progress.expect(sum(weights) + (len(b) if share else 0), "features")
+    if not (share or surfaces):
+        done = run_jobs(timed, workers)
+    else:
+        solid = [fmt in _SOLID for fmt, _, _ in jobs]
+        with contextlib.ExitStack() as stack:
+
+            def make_roofs() -> None:  # job 0: always this process's, first
+                stack.enter_context(roofs.shared_solids(b, lod))
+                progress.advance(len(b))
+
+            first = [make_roofs] if share else []
+            if surfaces:
+                first.append(partial(gltf.make_surfaces, layers, line_width=line_width))
+            made = run_jobs(first + [j for j, s in zip(timed, solid) if not s], workers)
+            if surfaces:
+                stack.enter_context(gltf.shared_surfaces(layers, made[len(first) - 1], line_width=line_width))
+            flat = made[len(first) :]
+            solids = run_jobs([j for j, s in zip(timed, solid) if s], workers)
+        flat.reverse()
+        solids.reverse()
+        done = [solids.pop() if s else flat.pop() for s in solid]
     report: dict = {fmt: {} for fmt in FORMATS if any(f == fmt for f, _, _ in jobs)}
     seconds = dict.fromkeys(report, 0.0)
     for (fmt, name, _), (result, dt) in zip(jobs, done, strict=True):
@@ -446,6 +463,8 @@ def north_angle(crs: str, lat_lon: tuple[float, float]) -> float:
     return float(np.degrees(np.arctan2(dx, dy))) if np.isfinite([dx, dy]).all() and (dx or dy) else 0.0
 
 
+#: Writers that draw the buildings' solids (:func:`sengine.nodes.export.roofs.layer_solids`).
+_SOLID = frozenset({"glb", "obj", "cityjson", "html"})
 #: Writers that count their features chunk by chunk (:func:`sengine.progress.advance`); the others when done.
 _CHUNKED = frozenset({"geojson", "gpkg", "parquet"})
 

@@ -40,7 +40,8 @@ from __future__ import annotations
 import json
 import logging
 import struct
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -114,17 +115,77 @@ def _layer_mesh(name: str, layer: Layer, *, line_width: float = 1.0, lod: int = 
             log.info("%s: %s", name, ", ".join(f"{k}: {v:,}" for k, v in sorted(solids.notes.items())))
         return solids.vertices, solids.faces, solids.vertex_feature
     parts = []
+    flat, ribbons = layer_surfaces(name, layer, line_width=line_width)
     if polys.any():
         if "height" in layer.attrs:
             h = np.nan_to_num(np.asarray(layer["height"], np.float64)[polys])
             base = np.asarray(layer.get("base", np.zeros(len(layer))), np.float64)[polys]
             parts.append(mesh.extrude(geoms[polys], h, base=base)[:2])
         else:
-            parts.append(mesh.flat(geoms[polys], LEVELS.get(name, 0.1))[:2])
+            parts.append(flat[:2])
     if lines.any():
-        parts.append(mesh.ribbons(geoms[lines], line_width, LEVELS.get(name, 0.25))[:2])
+        parts.append(ribbons[:2])
     v, f = mesh.merge(*parts)
     return v, f, None
+
+
+_SURFACES: dict[tuple[int, str, float], tuple[Layer, tuple]] = {}  # (id(layer), name, line width) -> (layer, made)
+
+
+def layer_surfaces(name: str, layer: Layer, *, line_width: float = 1.0) -> tuple[tuple | None, tuple | None]:
+    """The flat polygons (when the layer has no ``height``) and the line ribbons of a layer, each ``(v, f, row)``.
+
+    ``v`` are vertices (planar x, y, z up; m) at the layer's :data:`LEVELS`,
+    ``f`` triangles, ``row`` each vertex's row in the layer; None where the
+    layer has no such geometry.  The glb and the html page draw them alike:
+    inside :func:`shared_surfaces` they are the ones made there (read-only).
+    """
+    made = _SURFACES.get((id(layer), name, float(line_width)))
+    if made is not None and made[0] is layer:
+        return made[1]
+    geoms = layer.geometry
+    types = shapely.get_type_id(geoms) if len(geoms) else np.empty(0, int)
+    lines = np.isin(types, (1, 2, 5))
+    polys = np.isin(types, (3, 6))
+    flat = ribbons = None
+    if polys.any() and "height" not in layer.attrs:
+        rows = np.flatnonzero(polys)
+        v, f, vf = mesh.flat(geoms[polys], LEVELS.get(name, 0.1))
+        flat = (v, f, rows[vf])
+    if lines.any():
+        rows = np.flatnonzero(lines)
+        v, f, vf = mesh.ribbons(geoms[lines], line_width, LEVELS.get(name, 0.25))
+        ribbons = (v, f, rows[vf])
+    return flat, ribbons
+
+
+def make_surfaces(layers: Mapping[str, Layer], *, line_width: float = 1.0) -> dict[str, tuple]:
+    """:func:`layer_surfaces` of every layer but the trees and the buildings (for :func:`shared_surfaces`)."""
+    return {
+        name: layer_surfaces(name, lay, line_width=line_width)
+        for name, lay in layers.items()
+        if lay is not None and len(lay) and name not in ("vegetation", "buildings")
+    }
+
+
+@contextmanager
+def shared_surfaces(layers: Mapping[str, Layer], made: dict[str, tuple], *, line_width: float = 1.0) -> Iterator[None]:
+    """Within the block, :func:`layer_surfaces` of ``layers`` are those of ``made`` (:func:`make_surfaces`'s).
+
+    The glb and the html page of one export triangulate the same lots,
+    blocks and streets: made once (in whichever process), they are handed
+    to both writers, forked inside the block.  Writers must not change the arrays.
+    """
+    keys = []
+    for name, value in made.items():
+        key = (id(layers[name]), name, float(line_width))
+        _SURFACES[key] = (layers[name], value)
+        keys.append(key)
+    try:
+        yield
+    finally:
+        for key in keys:
+            _SURFACES.pop(key, None)
 
 
 def _offset(vertices: list[np.ndarray]) -> np.ndarray:
@@ -472,8 +533,7 @@ def _property_table(name: str, layer: Layer, add_view, *, compact: bool = False,
             props[pid] = {"type": "SCALAR", "componentType": "FLOAT64"}
             values[pid] = {"values": add_view(col.astype("<f8").tobytes())}
         else:
-            text = ["" if v is None or (isinstance(v, float) and not np.isfinite(v)) else str(v) for v in col.tolist()]
-            data = [t.encode("utf-8") for t in text]
+            data = _utf8(col)
             offsets = np.concatenate([[0], np.cumsum([len(d) for d in data])]).astype("<u4")
             props[pid] = {"type": "STRING"}
             # every value empty: a bufferView of 0 bytes is invalid glTF (the Khronos validator's
@@ -489,9 +549,28 @@ def _property_table(name: str, layer: Layer, add_view, *, compact: bool = False,
     return {"name": name, "properties": props}, {"class": name, "count": len(layer), "properties": values}
 
 
+def _utf8(col: np.ndarray) -> list[bytes]:
+    """Each value's UTF-8 text (None and non-finite floats empty); each distinct text value encoded once."""
+    memo: dict[str, bytes] = {}
+    out = []
+    for v in col.tolist():
+        if type(v) is str:  # the common case: a few distinct names (only str: 0.0 == -0.0, 1 == True ...)
+            b = memo.get(v)
+            if b is None:
+                b = memo[v] = v.encode("utf-8")
+        elif v is None or (isinstance(v, float) and not np.isfinite(v)):
+            b = b""
+        else:
+            b = str(v).encode("utf-8")
+        out.append(b)
+    return out
+
+
 def _enum_column(col: np.ndarray):
     """A text column of at most 255 distinct non-empty names: (sorted names, code per row); else None."""
-    text = np.array(["" if v is None else str(v) for v in col.tolist()], dtype=object)
+    obj = col if col.dtype.kind == "O" else col.astype(object)
+    text = obj.astype(str)  # str() of each value, in C: a fixed-width array sorts without Python comparisons
+    text[np.equal(obj, None)] = ""
     names, codes = np.unique(text, return_inverse=True)
     if len(names) > 255 or (names == "").any():
         return None

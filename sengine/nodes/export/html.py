@@ -29,7 +29,7 @@ from sengine.layer import Layer
 from sengine.viewer import ViewLayer, write_view
 
 from . import mesh, roofs
-from .gltf import _DEFAULT_COLOUR, COLOURS, LAYERS, LEVELS
+from .gltf import _DEFAULT_COLOUR, COLOURS, LAYERS, layer_surfaces
 from .preview import city_title
 
 __all__ = ["view_layer", "view_layers", "write_html"]
@@ -50,18 +50,14 @@ def view_layer(name: str, layer: Layer, *, offset=(0.0, 0.0), line_width: float 
     parts = []
     solid = bool(polys.any() and "height" in layer.attrs)
     if polys.any():
-        rows = np.flatnonzero(polys)
         if solid:
             solids = roofs.layer_solids(layer, lod)  # rows that are no polygons get none
             f = solids.faces[solids.face_kind != 0]  # no floors
             parts.append((solids.vertices, f, solids.vertex_feature))
         else:
-            v, f, vf = mesh.flat(geoms[polys], LEVELS.get(name, 0.1))
-            parts.append((v, f, rows[vf]))
+            parts.append(layer_surfaces(name, layer, line_width=line_width)[0])
     if lines.any():
-        rows = np.flatnonzero(lines)
-        v, f, vf = mesh.ribbons(geoms[lines], line_width, LEVELS.get(name, 0.25))
-        parts.append((v, f, rows[vf]))
+        parts.append(layer_surfaces(name, layer, line_width=line_width)[1])
     if parts:
         v, f = mesh.merge(*[(p[0], p[1]) for p in parts])
         feature = np.concatenate([p[2] for p in parts])

@@ -96,6 +96,14 @@ def _collapse_in_wgs84(geoms: np.ndarray, to_ll: Callable[[np.ndarray], np.ndarr
     return out
 
 
+def _empty(col: np.ndarray) -> np.ndarray:
+    """Which values of an object column are None or the empty text (compared in C, not a Python loop)."""
+    try:
+        return np.asarray(np.equal(col, None) | np.equal(col, ""), bool)
+    except (ValueError, TypeError):  # a value whose comparison is no truth value (an array)
+        return np.array([v is None or (isinstance(v, str) and v == "") for v in col.tolist()], bool)
+
+
 def prepare_layer(
     name: str,
     layer: Layer,
@@ -145,9 +153,9 @@ def prepare_layer(
         elif kind in "US":
             col = _nullable(col, col == "") if (col == "").any() else col
         elif kind == "O":
-            if any(isinstance(v, shapely.Geometry) for v in col.tolist()):
+            if shapely.is_geometry(col).any():
                 continue  # working geometry (a block's street front), not an attribute
-            empty = np.array([v is None or (isinstance(v, str) and v == "") for v in col.tolist()], bool)
+            empty = _empty(col)
             if empty.any():
                 col = col.copy()
                 col[empty] = None
