@@ -369,6 +369,7 @@ CASES: list[Case] = [
     Case("lots.partition", "cluster", (1, 1), (2, 1), count("lots"), -1, on_blocks),
     Case("lots.partition", "min_area", 1.0, 300.0, count("lots"), -1, on_blocks),
     Case("lots.partition", "max_aspect", 0.0, 2.0, count("lots"), -1, on_blocks),
+    Case("lots.partition", "lot_width_min", 0.0, 12.0, count("lots"), -1, on_blocks),
     # buildings
     Case("buildings.extrude", "setback", 1.0, 4.0, area(B), -1, on_lots_only),
     Case("buildings.extrude", "height", 10.0, 30.0, mean(B, "height"), +1, on_lots_only),
