@@ -362,6 +362,7 @@ CASES: list[Case] = [
         (("lot_width_min", 15.0), ("width", 30.0)),
     ),
     Case("lots.skeleton", "corner_angle", 10.0, 120.0, content("lots"), 0, on_blocks),
+    Case("lots.skeleton", "inner_area_max", 1e9, 2000.0, count("lots"), +1, on_blocks),
     Case("lots.partition", "mode", "size", "count", content("lots"), 0, on_blocks),
     Case("lots.partition", "size", (20.0, 30.0), (40.0, 60.0), count("lots"), -1, on_blocks),
     Case("lots.partition", "count", (2, 1), (6, 2), count("lots"), +1, on_blocks, (("mode", "count"),)),
