@@ -92,10 +92,15 @@ def clip_frame_grid(geoms, center, axis, xs, nx, ys, ny, *, margin=None, clearan
     shapely.prepare(fresh)
     try:
         c = float(clearance)
-        grown = _boxes(center[own], axis[own], a0 - c, a1 + c, b0 - c, b1 + c) if c > 0 else boxes
-        inside = shapely.contains_properly(geoms[own], grown)
+        inside = shapely.contains_properly(geoms[own], boxes)
         edge = np.zeros(len(own), bool)
-        edge[~inside] = shapely.intersects(geoms[own[~inside]], boxes[~inside])
+        if c > 0:  # a box the geometry holds, grown by the clearance (only those: a grown box held is held too)
+            s = np.flatnonzero(inside)
+            grown = _boxes(center[own[s]], axis[own[s]], a0[s] - c, a1[s] + c, b0[s] - c, b1[s] + c)
+            inside[s] = shapely.contains_properly(geoms[own[s]], grown)
+            edge[s] = ~inside[s]  # held, but too near a ring: on the outline's side
+        rest = np.flatnonzero(~inside & ~edge)
+        edge[rest] = shapely.intersects(geoms[own[rest]], boxes[rest])
     finally:
         shapely.destroy_prepared(fresh)
     cells = np.where(inside, boxes, None)

@@ -200,9 +200,19 @@ def merge_narrow(lots, owner, blocks, lot_width_min, *, skip=None, fronts=None, 
         narrow = (front > 0) & (front < lot_width_min)
         if r == rounds or not narrow.any():
             break
-        lots, alive, done, changed = _merge_into(lots, narrow, front > 0, owner, rounds=1)
+        # only the lots of blocks with a narrow one take part (neighbours are of the same block): the
+        # spatial indexes cover those, not the city's
+        sub = np.flatnonzero(np.isin(owner, np.unique(owner[narrow])))
+        got, live, done, moved = _merge_into(lots[sub], narrow[sub], (front > 0)[sub], owner[sub], rounds=1)
         if done == 0:
             break
+        alive = np.ones(len(lots), bool)
+        alive[sub] = live
+        lots = lots.copy()
+        lots[sub[live]] = got
+        changed = np.zeros(len(lots), bool)
+        changed[sub[live]] = moved
+        lots, changed = lots[alive], changed[alive]
         merged += done
         marks = marks.take(np.flatnonzero(alive))
         if changed.any():  # a grown lot has another ring: its marks are measured again
