@@ -573,7 +573,7 @@ _P_SKELETON = {
         max=1e9,
         unit="m2",
         doc="interior=inner: a larger inner lot (2 ha: a 140 m square) is backland, not a courtyard, and is cut "
-        "under lot_area_max",
+        "into inner lots under this",
     ),
     "irregularity": Param(
         "float", 0.3, min=0.0, max=1.0, unit="1", doc="spread of lot widths: standard deviation of a share / 2"

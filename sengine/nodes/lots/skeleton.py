@@ -39,8 +39,9 @@ block subdivision, for all blocks at once:
    ``inner`` (left as one inner lot per offset component, flagged: the
    shared courtyard of a perimeter block; a component larger than
    ``inner_area_max`` is no courtyard but backland, e.g. the land between
-   a town's last street and the edge of the extract, and is cut like
-   ``split``, since no lot, inner or not, is expected to be a whole district),
+   a town's last street and the edge of the extract, and is cut by the
+   recursive method into inner lots under ``inner_area_max``: backland
+   parcels, not one lot the size of a district),
    ``split`` (cut into inner lots under ``lot_area_max`` by the recursive
    method, flagged), ``park`` (one courtyard / park lot per component,
    flagged ``park`` too) or ``merge`` (each part of the interior joins the
@@ -368,8 +369,8 @@ def skeleton_lots(
         cut under this area (m2).
     inner_area_max : float or array_like (n,)
         ``interior="inner"``: an inner lot larger than this (m2) is backland,
-        not a courtyard, and is cut into inner lots under ``lot_area_max``
-        as ``interior="split"`` cuts them.
+        not a courtyard, and is cut by the recursive method into inner lots
+        under this area (rows half its side deep, every piece cut).
     irregularity : float or array_like (n,)
         0 gives equal widths; the standard deviation of a lot's share of
         its street is ``irregularity / 2`` (1).
@@ -543,15 +544,16 @@ def skeleton_lots(
         simple = shapely.simplify(faces[ii], 0.0)
         ok = (shapely.get_type_id(simple) == 3) & shapely.is_valid(simple)
         simple = np.where(ok, simple, faces[ii])
+        backland = interior != "split"  # backland: cut into pieces under inner_area_max, rows half its side deep
         sub = recursive_lots(
             simple,
-            max_area=amax_b[own[fpart[ii]]],
+            max_area=imax_b[own[fpart[ii]]] if backland else amax_b[own[fpart[ii]]],
             min_frontage=0.0,
             jitter=min(0.9, float(irr_b.max())),  # the node passes one irregularity for all its blocks
             seeds=seeds[own[fpart[ii]]],
-            # backland: every piece under lot_area_max (interior=split keeps the recursive method's compact
+            # backland: every piece under inner_area_max (interior=split keeps the recursive method's compact
             # inside, as it always did)
-            **({} if interior == "split" else {"inner": "split"}),
+            **({"inner": "split", "depth": 0.5 * np.sqrt(imax_b[own[fpart[ii]]])} if backland else {}),
         )
         faces = np.r_[faces[~cut], sub[0]]
         fpart = np.r_[fpart[~cut], fpart[ii][sub[1]]]
