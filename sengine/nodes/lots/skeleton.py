@@ -552,8 +552,17 @@ def skeleton_lots(
             jitter=min(0.9, float(irr_b.max())),  # the node passes one irregularity for all its blocks
             seeds=seeds[own[fpart[ii]]],
             # backland: every piece under inner_area_max (interior=split keeps the recursive method's compact
-            # inside, as it always did)
-            **({"inner": "split", "depth": 0.5 * np.sqrt(imax_b[own[fpart[ii]]])} if backland else {}),
+            # inside, as it always did), rows half its side deep,
+            # no scrap under a twentieth of it either (backland parcels are large)
+            **(
+                {
+                    "inner": "split",
+                    "depth": 0.5 * np.sqrt(imax_b[own[fpart[ii]]]),
+                    "min_area": 0.05 * imax_b[own[fpart[ii]]],
+                }
+                if backland
+                else {}
+            ),
         )
         faces = np.r_[faces[~cut], sub[0]]
         fpart = np.r_[fpart[~cut], fpart[ii][sub[1]]]
