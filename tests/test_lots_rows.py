@@ -293,6 +293,16 @@ COURTYARD_CORNER = shapely.from_wkt(
 )
 
 
+# Found by hypothesis (issue 11 session): a 3 m grid cell lying in the courtyard, its edges on the courtyard's
+# ring, came back whole from GEOS's rectangle clip: a 9 m2 lot in the hole, the block's lots 0.6 % too large.
+HOLE_CELL = shapely.from_wkt(
+    "POLYGON ((100 3, 98.87032801858426 42.98404483308816, 138.85437285167242 44.1137168145039, 139.98404483308815 "
+    "4.129671981415742, 100 3), (123.19965651286188 31.66663457201116, 111.20444306293543 31.327732977586436, "
+    "111.65631185550173 15.334115044351172, 123.65152530542818 15.673016638775895, 123.19965651286188 "
+    "31.66663457201116))"
+)
+
+
 @SETTINGS
 @given(
     st.lists(block_polygon(), min_size=1, max_size=3),
@@ -304,6 +314,7 @@ COURTYARD_CORNER = shapely.from_wkt(
 @example([COURTYARD_CORNER], "size", (3.0, 3.0), (1, 1))
 @example([shapely.box(0, 0, 24, 28), shapely.box(0, 0, 50, 57)], "size", (25.0, 40.0), (2, 2))  # the first holds no lot
 @example([shapely.box(0, 1, 1, 3)], "count", (3.0, 3.0), (1, 1))  # 6 cells of 0.33 m2: merged to one lot
+@example([HOLE_CELL], "size", (3.0, 3.0), (1, 1))  # a cell in the hole, touching its ring: GEOS's clip kept it whole
 def test_partition_random_blocks(polys, mode, size, cluster):
     """Random blocks and modes: an exact partition, valid lots, none under 1 m2 unless a whole tiny block;
     a size no block can hold is an error."""

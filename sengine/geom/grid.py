@@ -123,6 +123,14 @@ def clip_frame_grid(geoms, center, axis, xs, nx, ys, ny, *, margin=None, clearan
     live[e] &= ~shapely.is_empty(cells[e])
     whole = inside.copy()  # an outline cell the clip left whole (it touches the outline at most)
     whole[e] = shapely.area(cells[e]) >= (1.0 - 1e-9) * (a1[e] - a0[e]) * (b1[e] - b0[e])
+    # GEOS's rectangle clip gives the whole rectangle back when it lies in a hole whose ring it only
+    # touches: a whole outline cell whose centre is off the geometry is such a cell, and no lot
+    w = e[whole[e]]
+    if len(w):
+        mid = np.stack([(a0[w] + a1[w]) / 2, (b0[w] + b1[w]) / 2], axis=1)
+        xy = center[own[w]] + mid[:, :1] * axis[own[w]] + mid[:, 1:] * np.stack([-axis[own[w], 1], axis[own[w], 0]], 1)
+        off = ~shapely.intersects_xy(geoms[own[w]], xy[:, 0], xy[:, 1])
+        live[w[off]] = False
     return cells[live], own[live], ix[live], iy[live], inside[live], whole[live]
 
 
