@@ -223,6 +223,65 @@ def test_interior_modes():
     )
 
 
+def test_backland_is_cut_a_courtyard_is_not():
+    """Issue 11b: interior=inner kept whole what lay deeper than depth, however large (on Monaco's north-west
+    edge a 50 ha band behind the last street).  An inner lot over inner_area_max is backland, cut into inner
+    lots under inner_area_max; a courtyard under it stays one lot."""
+    blocks = Layer.from_geoms([shapely.box(0, 0, 100, 100), shapely.box(200, 0, 600, 300)])
+    lots = get("lots.skeleton")("lots", {}, Context(seed=4)).run(blocks=blocks)
+    report, lots = lots.report, lots["lots"]
+    check_partition(blocks, lots)
+    court = lots.geometry[lots["inner"] & (lots["block"] == blocks.ids[0])]
+    assert len(court) == 1 and abs(court[0].area - 56 * 56) < 1e-6
+    back = lots["inner"] & (lots["block"] == blocks.ids[1])
+    assert back.sum() >= 5 and (shapely.area(lots.geometry[back]) <= 20000.0 + 1e-6).all()
+    assert report["skeleton_backland"] == 1 and (lots["frontage"][back] == 0).all()
+    # without the bound, the old behaviour: one 9 ha inner lot
+    whole = get("lots.skeleton")("lots", {"inner_area_max": 1e9}, Context(seed=4)).run(blocks=blocks)["lots"]
+    assert abs(shapely.area(whole.geometry[whole["inner"]]).max() - 356 * 256) < 1e-6
+
+
+@pytest.mark.parametrize("name", ["helsinki", "monaco"])
+def test_no_inner_lot_is_a_district(name):
+    """On the real extracts every inner lot is under inner_area_max (Monaco had one of 2.3 ha)."""
+    blocks = osm_blocks(name)
+    ran = get("lots.skeleton")("lots", {}, Context(seed=1)).run(blocks=blocks)
+    lots = ran["lots"]
+    check_partition(blocks, lots)
+    assert (shapely.area(lots.geometry[lots["inner"]]) <= 20000.0).all()
+    loose = get("lots.skeleton")("lots", {"inner_area_max": 1e9}, Context(seed=1)).run(blocks=blocks)["lots"]
+    big = shapely.area(loose.geometry[loose["inner"]]) > 20000.0
+    assert big.sum() == ran.report["skeleton_backland"]
+    if name == "monaco":
+        assert big.sum() >= 1
+
+
+@pytest.mark.slow
+def test_monaco_loadmap_backland_is_cut():
+    """Monaco through the load-map network (land use, the extract's box): the band between the last street and
+    the box (50 ha, 3.6 km long) becomes inner lots under inner_area_max (2 ha); no more inner lots are
+    thinner than 1:10 than when it was one lot."""
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    sys.path.insert(0, str(root / "bench"))
+    from _osm import osm_network
+
+    def inner_lots(params):
+        net = osm_network(root / "configs/data/monaco.osm.pbf")
+        spec = net.specs["lots"]
+        net.specs["lots"] = type(spec)(id="lots", type="lots.skeleton", params=params, where=spec.where, param_where={})
+        lots = net.run()["lots"]
+        return lots.geometry[lots["inner"]]
+
+    inner, whole = inner_lots({}), inner_lots({"inner_area_max": 1e9})
+    assert shapely.area(whole).max() > 400_000.0  # the defect: one lot of 50 ha
+    assert (shapely.area(inner) <= 20000.0).all()
+    (_, _, length, width), (_, _, wl, ww) = obb_frame(inner), obb_frame(whole)
+    assert (width < 0.1 * length).sum() <= (ww < 0.1 * wl).sum() + 1
+
+
 def test_skeleton_in_district_rules():
     plan = CityPlan(rules=[Rule("district", {"lots": "skeleton", "lot-width": "10", "lot-depth": "18"}, "c.xml:3")])
     blocks = Layer.from_geoms([shapely.box(0, 0, 150, 90), shapely.box(300, 0, 450, 90)], district=np.array([0, -1]))

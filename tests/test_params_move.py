@@ -384,6 +384,7 @@ CASES: list[Case] = [
         (("lot_width_min", 15.0), ("width", 30.0)),
     ),
     Case("lots.skeleton", "corner_angle", 10.0, 120.0, content("lots"), 0, on_blocks),
+    Case("lots.skeleton", "inner_area_max", 1e9, 2000.0, count("lots"), +1, on_blocks),
     Case("lots.partition", "mode", "size", "count", content("lots"), 0, on_blocks),
     Case("lots.partition", "size", (20.0, 30.0), (40.0, 60.0), count("lots"), -1, on_blocks),
     Case("lots.partition", "count", (2, 1), (6, 2), count("lots"), +1, on_blocks, (("mode", "count"),)),
@@ -391,6 +392,7 @@ CASES: list[Case] = [
     Case("lots.partition", "cluster", (1, 1), (2, 1), count("lots"), -1, on_blocks),
     Case("lots.partition", "min_area", 1.0, 300.0, count("lots"), -1, on_blocks),
     Case("lots.partition", "max_aspect", 0.0, 2.0, count("lots"), -1, on_blocks),
+    Case("lots.partition", "lot_width_min", 0.0, 12.0, count("lots"), -1, on_blocks),
     # buildings
     Case("buildings.extrude", "setback", 1.0, 4.0, area(B), -1, on_lots_only),
     Case("buildings.extrude", "height", 10.0, 30.0, mean(B, "height"), +1, on_lots_only),

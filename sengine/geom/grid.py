@@ -92,10 +92,15 @@ def clip_frame_grid(geoms, center, axis, xs, nx, ys, ny, *, margin=None, clearan
     shapely.prepare(fresh)
     try:
         c = float(clearance)
-        grown = _boxes(center[own], axis[own], a0 - c, a1 + c, b0 - c, b1 + c) if c > 0 else boxes
-        inside = shapely.contains_properly(geoms[own], grown)
+        inside = shapely.contains_properly(geoms[own], boxes)
         edge = np.zeros(len(own), bool)
-        edge[~inside] = shapely.intersects(geoms[own[~inside]], boxes[~inside])
+        if c > 0:  # a box the geometry holds, grown by the clearance (only those: a grown box held is held too)
+            s = np.flatnonzero(inside)
+            grown = _boxes(center[own[s]], axis[own[s]], a0[s] - c, a1[s] + c, b0[s] - c, b1[s] + c)
+            inside[s] = shapely.contains_properly(geoms[own[s]], grown)
+            edge[s] = ~inside[s]  # held, but too near a ring: on the outline's side
+        rest = np.flatnonzero(~inside & ~edge)
+        edge[rest] = shapely.intersects(geoms[own[rest]], boxes[rest])
     finally:
         shapely.destroy_prepared(fresh)
     cells = np.where(inside, boxes, None)
@@ -118,6 +123,14 @@ def clip_frame_grid(geoms, center, axis, xs, nx, ys, ny, *, margin=None, clearan
     live[e] &= ~shapely.is_empty(cells[e])
     whole = inside.copy()  # an outline cell the clip left whole (it touches the outline at most)
     whole[e] = shapely.area(cells[e]) >= (1.0 - 1e-9) * (a1[e] - a0[e]) * (b1[e] - b0[e])
+    # GEOS's rectangle clip gives the whole rectangle back when it lies in a hole whose ring it only
+    # touches: a whole outline cell whose centre is off the geometry is such a cell, and no lot
+    w = e[whole[e]]
+    if len(w):
+        mid = np.stack([(a0[w] + a1[w]) / 2, (b0[w] + b1[w]) / 2], axis=1)
+        xy = center[own[w]] + mid[:, :1] * axis[own[w]] + mid[:, 1:] * np.stack([-axis[own[w], 1], axis[own[w], 0]], 1)
+        off = ~shapely.intersects_xy(geoms[own[w]], xy[:, 0], xy[:, 1])
+        live[w[off]] = False
     return cells[live], own[live], ix[live], iy[live], inside[live], whole[live]
 
 

@@ -66,12 +66,13 @@ def merge_small(polys, group, min_area, *, touch: float = TOUCH, cell=None, drop
         cell = (np.asarray(cell[0], np.int64), np.asarray(cell[1], np.int64))
     # neighbours by grid cell first; a piece that took others spans cells its own index does not name,
     # so whatever is still small then looks for its neighbours by their outlines (a spatial index)
+    cache = _SharedCache()
     for by_cell in (True, False) if cell is not None else (False,):
         if not by_cell and not (shapely.area(polys) < min_area[keep]).any():
             break
         while True:  # a sliver whose best neighbour was merging itself goes in the next pass (pieces only go)
             near = (cell[0][keep], cell[1][keep]) if by_cell else None
-            polys, kept, took, done = _merge_pass(polys, group[keep], min_area[keep], touch, near)
+            polys, kept, took, done = _merge_pass(polys, group[keep], min_area[keep], touch, near, cache)
             keep, grown, merged = keep[kept], grown[kept] | took, merged + done
             if done == 0:
                 break
@@ -110,7 +111,41 @@ def _search(sorted_keys, q, side):
     return np.searchsorted(lin, (q[:, 0] * big + q[:, 1] + 1) * big + q[:, 2] + 1, side=side)
 
 
-def _merge_pass(polys, group, min_area, touch, cell=None):
+class _SharedCache:
+    """Shared boundary lengths of pairs of pieces, kept from one pass of :func:`merge_small` to the next.
+
+    A sliver whose best neighbour was merging away waits for the next pass,
+    where the same pairs come again (on whole Liège's Paris lots, 51,000
+    pairs in 14 passes for 29,000 distinct ones).  Pieces are keyed by
+    identity: a piece that took others is a new object, so its pairs are
+    measured again; the cache holds every piece it keyed, so no identity is
+    reused.
+    """
+
+    def __init__(self):
+        self.length: dict = {}
+        self.held: list = []
+
+    def measure(self, polys, i, j, touch) -> np.ndarray:
+        ident = np.frompyfunc(id, 1, 1)
+        a = ident(polys[i]).astype(np.int64) if len(i) else np.zeros(0, np.int64)
+        b = ident(polys[j]).astype(np.int64) if len(j) else np.zeros(0, np.int64)
+        keys = list(zip(a.tolist(), b.tolist()))
+        got = self.length
+        hit = np.fromiter((k in got for k in keys), bool, len(keys))
+        out = np.empty(len(keys))
+        out[hit] = [got[k] for k, h in zip(keys, hit) if h]
+        new = np.flatnonzero(~hit)
+        if len(new):
+            out[new] = shapely.length(
+                shapely.intersection(shapely.boundary(polys[i[new]]), shapely.boundary(polys[j[new]]), grid_size=touch)
+            )
+            got.update(zip([keys[q] for q in new], out[new].tolist()))
+            self.held.append(polys)
+        return out
+
+
+def _merge_pass(polys, group, min_area, touch, cell=None, cache=None):
     """One pass of :func:`merge_small`: each small piece into its best neighbour that is not merging away."""
     k = len(polys)
     area = shapely.area(polys)
@@ -129,9 +164,7 @@ def _merge_pass(polys, group, min_area, touch, cell=None):
     i, j = i[ok], j[ok]
     # the neighbour sharing the longest boundary; a larger piece wins a tie, then the first one (so the
     # choice does not depend on the order the candidates were found in); small ones come last
-    shared = shapely.length(
-        shapely.intersection(shapely.boundary(polys[i]), shapely.boundary(polys[j]), grid_size=touch)
-    )
+    shared = (cache or _SharedCache()).measure(polys, i, j, touch)
     side = (shared > 0) & (area[i] > 0)  # a neighbour touching at a point only is none
     i, j, shared = i[side], j[side], shared[side]
     big_j = area[j] >= min_area[j]

@@ -55,6 +55,26 @@ def touches_along(lots, owner, blocks, *, fronts=None, box=None) -> np.ndarray:
     return np.bincount(si[on], minlength=len(lots)) > 0
 
 
+def street_segments(lots, owner, blocks, *, fronts=None, box=None):
+    """Per boundary segment of each lot: whether it lies on its block's street (see :func:`touches_along`).
+
+    Returns ``on`` (the raw flag, within :data:`ON_TOL` of the block's boundary, in the order of
+    :func:`sengine.geom.boundary.ring_segments`: what :func:`sengine.nodes.lots.nodes.lot_attributes`
+    takes as known flags) and ``frontage`` (m per lot: the street segments' length, zero-length
+    ones, those on ``box`` and those off ``fronts`` left out).
+    """
+    p0, p1, si, _, on = segments_on_boundary(lots, owner, blocks, tol=ON_TOL)
+    ln = np.hypot(*(p1 - p0).T)
+    street = on & (ln > 1e-9)
+    if box is not None:
+        street &= ~segments_on_box(p0, p1, box)
+    if fronts is not None and street.any():
+        sel = np.flatnonzero(street)
+        lines = np.asarray(fronts, dtype=object)[np.asarray(owner, np.int64)[si[sel]]]
+        street[sel] = segments_on_lines(p0[sel], p1[sel], lines)
+    return on, np.bincount(si[street], weights=ln[street], minlength=len(lots))
+
+
 def _ramp(counts) -> np.ndarray:
     """0, 1, ..., c - 1 for each count, concatenated."""
     counts = np.asarray(counts, np.int64)

@@ -566,6 +566,15 @@ _P_SKELETON = {
         unit="m2",
         doc="lots are no wider than this / depth; interior=split cuts inner lots under it",
     ),
+    "inner_area_max": Param(
+        "float",
+        20000.0,
+        min=1.0,
+        max=1e9,
+        unit="m2",
+        doc="interior=inner: a larger inner lot (2 ha: a 140 m square) is backland, not a courtyard, and is cut "
+        "into inner lots under this",
+    ),
     "irregularity": Param(
         "float", 0.3, min=0.0, max=1.0, unit="1", doc="spread of lot widths: standard deviation of a share / 2"
     ),

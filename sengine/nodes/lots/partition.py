@@ -39,12 +39,14 @@ from sengine.geom.grid import clip_frame_grid
 from sengine.geom.merge import merge_small
 from sengine.geom.polygons import obb_frame
 
-from .manhattan import ON_TOL, _polygons, touches_along
+from .contour import Marks
+from .faces import _merge_into
+from .manhattan import ON_TOL, _polygons, street_segments
 from .nodes import _Lots
 from .recursive import REAL_BLOCK
 from .vocabulary import LotSplit
 
-__all__ = ["grid_edges", "partition_lots", "partition_index", "check_partition", "LotsPartition"]
+__all__ = ["grid_edges", "merge_narrow", "partition_lots", "partition_index", "check_partition", "LotsPartition"]
 
 MODES = ("size", "count", "ratio")
 
@@ -141,6 +143,90 @@ def _count_edges(length, ncell, cluster):
     return edges[keep], np.bincount(own[keep], minlength=len(length)) - 1
 
 
+def merge_narrow(lots, owner, blocks, lot_width_min, *, skip=None, fronts=None, box=None, rounds=3):
+    """Street lots narrower than ``lot_width_min`` joined to a neighbour, a street-facing one first.
+
+    CityEngine's ``lotWidthMin``: a lot whose street frontage is shorter
+    than the minimum width (a grid cell the block's outline cuts at a slant,
+    or grazes at a corner) is no buildable street lot, so it joins the
+    neighbour of its block with which it shares most boundary, among the
+    street-facing neighbours first (the lot beside it along the street),
+    else any.  Grown lots are measured again, a few rounds.
+
+    Parameters
+    ----------
+    lots : ndarray of shapely.Polygon (k,)
+    owner : ndarray of int64 (k,)
+        Index into ``blocks`` of each lot's block.
+    blocks : array_like of shapely.Polygon
+    lot_width_min : float
+        Least street frontage of a street-facing lot (m); ``0`` merges none.
+    skip : ndarray of bool (k,), optional
+        Lots known to have no frontage (inside their block): not measured.
+    fronts, box : optional
+        The street of each block, as for :func:`partition_lots`.
+    rounds : int
+        Rounds of merging and measuring again.
+
+    Returns
+    -------
+    lots : ndarray of shapely.Polygon
+    keep : ndarray of int64
+        Index of each lot left into the input.
+    grown : ndarray of bool
+        Lots left that took narrow ones.
+    frontage : ndarray of float
+        Street frontage of each lot left (m; 0 for ``skip`` ones).
+    marks : Marks
+        Per boundary segment of each lot left, whether it lies on its
+        block's boundary (all False on ``skip`` lots).
+    merged, left : int
+        Narrow lots merged, and still narrow (no neighbour, or no union
+        that is one polygon).
+    """
+    lots = np.asarray(lots, dtype=object)
+    owner = np.asarray(owner, np.int64)
+    k = len(lots)
+    keep, grown, merged = np.arange(k), np.zeros(k, bool), 0
+    marks = Marks.unknown(lots)
+    front = np.zeros(k)
+    look = np.ones(k, bool) if skip is None else ~np.asarray(skip, bool)
+    for r in range(rounds + 1):
+        idx = np.flatnonzero(look)
+        if len(idx):
+            on, front[idx] = street_segments(lots[idx], owner[idx], blocks, fronts=fronts, box=box)
+            seg = np.repeat(look, marks.counts)
+            marks.flat[seg] = on  # a subset's segments come in the same order
+        narrow = (front > 0) & (front < lot_width_min)
+        if r == rounds or not narrow.any():
+            break
+        # only the lots of blocks with a narrow one take part (neighbours are of the same block): the
+        # spatial indexes cover those, not the city's
+        sub = np.flatnonzero(np.isin(owner, np.unique(owner[narrow])))
+        got, live, done, moved = _merge_into(lots[sub], narrow[sub], (front > 0)[sub], owner[sub], rounds=1)
+        if done == 0:
+            break
+        alive = np.ones(len(lots), bool)
+        alive[sub] = live
+        lots = lots.copy()
+        lots[sub[live]] = got
+        changed = np.zeros(len(lots), bool)
+        changed[sub[live]] = moved
+        lots, changed = lots[alive], changed[alive]
+        merged += done
+        marks = marks.take(np.flatnonzero(alive))
+        if changed.any():  # a grown lot has another ring: its marks are measured again
+            fresh = Marks.unknown(lots[changed])
+            marks = Marks.concat([marks.take(np.flatnonzero(~changed)), fresh])
+            order = np.r_[np.flatnonzero(~changed), np.flatnonzero(changed)]
+            marks = marks.take(np.argsort(order, kind="stable"))
+        keep, owner, front = keep[alive], owner[alive], front[alive]
+        grown = grown[alive] | changed
+        look = changed
+    left = int(((front > 0) & (front < lot_width_min)).sum())
+    return lots, keep, grown, front, marks, merged, left
+
+
 def partition_lots(
     blocks,
     *,
@@ -151,9 +237,11 @@ def partition_lots(
     cluster=(1, 1),
     min_area=1.0,
     max_aspect=6.0,
+    lot_width_min=0.0,
     report=None,
     fronts=None,
     box=None,
+    marks=False,
 ):
     """Partition lots of each block (Zhang et al. 2022, §3.3.1 [1]_).
 
@@ -178,9 +266,14 @@ def partition_lots(
         lot depth (width) over this joins the column (row) before it, so
         that the grid leaves no strip more elongated than 1:``max_aspect``
         along an edge; ``0`` keeps every leftover as it is.
+    lot_width_min : float
+        A street-facing lot with less street frontage than this (m) joins a
+        neighbour, a street-facing one first (:func:`merge_narrow`,
+        CityEngine's ``lotWidthMin``); ``0`` keeps them.
     report : dict, optional
         Receives ``remainders``, ``merged_slivers`` and ``dropped_slivers``
-        (pieces under 1 m2 touching their neighbours at points only).
+        (pieces under 1 m2 touching their neighbours at points only), and
+        with ``lot_width_min`` ``merged_narrow`` and ``narrow_left``.
     fronts : array_like of object (n,), optional
         Per block, the part of its boundary that faces a street (e.g.
         ``blocks.landuse``'s ``street_front``), or ``None``: all of it.
@@ -202,6 +295,9 @@ def partition_lots(
         Grid cells in each lot's cluster.
     inner : ndarray of bool
         Lots without street frontage (none of their boundary on their block's).
+    marks : Marks, only with ``marks=True`` and ``lot_width_min > 0``
+        Per boundary segment of each lot, whether it lies on its block's
+        boundary (:func:`sengine.geom.boundary.ring_segments` order).
     """
     if mode not in MODES:
         raise ValueError(f"mode={mode!r} is not one of {', '.join(MODES)}")
@@ -222,6 +318,15 @@ def partition_lots(
     owner, ix, iy, inside, whole = own[cell], ix[cell], iy[cell], inside[cell], whole[cell]
     lots, keep, grown, merged, dropped = merge_small(lots, owner, min_area, cell=(ix, iy))
     owner, ix, iy, inside, whole = owner[keep], ix[keep], iy[keep], inside[keep] & ~grown, whole[keep] & ~grown
+    front = flags = None
+    if lot_width_min > 0:
+        lots, keep, grown, front, flags, narrow, left = merge_narrow(
+            lots, owner, blocks, lot_width_min, skip=inside, fronts=fronts, box=box
+        )
+        owner, ix, iy, inside, whole = owner[keep], ix[keep], iy[keep], inside[keep] & ~grown, whole[keep] & ~grown
+        if report is not None:
+            report["merged_narrow"] = report.get("merged_narrow", 0) + narrow
+            report["narrow_left"] = report.get("narrow_left", 0) + left
     cells = _cells(L, W, ix, iy, owner, **grid)
     area = shapely.area(lots)
     if mode == "size":  # not a whole cluster of whole lots: cut short, or holding a leftover
@@ -234,12 +339,16 @@ def partition_lots(
     inner = inside.copy()
     street = fronts is not None or box is not None  # then a clipped lot may touch open land only: measured
     check = np.flatnonzero((whole | street) & ~inside)
-    if len(check):
-        inner[check] = ~touches_along(lots[check], owner[check], blocks, fronts=fronts, box=box)
+    if len(check) and front is not None:  # measured by merge_narrow
+        inner[check] = ~(front[check] > 0)
+    elif len(check):
+        inner[check] = ~(street_segments(lots[check], owner[check], blocks, fronts=fronts, box=box)[1] > 0)
     if report is not None:
         report["remainders"] = report.get("remainders", 0) + int(remainder.sum())
         report["merged_slivers"] = report.get("merged_slivers", 0) + merged
         report["dropped_slivers"] = report.get("dropped_slivers", 0) + dropped
+    if marks:  # the segment flags merge_narrow measured (None without it)
+        return lots, owner, ix, iy, remainder, cells, inner, flags
     return lots, owner, ix, iy, remainder, cells, inner
 
 
@@ -360,6 +469,15 @@ class LotsPartition(_Lots):
             unit="1",
             doc="size: a leftover column or row more elongated than 1:this joins the one beside it (0: keep all)",
         ),
+        "lot_width_min": Param(
+            "float",
+            6.0,
+            min=0.0,
+            max=1000.0,
+            unit="m",
+            doc="a street lot with less street frontage joins a neighbour along the street (CityEngine's "
+            "lotWidthMin; 0: keep all)",
+        ),
     }
 
     def _options(self) -> dict:
@@ -376,17 +494,23 @@ class LotsPartition(_Lots):
     def split(self, blocks, report):
         opts = self._options()
         check_partition(blocks.geometry, **opts, where=self.where, report=report)
-        lots, owner, ix, iy, remainder, cells, inner = partition_lots(
+        lots, owner, ix, iy, remainder, cells, inner, flags = partition_lots(
             blocks.geometry,
             **opts,
             min_area=self.p.min_area,
+            lot_width_min=self.p.lot_width_min,
             report=report,
             fronts=blocks.get("street_front"),
             box=blocks.meta.get("bbox"),
+            marks=True,
         )
         o = np.argsort(owner, kind="stable")
         lots, inner = lots[o], inner[o]
         self._index = (lots, ix[o], iy[o], remainder[o], cells[o])  # for run(): the lots come back sorted
+        if flags is not None:  # merge_narrow measured every lot's frontage: the node need not again
+            return LotSplit(
+                lots, owner[o], np.full(len(lots), "partition"), inner, flags.take(o).flat, np.ones(len(lots), bool)
+            )
         # what the method knows of frontage: none on the inner lots; the others are measured
         on = np.zeros(int((shapely.get_num_coordinates(lots) - 1 - shapely.get_num_interior_rings(lots)).sum()), bool)
         return LotSplit(lots, owner[o], np.full(len(lots), "partition"), inner, on, inner.copy())

@@ -37,7 +37,11 @@ block subdivision, for all blocks at once:
    (counted).
 5. **Interior.** What lies deeper than ``depth`` is by ``interior``:
    ``inner`` (left as one inner lot per offset component, flagged: the
-   shared courtyard of a perimeter block, the backland of a large one),
+   shared courtyard of a perimeter block; a component larger than
+   ``inner_area_max`` is no courtyard but backland, e.g. the land between
+   a town's last street and the edge of the extract, and is cut by the
+   recursive method into inner lots under ``inner_area_max``: backland
+   parcels, not one lot the size of a district),
    ``split`` (cut into inner lots under ``lot_area_max`` by the recursive
    method, flagged), ``park`` (one courtyard / park lot per component,
    flagged ``park`` too) or ``merge`` (each part of the interior joins the
@@ -336,6 +340,7 @@ def skeleton_lots(
     lot_width_min=6.0,
     lot_area_min=20.0,
     lot_area_max=2000.0,
+    inner_area_max=20000.0,
     irregularity=0.3,
     corner="merge",
     interior="inner",
@@ -362,6 +367,10 @@ def skeleton_lots(
     lot_area_max : float or array_like (n,)
         Lots are made no wider than ``lot_area_max / depth``; inner lots are
         cut under this area (m2).
+    inner_area_max : float or array_like (n,)
+        ``interior="inner"``: an inner lot larger than this (m2) is backland,
+        not a courtyard, and is cut by the recursive method into inner lots
+        under this area (rows half its side deep, every piece cut).
     irregularity : float or array_like (n,)
         0 gives equal widths; the standard deviation of a lot's share of
         its street is ``irregularity / 2`` (1).
@@ -416,6 +425,7 @@ def skeleton_lots(
     lmin_b = _per_block(lot_width_min, n)
     amin_b = np.maximum(_per_block(lot_area_min, n), SLIVER)
     amax_b = _per_block(lot_area_max, n)
+    imax_b = _per_block(inner_area_max, n)
     irr_b = _per_block(irregularity, n)
     parts, own = polygon_parts(blocks, np.arange(n))
     rs = RingSet.from_polygons(parts)
@@ -524,25 +534,43 @@ def skeleton_lots(
         fpart, inner = fpart[alive], inner[alive]
         marks, known = _after_merge(marks.take(np.flatnonzero(alive)), faces, changed), known[alive] & ~changed
     # 5. the interior
-    if interior == "split" and inner.any():
-        ii = np.flatnonzero(inner)
+    cut = inner if interior == "split" else np.zeros(len(faces), bool)
+    if interior == "inner" and inner.any():  # backland, not a courtyard: cut too
+        cut = inner & (shapely.area(faces) > imax_b[own[fpart]])
+        report["skeleton_backland"] = int(cut.sum())
+    if cut.any():
+        ii = np.flatnonzero(cut)
         # the interior without the ray ends along its straight sides: fewer vertices to cut
         simple = shapely.simplify(faces[ii], 0.0)
         ok = (shapely.get_type_id(simple) == 3) & shapely.is_valid(simple)
         simple = np.where(ok, simple, faces[ii])
+        backland = interior != "split"  # backland: cut into pieces under inner_area_max, rows half its side deep
         sub = recursive_lots(
             simple,
-            max_area=amax_b[own[fpart[ii]]],
+            max_area=imax_b[own[fpart[ii]]] if backland else amax_b[own[fpart[ii]]],
             min_frontage=0.0,
             jitter=min(0.9, float(irr_b.max())),  # the node passes one irregularity for all its blocks
             seeds=seeds[own[fpart[ii]]],
+            # backland: every piece under inner_area_max (interior=split keeps the recursive method's compact
+            # inside, as it always did), rows half its side deep,
+            # no scrap under a twentieth of it either (backland parcels are large)
+            **(
+                {
+                    "inner": "split",
+                    "depth": 0.5 * np.sqrt(imax_b[own[fpart[ii]]]),
+                    "min_area": 0.05 * imax_b[own[fpart[ii]]],
+                }
+                if backland
+                else {}
+            ),
         )
-        faces = np.r_[faces[~inner], sub[0]]
-        fpart = np.r_[fpart[~inner], fpart[ii][sub[1]]]
-        # interior lots lie depth metres from the block's boundary: none of their segments is on it
-        marks = Marks.concat([marks.take(np.flatnonzero(~inner)), Marks.unknown(sub[0])])
-        known = np.r_[known[~inner], np.ones(len(sub[0]), bool)]
-        inner = np.r_[np.zeros(int((~inner).sum()), bool), np.ones(len(sub[0]), bool)]
+        faces = np.r_[faces[~cut], sub[0]]
+        fpart = np.r_[fpart[~cut], fpart[ii][sub[1]]]
+        # interior lots lie depth metres from the block's boundary: none of their segments is on it (backland
+        # may border open land or the extract's edge: measured)
+        marks = Marks.concat([marks.take(np.flatnonzero(~cut)), Marks.unknown(sub[0])])
+        known = np.r_[known[~cut], np.full(len(sub[0]), interior == "split")]
+        inner = np.r_[inner[~cut], np.ones(len(sub[0]), bool)]
     elif interior == "merge" and inner.any():
         spacing = 0.5 * np.minimum(w_b, d_b)[own[fpart]]
         faces, fpart, inner, stay, changed = _merge_interior(faces, fpart, inner, spacing, report)
