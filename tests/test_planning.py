@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 import sengine
 from sengine import Context, Layer
+from sengine.nodes.stats import COVER_TOL
 from sengine.registry import get
 
 Planning = get("stats.planning")
@@ -101,8 +102,11 @@ def test_floor_area_is_shared_out_exactly_whatever_the_lot_column_says(grid, bs)
     lots_out, _, report = run(lots, buildings)
     ground = shapely.box(0, 0, nx * w, ny * h)
     inside = np.array([g.intersection(ground).area for g in geoms])
-    assert lots_out["footprint"].sum() == pytest.approx(inside.sum(), abs=1e-6)
-    assert lots_out["floor_area"].sum() == pytest.approx((inside * floors).sum(), abs=1e-6)
+    # a building whose corners lie within COVER_TOL of its named lot counts whole there: a strip
+    # of its outline at most that wide may be counted that lies off the lots
+    rim = COVER_TOL * np.array([g.length for g in geoms]) + 1e-9
+    assert lots_out["footprint"].sum() == pytest.approx(inside.sum(), abs=rim.sum())
+    assert lots_out["floor_area"].sum() == pytest.approx((inside * floors).sum(), abs=(rim * floors).sum())
     assert report["footprint_off_lots_m2"] == pytest.approx(sum(g.area for g in geoms) - inside.sum(), abs=0.1)
     area = shapely.area(lots.geometry)
     assert np.allclose(lots_out["far"] * area, lots_out["floor_area"])
