@@ -21,7 +21,9 @@ numpy passes over all footprints together, not per footprint:
 4. a **gable** turns a lone end triangle into a wall (its apex moved onto the
    eave's wall plane), as :mod:`sengine.nodes.export.skeleton` describes;
 5. convex faces (and gable walls) are fanned in one step from their first
-   skeleton node; the few others go through earcut;
+   skeleton node, faces with one reflex vertex from it; the others go to
+   :func:`~.mesh.triangulate` together (a fan from a vertex that sees the
+   whole face, else earcut);
 6. walls, floor, and a closedness check per solid (every directed edge has
    one reverse twin); a footprint failing anywhere is handed back to the
    caller (which draws it with CGAL's own extrusion, one by one).
@@ -37,11 +39,10 @@ References
 
 from __future__ import annotations
 
-import mapbox_earcut
 import numpy as np
 import shapely
 
-from .mesh import Rings, cluster_points, fill_skipped, triangulate
+from .mesh import Rings, cluster_points, triangulate
 from .wavefront import MAX_VERTICES, wavefront_skeletons
 
 __all__ = ["hip_solids", "SNAP", "FLAT_TURN"]
@@ -301,7 +302,9 @@ def hip_solids(
     reflex = cross < -CONVEX_TOL * np.hypot(*e0.T) * np.hypot(*e1.T)
     n_reflex = np.bincount(f_of, weights=reflex, minlength=len(faces))
     # convex faces and gable walls: fanned from the first skeleton node (index run + 1); one reflex
-    # vertex: fanned from it (two convex pieces); the others go through earcut
+    # vertex: fanned from it (two convex pieces); the others, all at once, by mesh.triangulate (fans
+    # from a vertex that sees the whole face, earcut for the few without one). A gable wall is a
+    # segment in plan: it is never handed there, only fanned from its apex
     convex = (n_reflex <= 1) | wall
     sh = run + 1
     one = (n_reflex == 1) & ~wall
@@ -314,16 +317,12 @@ def hip_solids(
     tk = np.arange(ntri.sum()) - np.repeat(np.cumsum(ntri) - ntri, ntri) + 1
     roof_tri = np.column_stack([rot[fo[tf]], rot[fo[tf] + tk], rot[fo[tf] + tk + 1]])
     roof_kind = np.where(wall[tf], 1, 2).astype(np.uint8)
-    extra = []
-    for f in np.flatnonzero(~convex).tolist():
-        face = seq[fo[f] : fo[f + 1]]
-        tri = mapbox_earcut.triangulate_float64(plan[face], np.array([len(face)], np.uint32)).reshape(-1, 3)
-        if len(tri) and _area2(plan[face[tri]]).sum() < 0:
-            tri = tri[:, [0, 2, 1]]
-        tris = fill_skipped([face.tolist()], face[tri].tolist()) if len(tri) else []
-        extra.append(np.asarray(tris, np.int64).reshape(-1, 3))
-    if extra:
-        more = np.concatenate(extra)
+    hard = np.flatnonzero(~convex)
+    if hard.size:
+        lens = flen[hard]
+        sidx = np.repeat(fo[hard] - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(lens.sum())
+        sub = Rings(plan[rot[sidx]], np.concatenate([[0], np.cumsum(lens)]), np.arange(len(hard) + 1), hard)
+        more = rot[sidx][triangulate(sub)]
         roof_tri = np.concatenate([roof_tri, more])
         roof_kind = np.concatenate([roof_kind, np.full(len(more), 2, np.uint8)])
 
@@ -351,7 +350,7 @@ def hip_solids(
     faces_all = np.concatenate([floor, walls, roof_tri])
     kinds = np.concatenate([np.zeros(len(floor), np.uint8), np.ones(len(walls), np.uint8), roof_kind])
     fp = vertex_poly[faces_all[:, 0]]
-    bad |= ~_closed_per_poly(faces_all, fp, n_poly, len(vertices))
+    bad |= ~_closed_per_poly(faces_all, vertex_poly, n_poly)
     keep_f = ~bad[fp]
     keep_v = ~bad[vertex_poly]
     remap = np.cumsum(keep_v) - 1
@@ -491,20 +490,31 @@ def _area2(t: np.ndarray) -> np.ndarray:
     return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
 
 
-def _closed_per_poly(faces: np.ndarray, fpoly: np.ndarray, n_poly: int, n_vert: int) -> np.ndarray:
-    """Per polygon: every directed edge of its triangles has exactly one reverse twin, none repeats."""
+def _closed_per_poly(faces: np.ndarray, vertex_poly: np.ndarray, n_poly: int) -> np.ndarray:
+    """Per polygon: every directed edge of its triangles has exactly one reverse twin, none repeats.
+
+    One sort of the edges as ``2 * (lo * n_vert + hi) + (lo is the source)``: in a closed shell every
+    undirected edge comes exactly twice, once each way, so its two codes are ``2 k`` and ``2 k + 1``,
+    side by side once sorted; anything else (a repeat, a lone half-edge) breaks that pattern where it is.
+    A broken edge fails the polygons of both its vertices.
+    """
     ok = np.ones(n_poly, bool)
     if not len(faces):
         return ok
-    e = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    ep = np.repeat(fpoly, 3)
-    ok[ep[e[:, 0] == e[:, 1]]] = False
-    fwd = e[:, 0] * n_vert + e[:, 1]
-    rev = e[:, 1] * n_vert + e[:, 0]
-    o = np.argsort(fwd)
-    fs = fwd[o]
-    dup = np.flatnonzero(fs[1:] == fs[:-1])
-    ok[ep[o[dup]]] = False
-    at = np.minimum(np.searchsorted(fs, rev), len(fs) - 1)
-    ok[ep[fs[at] != rev]] = False
+    n_vert = len(vertex_poly)
+    u = faces.ravel()
+    v = faces[:, [1, 2, 0]].ravel()
+    lo, hi = np.minimum(u, v), np.maximum(u, v)
+    ok[vertex_poly[lo[lo == hi]]] = False
+    code = np.sort((lo * n_vert + hi) * 2 + (u < v))
+    pair = code ^ 1  # the twin's code
+    nb = np.where(code & 1, np.roll(code, 1), np.roll(code, -1))  # where the twin must sit
+    dup = np.zeros(len(code), bool)
+    dup[1:] = code[1:] == code[:-1]
+    dup[:-1] |= code[:-1] == code[1:]
+    broken = (nb != pair) | dup
+    if broken.any():
+        key = code[broken] >> 1
+        ok[vertex_poly[key // n_vert]] = False
+        ok[vertex_poly[key % n_vert]] = False
     return ok
