@@ -316,6 +316,14 @@ def hip_solids(
     tf = np.repeat(np.arange(len(faces)), ntri)
     tk = np.arange(ntri.sum()) - np.repeat(np.cumsum(ntri) - ntri, ntri) + 1
     roof_tri = np.column_stack([rot[fo[tf]], rot[fo[tf] + tk], rot[fo[tf] + tk + 1]])
+    # a face convex within CONVEX_TOL may still fold a fan triangle (a round footprint's faces turn right
+    # by a hair at many vertices): such faces go with the others
+    fold = np.bincount(tf[_folded(plan[roof_tri])], minlength=len(faces)) > 0
+    fold &= ~wall
+    if fold.any():
+        convex &= ~fold
+        keep_t = convex[tf]
+        roof_tri, tf = roof_tri[keep_t], tf[keep_t]
     roof_kind = np.where(wall[tf], 1, 2).astype(np.uint8)
     hard = np.flatnonzero(~convex)
     if hard.size:
@@ -327,9 +335,7 @@ def hip_solids(
         roof_kind = np.concatenate([roof_kind, np.full(len(more), 2, np.uint8)])
 
     # no roof triangle folds over (a skeleton that came out wrong): every one turns left in plan
-    tp = plan[roof_tri]
-    e2 = ((tp[:, 1] - tp[:, 0]) ** 2).sum(1) + ((tp[:, 2] - tp[:, 1]) ** 2).sum(1)
-    folded = (_area2(tp) < -1e-3 * e2) & (roof_kind == 2)  # not the slivers between nodes a hair apart
+    folded = _folded(plan[roof_tri]) & (roof_kind == 2)
     bad[vpoly_plan[roof_tri[folded, 0]]] = True
 
     # 6. the solid: heights, walls, floor; each polygon checked closed
@@ -483,6 +489,12 @@ def _cycles(nxt: np.ndarray) -> np.ndarray:
         if np.array_equal(new, label):
             return label
         label, jump = new, jump[jump]
+
+
+def _folded(tp: np.ndarray) -> np.ndarray:
+    """Per triangle ``tp`` (t, 3, 2): it turns right in plan, beyond the slivers between nodes a hair apart."""
+    e2 = ((tp[:, 1] - tp[:, 0]) ** 2).sum(1) + ((tp[:, 2] - tp[:, 1]) ** 2).sum(1)
+    return _area2(tp) < -1e-3 * e2
 
 
 def _area2(t: np.ndarray) -> np.ndarray:
