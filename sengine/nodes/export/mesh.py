@@ -217,19 +217,28 @@ def triangulate(rings: Rings) -> np.ndarray:
     # earcut for the rest; it winds all of a polygon's triangles one way: turned counter-clockwise
     # together, by their total area (a triangle's own sign is noise when it is flat, and turning
     # it alone would wind it against its neighbours: a crack)
-    for p in np.flatnonzero(~fan):
-        r0, r1 = rings.poly_ring[p], rings.poly_ring[p + 1]
-        v0, v1 = rings.ring_start[r0], rings.ring_start[r1]
-        ends = (rings.ring_start[r0 + 1 : r1 + 1] - v0).astype(np.uint32)
-        local = xy[v0:v1] - xy[v0]
-        tri = mapbox_earcut.triangulate_float64(xy[v0:v1], ends)
-        if len(tri):
-            tri = tri.astype(np.int64).reshape(-1, 3)
-            a, b, c = local[tri[:, 0]], local[tri[:, 1]], local[tri[:, 2]]
+    rest = np.flatnonzero(~fan)
+    if rest.size:
+        # one earcut call a polygon, nothing else in the loop; offsets and winding in numpy afterwards
+        r0, r1 = rings.poly_ring[rest], rings.poly_ring[rest + 1]
+        v0 = rings.ring_start[r0]
+        ends = rings.ring_start[1:] - rings.ring_start[rings.poly_ring[np.repeat(np.arange(len(n_rings)), n_rings)]]
+        ends = ends.astype(np.uint32)
+        earcut = mapbox_earcut.triangulate_float64
+        got = [
+            earcut(xy[a:b], ends[c:d])
+            for a, b, c, d in zip(v0.tolist(), rings.ring_start[r1].tolist(), r0.tolist(), r1.tolist())
+        ]
+        cnt = np.array([len(t) for t in got], np.int64) // 3
+        if cnt.sum():
+            tri = np.concatenate(got).astype(np.int64).reshape(-1, 3)
+            tp = np.repeat(np.arange(len(rest)), cnt)
+            tri += v0[tp][:, None]
+            a, b, c = (xy[tri[:, k]] - xy[v0[tp]] for k in range(3))  # relative to the polygon's first vertex
             area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-            if area2.sum() < 0:
-                tri = tri[:, [0, 2, 1]]
-            parts.append(tri + v0)
+            flip = (np.bincount(tp, weights=area2, minlength=len(rest)) < 0)[tp]
+            tri[flip] = tri[flip][:, [0, 2, 1]]
+            parts.append(tri)
     if not parts:
         return np.empty((0, 3), np.int64)
     tri = np.concatenate(parts)
