@@ -41,6 +41,7 @@ __all__ = [
     "to_y_up",
     "merge",
     "weld",
+    "stable_argsort",
 ]
 
 
@@ -634,6 +635,23 @@ def drop_collapsed(faces: np.ndarray, *extra: np.ndarray, merged: np.ndarray | N
     count = np.bincount(inv[ok], minlength=len(net))
     ok &= ~((count[inv] >= 2) & (net[inv] == 0))
     return (faces[ok], *(e[ok] for e in extra))
+
+
+def stable_argsort(keys: np.ndarray) -> np.ndarray:
+    """``np.argsort(keys, kind="stable")`` of integer ``keys``, about twice as fast.
+
+    Each key becomes ``key * n + position``, all distinct, and one plain
+    (SIMD) sort of those gives the stable order; keys spanning too much for
+    that in 64 bits take numpy's stable sort.
+    """
+    keys = np.asarray(keys)
+    n = len(keys)
+    if n < 2:
+        return np.arange(n)
+    lo, hi = int(keys.min()), int(keys.max())
+    if (hi - lo + 1) * n >= 1 << 62:
+        return np.argsort(keys, kind="stable")
+    return np.sort((keys.astype(np.int64) - lo) * n + np.arange(n)) % n
 
 
 def subset_rings(rings: Rings, sel: np.ndarray) -> Rings:

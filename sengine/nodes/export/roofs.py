@@ -63,7 +63,7 @@ from sengine.geom.polygons import obb_frame
 
 from . import mesh
 from .envelope import envelope_solids
-from .mesh import Rings, ring_arrays, subset_rings
+from .mesh import Rings, ring_arrays, stable_argsort, subset_rings
 from .skeleton import skeleton_solids
 
 __all__ = [
@@ -298,10 +298,10 @@ def building_solids(geoms, height, *, roof=None, roof_height=None, roof_directio
     f_all = np.concatenate(fs)
     fk_all = np.concatenate([o[3] for o in out])
     # each building's vertices and faces together, in input order (deterministic, friendly to viewers)
-    order = np.argsort(vp, kind="stable")
+    order = stable_argsort(vp)
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
-    forder = np.argsort(vp[f_all[:, 0]], kind="stable")
+    forder = stable_argsort(vp[f_all[:, 0]])
     return Solids(np.concatenate(vs)[order], rank[f_all[forder]], pf[vp[order]], fk_all[forder], notes, vp[order])
 
 

@@ -42,7 +42,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from .mesh import Rings, cluster_points, triangulate
+from .mesh import Rings, cluster_points, stable_argsort, triangulate
 from .wavefront import MAX_VERTICES, wavefront_skeletons
 
 __all__ = ["hip_solids", "SNAP", "FLAT_TURN"]
@@ -130,7 +130,7 @@ def hip_solids(
     row_poly = np.repeat(np.arange(n_poly), cnt)
     # edge ids to rows
     key = row_poly * (1 << 32) + ids
-    order = np.argsort(key, kind="stable")
+    order = stable_argsort(key)
     epoly = np.repeat(np.arange(n_poly), ecnt)
     ekey = epoly[:, None] * (1 << 32) + edges
     at = np.minimum(np.searchsorted(key[order], ekey), max(len(key) - 1, 0))
@@ -155,7 +155,7 @@ def hip_solids(
     kid[crow[o[sp] - len(qk)]] = np.where(match, prev_o, 0)
     orig = kidx[kid[crow]]  # ring vertex of each contour row
     # the next contour row along its ring
-    oc = np.argsort(orig, kind="stable")
+    oc = stable_argsort(orig)
     rc = vring[orig[oc]]
     cf = np.ones(len(oc), bool)
     cf[1:] = rc[1:] != rc[:-1]
@@ -362,7 +362,7 @@ def hip_solids(
     remap = np.cumsum(keep_v) - 1
     # each polygon's faces together (floor, walls, roof), in polygon order
     order_f = np.flatnonzero(keep_f)
-    order_f = order_f[np.argsort(fp[order_f], kind="stable")]
+    order_f = order_f[stable_argsort(fp[order_f])]
     return (
         vertices[keep_v],
         remap[faces_all[order_f]],
