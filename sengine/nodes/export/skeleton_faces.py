@@ -24,9 +24,11 @@ numpy passes over all footprints together, not per footprint:
    skeleton node, faces with one reflex vertex from it; the others go to
    :func:`~.mesh.triangulate` together (a fan from a vertex that sees the
    whole face, else earcut);
-6. walls, floor, and a closedness check per solid (every directed edge has
-   one reverse twin); a footprint failing anywhere is handed back to the
-   caller (which draws it with CGAL's own extrusion, one by one).
+6. walls, floor, and a closedness check per solid (every directed edge of
+   the roof has one reverse twin, the eaves' being the walls'; walls and
+   floor close on the ring by construction); a footprint failing anywhere is
+   handed back to the caller (which draws it with CGAL's own extrusion, one
+   by one).
 
 References
 ----------
@@ -356,7 +358,9 @@ def hip_solids(
     faces_all = np.concatenate([floor, walls, roof_tri])
     kinds = np.concatenate([np.zeros(len(floor), np.uint8), np.ones(len(walls), np.uint8), roof_kind])
     fp = vertex_poly[faces_all[:, 0]]
-    bad |= ~_closed_per_poly(faces_all, vertex_poly, n_poly)
+    # the walls (two triangles an eave) and the floor (the footprint's caps, as mesh.extrude's) close on
+    # the ring by construction; the roof is checked against the eaves
+    bad |= ~_roof_closed(roof_tri, vertex_poly[:n_top], nxt, n_poly)
     keep_f = ~bad[fp]
     keep_v = ~bad[vertex_poly]
     remap = np.cumsum(keep_v) - 1
@@ -502,31 +506,40 @@ def _area2(t: np.ndarray) -> np.ndarray:
     return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
 
 
-def _closed_per_poly(faces: np.ndarray, vertex_poly: np.ndarray, n_poly: int) -> np.ndarray:
-    """Per polygon: every directed edge of its triangles has exactly one reverse twin, none repeats.
+def _roof_closed(tri: np.ndarray, vertex_poly: np.ndarray, nxt: np.ndarray, n_poly: int) -> np.ndarray:
+    """Per polygon: its roof triangles ``tri`` close on its eaves.
 
-    One sort of the edges as ``2 * (lo * n_vert + hi) + (lo is the source)``: in a closed shell every
-    undirected edge comes exactly twice, once each way, so its two codes are ``2 k`` and ``2 k + 1``,
-    side by side once sorted; anything else (a repeat, a lone half-edge) breaks that pattern where it is.
-    A broken edge fails the polygons of both its vertices.
+    Every directed edge has exactly one reverse twin among the roof's, except
+    the eaves: ring vertex ``u`` (``u < len(nxt)``) to ``nxt[u]``, which the
+    roof must run along exactly once each (the wall's top edge is the twin).
+    One sort of the edges as ``2 * (lo * n + hi) + (lo is the source)``: a
+    twinned edge's two codes are ``2 k`` and ``2 k + 1``, side by side.
     """
     ok = np.ones(n_poly, bool)
-    if not len(faces):
-        return ok
+    m = len(nxt)
+    ring_count = np.bincount(vertex_poly[:m], minlength=n_poly)
+    if not len(tri):
+        return ok & (ring_count == 0)
     n_vert = len(vertex_poly)
-    u = faces.ravel()
-    v = faces[:, [1, 2, 0]].ravel()
+    u = tri.ravel()
+    v = tri[:, [1, 2, 0]].ravel()
     lo, hi = np.minimum(u, v), np.maximum(u, v)
     ok[vertex_poly[lo[lo == hi]]] = False
     code = np.sort((lo * n_vert + hi) * 2 + (u < v))
-    pair = code ^ 1  # the twin's code
-    nb = np.where(code & 1, np.roll(code, 1), np.roll(code, -1))  # where the twin must sit
+    nb = np.empty_like(code)  # where the twin must sit: after an even code, before an odd one
+    nb[:-1], nb[-1] = code[1:], -1
+    odd = (code & 1).astype(bool)
+    nb[odd] = np.concatenate([[-1], code[:-1]])[odd]
     dup = np.zeros(len(code), bool)
     dup[1:] = code[1:] == code[:-1]
     dup[:-1] |= code[:-1] == code[1:]
-    broken = (nb != pair) | dup
-    if broken.any():
-        key = code[broken] >> 1
-        ok[vertex_poly[key // n_vert]] = False
-        ok[vertex_poly[key % n_vert]] = False
+    key = code >> 1
+    a, b = key // n_vert, key % n_vert
+    src, dst = np.where(odd, a, b), np.where(odd, b, a)
+    eave = (src < m) & (dst == nxt[np.minimum(src, m - 1)])
+    alone = nb != (code ^ 1)
+    broken = dup | (alone & ~eave) | (~alone & eave)
+    ok[vertex_poly[a[broken]]] = False
+    ok[vertex_poly[b[broken]]] = False
+    ok &= np.bincount(vertex_poly[src[eave & alone & ~dup]], minlength=n_poly) == ring_count
     return ok
