@@ -170,3 +170,35 @@ def _volumes(s, n):
     o[s.vertex_feature[::-1]] = s.vertices[::-1]
     t = t - o[ff][:, None, :]
     return np.bincount(ff, weights=np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])) / 6, minlength=n)
+
+
+def _rings_oracle(parts):
+    """Ring vertices (closing repeat dropped), ring offsets and polygon ring offsets, read ring by ring."""
+    xy, ring_start, poly_ring = [], [0], [0]
+    for p in parts:
+        rs = shapely.get_rings(p)
+        for r in rs:
+            c = shapely.get_coordinates(r)[:-1]
+            xy.append(c)
+            ring_start.append(ring_start[-1] + len(c))
+        poly_ring.append(poly_ring[-1] + len(rs))
+    return np.concatenate(xy), np.array(ring_start), np.array(poly_ring)
+
+
+@SETTINGS
+@given(st.lists(st.tuples(st.integers(3, 9), st.integers(0, 3), st.floats(0, 360)), min_size=1, max_size=12))
+def test_ring_arrays_reads_holed_polygons_ring_by_ring(specs):
+    parts = []
+    for k, holes, angle in specs:  # a k-gon with up to three square holes, some polygons without
+        t = np.radians(angle) + np.linspace(0, 2 * np.pi, k, endpoint=False)
+        shell = 40.0 * np.column_stack([np.cos(t), np.sin(t)]) + 1000.0
+        hs = [box(1000.0 - 9 + 7 * h, 997.0, 1000.0 - 5 + 7 * h, 1001.0).exterior.coords[::-1] for h in range(holes)]
+        p = Polygon(shell, hs)
+        parts.append(p if p.is_valid else Polygon(shell))
+    parts = np.array(parts, object)
+    r = ring_arrays(parts)
+    xy, ring_start, poly_ring = _rings_oracle(parts)
+    # ring_arrays turns exteriors counter-clockwise and holes clockwise: compare as point sets per ring
+    assert np.array_equal(r.ring_start, ring_start) and np.array_equal(r.poly_ring, poly_ring)
+    for a, b in zip(ring_start[:-1].tolist(), ring_start[1:].tolist()):
+        assert sorted(map(tuple, r.xy[a:b].tolist())) == sorted(map(tuple, xy[a:b].tolist()))

@@ -118,10 +118,21 @@ def ring_arrays(geoms: np.ndarray) -> Rings:
         hit = np.unique(vpoly[1:][dup])
         parts = parts.copy()
         parts[hit] = shapely.remove_repeated_points(parts[hit])
-    if dup.any() or shapely.get_num_interior_rings(parts).any():
+    holed = shapely.get_num_interior_rings(parts) > 0
+    if dup.any():
         rings, ring_poly = shapely.get_rings(parts, return_index=True)
         counts = shapely.get_num_coordinates(rings)
         coords = shapely.get_coordinates(rings)
+    elif holed.any():  # the coordinates read above run ring after ring: only the holed polygons' rings counted
+        hp = np.flatnonzero(holed)
+        hr, hr_of = shapely.get_rings(parts[hp], return_index=True)
+        n_r = np.ones(len(parts), np.int64)
+        n_r[hp] = np.bincount(hr_of, minlength=len(hp))
+        ring_poly = np.repeat(np.arange(len(parts)), n_r)
+        counts = np.bincount(vpoly, minlength=len(parts))[ring_poly]
+        first_ring = np.cumsum(n_r) - n_r
+        k = np.arange(len(hr)) - (np.cumsum(n_r[hp]) - n_r[hp])[hr_of]  # ring k of its polygon
+        counts[first_ring[hp][hr_of] + k] = shapely.get_num_coordinates(hr)
     else:  # no holes: one ring per polygon, the coordinates read above
         counts = np.bincount(vpoly, minlength=len(parts))
         ring_poly = np.arange(len(parts))
