@@ -41,6 +41,7 @@ __all__ = [
     "to_y_up",
     "merge",
     "weld",
+    "stable_argsort",
 ]
 
 
@@ -117,10 +118,21 @@ def ring_arrays(geoms: np.ndarray) -> Rings:
         hit = np.unique(vpoly[1:][dup])
         parts = parts.copy()
         parts[hit] = shapely.remove_repeated_points(parts[hit])
-    if dup.any() or shapely.get_num_interior_rings(parts).any():
+    holed = shapely.get_num_interior_rings(parts) > 0
+    if dup.any():
         rings, ring_poly = shapely.get_rings(parts, return_index=True)
         counts = shapely.get_num_coordinates(rings)
         coords = shapely.get_coordinates(rings)
+    elif holed.any():  # the coordinates read above run ring after ring: only the holed polygons' rings counted
+        hp = np.flatnonzero(holed)
+        hr, hr_of = shapely.get_rings(parts[hp], return_index=True)
+        n_r = np.ones(len(parts), np.int64)
+        n_r[hp] = np.bincount(hr_of, minlength=len(hp))
+        ring_poly = np.repeat(np.arange(len(parts)), n_r)
+        counts = np.bincount(vpoly, minlength=len(parts))[ring_poly]
+        first_ring = np.cumsum(n_r) - n_r
+        k = np.arange(len(hr)) - (np.cumsum(n_r[hp]) - n_r[hp])[hr_of]  # ring k of its polygon
+        counts[first_ring[hp][hr_of] + k] = shapely.get_num_coordinates(hr)
     else:  # no holes: one ring per polygon, the coordinates read above
         counts = np.bincount(vpoly, minlength=len(parts))
         ring_poly = np.arange(len(parts))
@@ -217,19 +229,28 @@ def triangulate(rings: Rings) -> np.ndarray:
     # earcut for the rest; it winds all of a polygon's triangles one way: turned counter-clockwise
     # together, by their total area (a triangle's own sign is noise when it is flat, and turning
     # it alone would wind it against its neighbours: a crack)
-    for p in np.flatnonzero(~fan):
-        r0, r1 = rings.poly_ring[p], rings.poly_ring[p + 1]
-        v0, v1 = rings.ring_start[r0], rings.ring_start[r1]
-        ends = (rings.ring_start[r0 + 1 : r1 + 1] - v0).astype(np.uint32)
-        local = xy[v0:v1] - xy[v0]
-        tri = mapbox_earcut.triangulate_float64(xy[v0:v1], ends)
-        if len(tri):
-            tri = tri.astype(np.int64).reshape(-1, 3)
-            a, b, c = local[tri[:, 0]], local[tri[:, 1]], local[tri[:, 2]]
+    rest = np.flatnonzero(~fan)
+    if rest.size:
+        # one earcut call a polygon, nothing else in the loop; offsets and winding in numpy afterwards
+        r0, r1 = rings.poly_ring[rest], rings.poly_ring[rest + 1]
+        v0 = rings.ring_start[r0]
+        ends = rings.ring_start[1:] - rings.ring_start[rings.poly_ring[np.repeat(np.arange(len(n_rings)), n_rings)]]
+        ends = ends.astype(np.uint32)
+        earcut = mapbox_earcut.triangulate_float64
+        got = [
+            earcut(xy[a:b], ends[c:d])
+            for a, b, c, d in zip(v0.tolist(), rings.ring_start[r1].tolist(), r0.tolist(), r1.tolist())
+        ]
+        cnt = np.array([len(t) for t in got], np.int64) // 3
+        if cnt.sum():
+            tri = np.concatenate(got).astype(np.int64).reshape(-1, 3)
+            tp = np.repeat(np.arange(len(rest)), cnt)
+            tri += v0[tp][:, None]
+            a, b, c = (xy[tri[:, k]] - xy[v0[tp]] for k in range(3))  # relative to the polygon's first vertex
             area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-            if area2.sum() < 0:
-                tri = tri[:, [0, 2, 1]]
-            parts.append(tri + v0)
+            flip = (np.bincount(tp, weights=area2, minlength=len(rest)) < 0)[tp]
+            tri[flip] = tri[flip][:, [0, 2, 1]]
+            parts.append(tri)
     if not parts:
         return np.empty((0, 3), np.int64)
     tri = np.concatenate(parts)
@@ -625,6 +646,23 @@ def drop_collapsed(faces: np.ndarray, *extra: np.ndarray, merged: np.ndarray | N
     count = np.bincount(inv[ok], minlength=len(net))
     ok &= ~((count[inv] >= 2) & (net[inv] == 0))
     return (faces[ok], *(e[ok] for e in extra))
+
+
+def stable_argsort(keys: np.ndarray) -> np.ndarray:
+    """``np.argsort(keys, kind="stable")`` of integer ``keys``, about twice as fast.
+
+    Each key becomes ``key * n + position``, all distinct, and one plain
+    (SIMD) sort of those gives the stable order; keys spanning too much for
+    that in 64 bits take numpy's stable sort.
+    """
+    keys = np.asarray(keys)
+    n = len(keys)
+    if n < 2:
+        return np.arange(n)
+    lo, hi = int(keys.min()), int(keys.max())
+    if (hi - lo + 1) * n >= 1 << 62:
+        return np.argsort(keys, kind="stable")
+    return np.sort((keys.astype(np.int64) - lo) * n + np.arange(n)) % n
 
 
 def subset_rings(rings: Rings, sel: np.ndarray) -> Rings:

@@ -63,7 +63,7 @@ from sengine.geom.polygons import obb_frame
 
 from . import mesh
 from .envelope import envelope_solids
-from .mesh import Rings, ring_arrays, subset_rings
+from .mesh import Rings, ring_arrays, stable_argsort, subset_rings
 from .skeleton import skeleton_solids
 
 __all__ = [
@@ -298,10 +298,10 @@ def building_solids(geoms, height, *, roof=None, roof_height=None, roof_directio
     f_all = np.concatenate(fs)
     fk_all = np.concatenate([o[3] for o in out])
     # each building's vertices and faces together, in input order (deterministic, friendly to viewers)
-    order = np.argsort(vp, kind="stable")
+    order = stable_argsort(vp)
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
-    forder = np.argsort(vp[f_all[:, 0]], kind="stable")
+    forder = stable_argsort(vp[f_all[:, 0]])
     return Solids(np.concatenate(vs)[order], rank[f_all[forder]], pf[vp[order]], fk_all[forder], notes, vp[order])
 
 
@@ -448,15 +448,20 @@ def _terrace(parts, rings: Rings, sel: np.ndarray, kind: int, top, rh, base):
         e = np.empty(0, np.int64)
         return (np.empty((0, 3)), np.empty((0, 3), np.int64), e, np.empty(0, np.uint8)), bad
     ring_z = top[sel] if kind == PARAPET else top[sel] - rh[sel]  # the ring (parapet top or terrace)
-    ann = _annulus(parts[sel], inner)
     pieces = []
     # outer prism without its top: floor and walls up to the ring
     v, f, vf = mesh.extrude(parts[sel], ring_z - base[sel], base=base[sel])
     fk = _prism_kinds(len(v) // 2, len(f))
     keep = fk != 2
     pieces.append((v, f[keep], vf, fk[keep]))
-    # the ring, facing up
-    v, f, vf = mesh.flat(ann, 0.0, max_holes=10**9)
+    # the ring, facing up: a strip of trapezoids where the inset is the outline moved in, else earcut
+    strip = _strips(parts[sel], inner, d)
+    v, f, vf = strip[0]
+    rest = np.flatnonzero(~strip[1])
+    if rest.size:
+        v2, f2, vf2 = mesh.flat(_annulus(parts[sel][rest], inner[rest]), 0.0, max_holes=10**9)
+        f = np.concatenate([f, f2 + len(v)])
+        v, vf = np.concatenate([v, v2]), np.concatenate([vf, rest[vf2]])
     v[:, 2] = ring_z[vf]
     pieces.append((v, f, vf, np.full(len(f), 2, np.uint8)))
     if kind == PARAPET:  # the well: walls facing in, the deck facing up
@@ -479,6 +484,85 @@ def _terrace(parts, rings: Rings, sel: np.ndarray, kind: int, top, rh, base):
         off += len(v)
     v, f, vp = mesh.weld(np.concatenate(vs), np.concatenate(fs), np.concatenate(vps))
     return (v, f, vp, np.concatenate(fks)), bad
+
+
+def _strips(outer: np.ndarray, inner: np.ndarray, d: float):
+    """The ring between footprints ``outer`` and their mitred insets ``inner`` by ``d`` (m), as strips.
+
+    Where the inset is a one-ring polygon of as many vertices as the
+    footprint, each of its edges parallel to a footprint edge and ``d`` to
+    its left (no edge vanished, the outline only moved in), the ring is the
+    trapezoids between corresponding edges, two triangles each, for all
+    footprints at once.  The others are left to earcut.
+
+    Returns
+    -------
+    (vertices (v, 3), faces (f, 3), vertex_feature (v,)), done
+        Upward triangles of the ring of the footprints ``done`` (bool per
+        footprint) and which ones are done; z is 0.
+    """
+    n = len(outer)
+    done = np.zeros(n, bool)
+    empty = (np.empty((0, 3)), np.empty((0, 3), np.int64), np.empty(0, np.int64))
+    cand = np.flatnonzero(
+        (shapely.get_type_id(outer) == 3)
+        & (shapely.get_type_id(inner) == 3)
+        & (shapely.get_num_interior_rings(outer) == 0)
+        & (shapely.get_num_interior_rings(inner) == 0)
+        & (shapely.get_num_coordinates(outer) == shapely.get_num_coordinates(inner))
+    )
+    if not cand.size:
+        return empty, done
+    ro, ri = ring_arrays(outer[cand]), ring_arrays(inner[cand])
+    if ro.n_polys != len(cand) or ri.n_polys != len(cand) or len(ro.xy) != len(ri.xy):
+        return empty, done  # a ring lost a repeated vertex: too rare to sort out here
+    k = np.diff(ro.ring_start)
+    if not np.array_equal(k, np.diff(ri.ring_start)):
+        return empty, done
+    vp = ro.vertex_poly()
+    s = ro.ring_start[:-1]
+    # the inset vertex nearest each footprint's first vertex starts its ring
+    dist = np.hypot(*(ri.xy - ro.xy[s][vp]).T)
+    first = np.lexsort((dist, vp))[s]
+    shift = first - s
+    i = np.arange(len(ro.xy)) - s[vp]
+    a = s[vp] + i
+    a1 = s[vp] + (i + 1) % k[vp]
+    b = s[vp] + (i + shift[vp]) % k[vp]
+    b1 = s[vp] + (i + 1 + shift[vp]) % k[vp]
+    po, pi = ro.xy, ri.xy
+    eo, ei = po[a1] - po[a], pi[b1] - pi[b]
+    lo, li = np.hypot(*eo.T), np.hypot(*ei.T)
+    cross = eo[:, 0] * ei[:, 1] - eo[:, 1] * ei[:, 0]
+    off = (eo[:, 0] * (pi[b, 1] - po[a, 1]) - eo[:, 1] * (pi[b, 0] - po[a, 0])) / np.where(lo > 0, lo, 1.0)
+
+    def area2(p, q, r):
+        return (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0])
+
+    good = (
+        (lo > 0)
+        & (li > 0)
+        & (np.abs(cross) <= 1e-6 * lo * li)
+        & ((eo * ei).sum(axis=1) > 0)
+        & (np.abs(off - d) <= 1e-6 * (1.0 + d))
+        & (area2(po[a], po[a1], pi[b1]) > 0)
+        & (area2(po[a], pi[b1], pi[b]) > 0)
+    )
+    ok = np.bincount(vp, weights=~good, minlength=len(cand)) == 0
+    if not ok.any():
+        return empty, done
+    done[cand[ok]] = True
+    keep = ok[vp]
+    m = len(po)
+    # vertices: the footprints' rings, then the insets'; only the good polygons' triangles
+    aa, aa1, bb, bb1 = a[keep], a1[keep], b[keep] + m, b1[keep] + m
+    faces = np.concatenate([np.column_stack([aa, aa1, bb1]), np.column_stack([aa, bb1, bb])])
+    faces = faces.reshape(2, -1, 3).transpose(1, 0, 2).reshape(-1, 3)  # each trapezoid's two together
+    used = np.concatenate([keep, keep])
+    remap = np.cumsum(used) - 1
+    xy = np.concatenate([po, pi])[used]
+    vf = cand[np.concatenate([vp, vp])[used]]
+    return (np.column_stack([xy, np.zeros(len(xy))]), remap[faces], vf), done
 
 
 def _annulus(outer: np.ndarray, inner: np.ndarray) -> np.ndarray:

@@ -21,10 +21,14 @@ numpy passes over all footprints together, not per footprint:
 4. a **gable** turns a lone end triangle into a wall (its apex moved onto the
    eave's wall plane), as :mod:`sengine.nodes.export.skeleton` describes;
 5. convex faces (and gable walls) are fanned in one step from their first
-   skeleton node; the few others go through earcut;
-6. walls, floor, and a closedness check per solid (every directed edge has
-   one reverse twin); a footprint failing anywhere is handed back to the
-   caller (which draws it with CGAL's own extrusion, one by one).
+   skeleton node, faces with one reflex vertex from it; the others go to
+   :func:`~.mesh.triangulate` together (a fan from a vertex that sees the
+   whole face, else earcut);
+6. walls, floor, and a closedness check per solid (every directed edge of
+   the roof has one reverse twin, the eaves' being the walls'; walls and
+   floor close on the ring by construction); a footprint failing anywhere is
+   handed back to the caller (which draws it with CGAL's own extrusion, one
+   by one).
 
 References
 ----------
@@ -37,11 +41,10 @@ References
 
 from __future__ import annotations
 
-import mapbox_earcut
 import numpy as np
 import shapely
 
-from .mesh import Rings, cluster_points, fill_skipped, triangulate
+from .mesh import Rings, cluster_points, stable_argsort, triangulate
 from .wavefront import MAX_VERTICES, wavefront_skeletons
 
 __all__ = ["hip_solids", "SNAP", "FLAT_TURN"]
@@ -129,7 +132,7 @@ def hip_solids(
     row_poly = np.repeat(np.arange(n_poly), cnt)
     # edge ids to rows
     key = row_poly * (1 << 32) + ids
-    order = np.argsort(key, kind="stable")
+    order = stable_argsort(key)
     epoly = np.repeat(np.arange(n_poly), ecnt)
     ekey = epoly[:, None] * (1 << 32) + edges
     at = np.minimum(np.searchsorted(key[order], ekey), max(len(key) - 1, 0))
@@ -154,7 +157,7 @@ def hip_solids(
     kid[crow[o[sp] - len(qk)]] = np.where(match, prev_o, 0)
     orig = kidx[kid[crow]]  # ring vertex of each contour row
     # the next contour row along its ring
-    oc = np.argsort(orig, kind="stable")
+    oc = stable_argsort(orig)
     rc = vring[orig[oc]]
     cf = np.ones(len(oc), bool)
     cf[1:] = rc[1:] != rc[:-1]
@@ -301,7 +304,9 @@ def hip_solids(
     reflex = cross < -CONVEX_TOL * np.hypot(*e0.T) * np.hypot(*e1.T)
     n_reflex = np.bincount(f_of, weights=reflex, minlength=len(faces))
     # convex faces and gable walls: fanned from the first skeleton node (index run + 1); one reflex
-    # vertex: fanned from it (two convex pieces); the others go through earcut
+    # vertex: fanned from it (two convex pieces); the others, all at once, by mesh.triangulate (fans
+    # from a vertex that sees the whole face, earcut for the few without one). A gable wall is a
+    # segment in plan: it is never handed there, only fanned from its apex
     convex = (n_reflex <= 1) | wall
     sh = run + 1
     one = (n_reflex == 1) & ~wall
@@ -313,24 +318,26 @@ def hip_solids(
     tf = np.repeat(np.arange(len(faces)), ntri)
     tk = np.arange(ntri.sum()) - np.repeat(np.cumsum(ntri) - ntri, ntri) + 1
     roof_tri = np.column_stack([rot[fo[tf]], rot[fo[tf] + tk], rot[fo[tf] + tk + 1]])
+    # a face convex within CONVEX_TOL may still fold a fan triangle (a round footprint's faces turn right
+    # by a hair at many vertices): such faces go with the others
+    fold = np.bincount(tf[_folded(plan[roof_tri])], minlength=len(faces)) > 0
+    fold &= ~wall
+    if fold.any():
+        convex &= ~fold
+        keep_t = convex[tf]
+        roof_tri, tf = roof_tri[keep_t], tf[keep_t]
     roof_kind = np.where(wall[tf], 1, 2).astype(np.uint8)
-    extra = []
-    for f in np.flatnonzero(~convex).tolist():
-        face = seq[fo[f] : fo[f + 1]]
-        tri = mapbox_earcut.triangulate_float64(plan[face], np.array([len(face)], np.uint32)).reshape(-1, 3)
-        if len(tri) and _area2(plan[face[tri]]).sum() < 0:
-            tri = tri[:, [0, 2, 1]]
-        tris = fill_skipped([face.tolist()], face[tri].tolist()) if len(tri) else []
-        extra.append(np.asarray(tris, np.int64).reshape(-1, 3))
-    if extra:
-        more = np.concatenate(extra)
+    hard = np.flatnonzero(~convex)
+    if hard.size:
+        lens = flen[hard]
+        sidx = np.repeat(fo[hard] - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(lens.sum())
+        sub = Rings(plan[rot[sidx]], np.concatenate([[0], np.cumsum(lens)]), np.arange(len(hard) + 1), hard)
+        more = rot[sidx][triangulate(sub)]
         roof_tri = np.concatenate([roof_tri, more])
         roof_kind = np.concatenate([roof_kind, np.full(len(more), 2, np.uint8)])
 
     # no roof triangle folds over (a skeleton that came out wrong): every one turns left in plan
-    tp = plan[roof_tri]
-    e2 = ((tp[:, 1] - tp[:, 0]) ** 2).sum(1) + ((tp[:, 2] - tp[:, 1]) ** 2).sum(1)
-    folded = (_area2(tp) < -1e-3 * e2) & (roof_kind == 2)  # not the slivers between nodes a hair apart
+    folded = _folded(plan[roof_tri]) & (roof_kind == 2)
     bad[vpoly_plan[roof_tri[folded, 0]]] = True
 
     # 6. the solid: heights, walls, floor; each polygon checked closed
@@ -351,13 +358,15 @@ def hip_solids(
     faces_all = np.concatenate([floor, walls, roof_tri])
     kinds = np.concatenate([np.zeros(len(floor), np.uint8), np.ones(len(walls), np.uint8), roof_kind])
     fp = vertex_poly[faces_all[:, 0]]
-    bad |= ~_closed_per_poly(faces_all, fp, n_poly, len(vertices))
+    # the walls (two triangles an eave) and the floor (the footprint's caps, as mesh.extrude's) close on
+    # the ring by construction; the roof is checked against the eaves
+    bad |= ~_roof_closed(roof_tri, vertex_poly[:n_top], nxt, n_poly)
     keep_f = ~bad[fp]
     keep_v = ~bad[vertex_poly]
     remap = np.cumsum(keep_v) - 1
     # each polygon's faces together (floor, walls, roof), in polygon order
     order_f = np.flatnonzero(keep_f)
-    order_f = order_f[np.argsort(fp[order_f], kind="stable")]
+    order_f = order_f[stable_argsort(fp[order_f])]
     return (
         vertices[keep_v],
         remap[faces_all[order_f]],
@@ -486,25 +495,51 @@ def _cycles(nxt: np.ndarray) -> np.ndarray:
         label, jump = new, jump[jump]
 
 
+def _folded(tp: np.ndarray) -> np.ndarray:
+    """Per triangle ``tp`` (t, 3, 2): it turns right in plan, beyond the slivers between nodes a hair apart."""
+    e2 = ((tp[:, 1] - tp[:, 0]) ** 2).sum(1) + ((tp[:, 2] - tp[:, 1]) ** 2).sum(1)
+    return _area2(tp) < -1e-3 * e2
+
+
 def _area2(t: np.ndarray) -> np.ndarray:
     a, b, c = t[:, 0], t[:, 1], t[:, 2]
     return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
 
 
-def _closed_per_poly(faces: np.ndarray, fpoly: np.ndarray, n_poly: int, n_vert: int) -> np.ndarray:
-    """Per polygon: every directed edge of its triangles has exactly one reverse twin, none repeats."""
+def _roof_closed(tri: np.ndarray, vertex_poly: np.ndarray, nxt: np.ndarray, n_poly: int) -> np.ndarray:
+    """Per polygon: its roof triangles ``tri`` close on its eaves.
+
+    Every directed edge has exactly one reverse twin among the roof's, except
+    the eaves: ring vertex ``u`` (``u < len(nxt)``) to ``nxt[u]``, which the
+    roof must run along exactly once each (the wall's top edge is the twin).
+    One sort of the edges as ``2 * (lo * n + hi) + (lo is the source)``: a
+    twinned edge's two codes are ``2 k`` and ``2 k + 1``, side by side.
+    """
     ok = np.ones(n_poly, bool)
-    if not len(faces):
-        return ok
-    e = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    ep = np.repeat(fpoly, 3)
-    ok[ep[e[:, 0] == e[:, 1]]] = False
-    fwd = e[:, 0] * n_vert + e[:, 1]
-    rev = e[:, 1] * n_vert + e[:, 0]
-    o = np.argsort(fwd)
-    fs = fwd[o]
-    dup = np.flatnonzero(fs[1:] == fs[:-1])
-    ok[ep[o[dup]]] = False
-    at = np.minimum(np.searchsorted(fs, rev), len(fs) - 1)
-    ok[ep[fs[at] != rev]] = False
+    m = len(nxt)
+    ring_count = np.bincount(vertex_poly[:m], minlength=n_poly)
+    if not len(tri):
+        return ok & (ring_count == 0)
+    n_vert = len(vertex_poly)
+    u = tri.ravel()
+    v = tri[:, [1, 2, 0]].ravel()
+    lo, hi = np.minimum(u, v), np.maximum(u, v)
+    ok[vertex_poly[lo[lo == hi]]] = False
+    code = np.sort((lo * n_vert + hi) * 2 + (u < v))
+    nb = np.empty_like(code)  # where the twin must sit: after an even code, before an odd one
+    nb[:-1], nb[-1] = code[1:], -1
+    odd = (code & 1).astype(bool)
+    nb[odd] = np.concatenate([[-1], code[:-1]])[odd]
+    dup = np.zeros(len(code), bool)
+    dup[1:] = code[1:] == code[:-1]
+    dup[:-1] |= code[:-1] == code[1:]
+    key = code >> 1
+    a, b = key // n_vert, key % n_vert
+    src, dst = np.where(odd, a, b), np.where(odd, b, a)
+    eave = (src < m) & (dst == nxt[np.minimum(src, m - 1)])
+    alone = nb != (code ^ 1)
+    broken = dup | (alone & ~eave) | (~alone & eave)
+    ok[vertex_poly[a[broken]]] = False
+    ok[vertex_poly[b[broken]]] = False
+    ok &= np.bincount(vertex_poly[src[eave & alone & ~dup]], minlength=n_poly) == ring_count
     return ok

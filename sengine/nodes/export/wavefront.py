@@ -30,6 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .mesh import stable_argsort
+
 __all__ = ["wavefront_skeletons", "MAX_VERTICES"]
 
 #: Polygons with more vertices go to CGAL (the event search is quadratic per polygon).
@@ -197,7 +199,7 @@ def _wavefront(qk, kstart, poly_ring, todo):
         ts_v = ts_w = np.empty(0, np.int64)
         ts, tsx = np.empty(0), np.empty((0, 2))
         if reflex.size:
-            order = np.argsort(POLY[free], kind="stable")
+            order = stable_argsort(POLY[free])
             fs = free[order]
             k = np.bincount(POLY[fs], minlength=len(todo))
             start = np.concatenate([[0], np.cumsum(k)[:-1]])
@@ -265,7 +267,7 @@ def _wavefront(qk, kstart, poly_ring, todo):
     npoly = np.concatenate(node_poly)
     arc = np.concatenate(arcs) if arcs else np.empty((0, 2), np.int64)
     keep_poly = ~failed
-    order = np.argsort(npoly, kind="stable")
+    order = stable_argsort(npoly)
     order = order[keep_poly[npoly[order]]]
     local_id = np.empty(len(nxy), np.int64)
     k = np.bincount(npoly[order], minlength=len(todo))
@@ -276,7 +278,7 @@ def _wavefront(qk, kstart, poly_ring, todo):
     edges = np.concatenate([outline, arc])
     types = np.concatenate([np.full(len(outline), 2, np.int8), np.ones(len(arc), np.int8)])
     epoly = npoly[edges[:, 0]]
-    eo = np.argsort(epoly, kind="stable")
+    eo = stable_argsort(epoly)
     cnt[todo] = k
     ecnt[todo] = np.bincount(epoly, minlength=len(todo))
     return nxy[order], local_id[order], local_id[edges[eo]], types[eo], cnt, ecnt, todo[failed]
