@@ -134,13 +134,14 @@ def test_a_hip_roof_is_closed_over_its_footprint_at_one_pitch_and_as_cgal_extrud
     big = plan > 0.05 * plan.max()
     slope = np.hypot(nrm[big, 0], nrm[big, 1]) / nrm[big, 2]
     assert (nrm[big, 2] > 0).all(), "roof faces look up"
-    assert np.ptp(slope) <= 2e-2 * slope.max() + 1e-6, slope
+    # the construction runs on a millimetre grid: a few mm over a roof r wide tilt a face by some mm / r
+    r = shapely.length(shapely.maximum_inscribed_circle(g, 1e-3))
+    assert np.ptp(slope) <= (2e-2 + 4e-3 / max(r, 1e-3)) * slope.max() + 1e-6, slope
     # the wavefront never runs ahead of the disc around a point: a vertex stands at most the pitch times
     # its distance to the outline above the eave, so the ridge at most the pitch times the largest inscribed radius
     pitch = slope.mean()
     d = shapely.distance(g.boundary, shapely.points(v[:, :2]))
     assert (v[:, 2] - EAVE <= pitch * d * (1 + 2e-2) + 2e-3 * pitch + 1e-9).all()
-    r = shapely.length(shapely.maximum_inscribed_circle(g, 1e-3))
     assert RISE <= pitch * r * (1 + 2e-2) + 2e-3 * pitch
     if old is not None:  # the same roof as CGAL's extrusion: the grids differ by a millimetre
         ref = closed(old[0], old[1])
