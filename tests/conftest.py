@@ -55,19 +55,47 @@ def cli():
 
 @pytest.fixture(scope="module")
 def remote_cluster():
-    """The address of a Dask cluster whose workers share nothing with this process.
+    """The address of a Dask cluster that shares nothing with this process but the file system.
 
-    Two worker processes spawned (not forked) from a fresh interpreter, as on
-    another machine: they see the same file system, nothing of the caller's
-    memory.  ``--scheduler tcp://...`` joins it.
+    A ``dask scheduler`` and a ``dask worker`` of two processes, started as
+    separate programs in their own session (as on another machine) and
+    killed with their whole process group afterwards, so that no process of
+    theirs outlives the tests.  ``--scheduler tcp://...`` joins it.
     """
     pytest.importorskip("distributed")
-    import dask
-    from distributed import LocalCluster
+    import signal
+    import socket
+    import time
 
-    with dask.config.set({"distributed.worker.multiprocessing-method": "spawn"}):
-        cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None)
+    from distributed import Client
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL, "start_new_session": True}
+    cli = [sys.executable, "-m"]
+    procs = [
+        subprocess.Popen(
+            [*cli, "distributed.cli.dask_scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+            **quiet,
+        )
+    ]
     try:
-        yield cluster.scheduler_address
+        procs.append(
+            subprocess.Popen(
+                [*cli, "distributed.cli.dask_worker", address, "--nworkers", "2", "--nthreads", "1", "--no-dashboard"],
+                **quiet,
+            )
+        )
+        with Client(address, timeout=60) as client:
+            client.wait_for_workers(2, timeout=120)
+        yield address
     finally:
-        cluster.close()
+        for proc in reversed(procs):
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            proc.wait(timeout=30)
+        time.sleep(0.1)
