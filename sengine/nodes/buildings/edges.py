@@ -211,8 +211,8 @@ def lot_edges(lots, *, blocks=None, owner=None, box=None, fronts=None, tol: floa
             k = np.flatnonzero(known)
             _, _, kidx, _, on = segments_on_boundary(lots[k], owner[k], np.asarray(blocks, dtype=object), tol=tol)
             if fronts is not None:  # sides cut along water, a park or open land face no street
-                mine = np.flatnonzero(np.isin(idx, k))
-                on &= segments_on_lines(p0[mine], p1[mine], np.asarray(fronts, dtype=object)[owner[idx[mine]]])
+                mine = np.flatnonzero(np.isin(idx, k))[on]  # only a segment on its block can face a street
+                on[on] = segments_on_lines(p0[mine], p1[mine], np.asarray(fronts, dtype=object)[owner[idx[mine]]])
             front[np.isin(idx, k)] = on  # the subset's segments come in the same order
     rest = ~known[idx] if n else np.zeros(0, bool)
     if rest.any():  # the street is where no other lot is
