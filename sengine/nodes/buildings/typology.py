@@ -402,7 +402,7 @@ def roof_kinds(uses, typologies, role, seed: int, key: str, ids) -> np.ndarray:
     out = np.full(n, "flat", dtype=object)
     for (use, typ), table in ROOFS.items():
         if typ == "*":
-            sel = (uses == use) & ~np.array([(use, t) in ROOFS for t in typologies], bool)
+            sel = (uses == use) & ~np.isin(typologies, [t for u, t in ROOFS if u == use])
         else:
             sel = (uses == use) & (typologies == typ)
         idx = np.flatnonzero(sel & (np.asarray(role) == MAIN))
