@@ -228,7 +228,15 @@ def segments_on_lines(p0, p1, lines, *, tol: float = 0.02) -> np.ndarray:
     some = np.flatnonzero(np.not_equal(lines, None))
     if len(some):
         mid = shapely.points(0.5 * (np.asarray(p0, float)[some] + np.asarray(p1, float)[some]))
-        out[some] = shapely.dwithin(mid, lines[some], tol)
+        near = lines[some]
+        # a block's front is long and shared by all its lots' segments: prepared, GEOS measures
+        # each point against its indexed facets instead of every segment (same distances)
+        fresh = near[~shapely.is_prepared(near)]
+        shapely.prepare(fresh)
+        try:
+            out[some] = shapely.dwithin(near, mid, tol)
+        finally:
+            shapely.destroy_prepared(fresh)  # the caller's geometries are left as they came
     return out
 
 

@@ -155,10 +155,9 @@ class LotEdges:
         origin, axis = p0[head], u[head]
         t0 = np.einsum("ij,ij->i", p0 - origin[run], axis[run])
         t1 = np.einsum("ij,ij->i", p1 - origin[run], axis[run])
-        lo = np.full(nrun, np.inf)
-        hi = np.full(nrun, -np.inf)
-        np.minimum.at(lo, run, np.minimum(t0, t1))
-        np.maximum.at(hi, run, np.maximum(t0, t1))
+        first = np.flatnonzero(new)  # in the sorted order each run's segments are consecutive
+        lo = np.minimum.reduceat(np.minimum(t0, t1)[o], first) if nrun else np.zeros(0)
+        hi = np.maximum.reduceat(np.maximum(t0, t1)[o], first) if nrun else np.zeros(0)
         runs = {"origin": origin, "axis": axis, "inward": inward[head], "lo": lo, "hi": hi}
         run_start = np.r_[0, np.cumsum(np.bincount(lot[head], minlength=n))].astype(np.int64)
         return Lines(p0, p1, seg_start, runs, run_start)
@@ -169,9 +168,13 @@ def _longest_per_lot(cand: np.ndarray, lot: np.ndarray, length: np.ndarray, n: i
     best = np.full(n, -1, np.int64)
     if len(cand) == 0:
         return best
-    o = cand[np.lexsort((length[cand], lot[cand]))]
-    last = np.r_[lot[o][1:] != lot[o][:-1], True]
-    best[lot[o][last]] = o[last]
+    # segments come lot by lot: the longest of each lot's, the last of equals
+    lc, lc_len = lot[cand], length[cand]
+    new = np.r_[True, lc[1:] != lc[:-1]]
+    top = np.maximum.reduceat(lc_len, np.flatnonzero(new))[np.cumsum(new) - 1]
+    hit = np.flatnonzero(lc_len == top)
+    last = np.r_[lc[hit][1:] != lc[hit][:-1], True]
+    best[lc[hit][last]] = cand[hit][last]
     return best
 
 
@@ -211,8 +214,8 @@ def lot_edges(lots, *, blocks=None, owner=None, box=None, fronts=None, tol: floa
             k = np.flatnonzero(known)
             _, _, kidx, _, on = segments_on_boundary(lots[k], owner[k], np.asarray(blocks, dtype=object), tol=tol)
             if fronts is not None:  # sides cut along water, a park or open land face no street
-                mine = np.flatnonzero(np.isin(idx, k))
-                on &= segments_on_lines(p0[mine], p1[mine], np.asarray(fronts, dtype=object)[owner[idx[mine]]])
+                mine = np.flatnonzero(np.isin(idx, k))[on]  # only a segment on its block can face a street
+                on[on] = segments_on_lines(p0[mine], p1[mine], np.asarray(fronts, dtype=object)[owner[idx[mine]]])
             front[np.isin(idx, k)] = on  # the subset's segments come in the same order
     rest = ~known[idx] if n else np.zeros(0, bool)
     if rest.any():  # the street is where no other lot is

@@ -75,21 +75,29 @@ def polygonal(geoms) -> np.ndarray:
     return out
 
 
-def _convex_rings(geoms):
+def _convex_rings(geoms, coords=None):
     """Which geometries are convex polygons without holes, and their shells' coordinates (no closing point).
 
-    Returns ``(ok, xy, owner)``: ``xy`` and ``owner`` list the vertices of
-    the ``ok`` geometries only, ring after ring.
+    ``coords``: ``shapely.get_coordinates(geoms, return_index=True)`` when
+    the caller has it.  Returns ``(ok, xy, owner)``: ``xy`` and ``owner``
+    list the vertices of the ``ok`` geometries only, ring after ring.
     """
     geoms = np.asarray(geoms, dtype=object)
     ok = (shapely.get_type_id(geoms) == 3) & (shapely.get_num_interior_rings(geoms) == 0)
-    ok &= ~shapely.is_empty(geoms)
-    idx = np.flatnonzero(ok)
-    xy, owner = shapely.get_coordinates(geoms[idx], return_index=True)
+    if coords is None:
+        ok &= ~shapely.is_empty(geoms)
+        idx = np.flatnonzero(ok)
+        xy, owner = shapely.get_coordinates(geoms[idx], return_index=True)
+        owner = idx[owner]
+    else:
+        xy, owner = coords
+        ok &= np.bincount(owner, minlength=len(geoms)) > 0  # an empty polygon has no coordinates
+        keep = ok[owner]
+        xy, owner = xy[keep], owner[keep]
     if len(owner) == 0:
         return ok, xy, owner.astype(np.int64)
     last = np.r_[owner[1:] != owner[:-1], True]
-    xy, owner = xy[~last], idx[owner[~last]]  # drop each ring's closing point
+    xy, owner = xy[~last], owner[~last]  # drop each ring's closing point
     if len(owner):
         start = np.r_[True, owner[1:] != owner[:-1]]
         first = np.maximum.accumulate(np.where(start, np.arange(len(owner)), 0))
@@ -150,14 +158,19 @@ def clip_box(geoms, origin, axis, a0, a1, b0, b1) -> np.ndarray:
     axis = np.asarray(axis, np.float64).reshape(n, 2)
     a0, a1, b0, b1 = (np.broadcast_to(np.asarray(v, np.float64), (n,)) for v in (a0, a1, b0, b1))
     nrm = np.stack([-axis[:, 1], axis[:, 0]], axis=1)
-    lo, hi = axis_extent(geoms, axis, origin)
-    blo, bhi = axis_extent(geoms, nrm, origin)
+    c, ci = shapely.get_coordinates(geoms, return_index=True)  # read once: extents and convex rings
+    rel = c - origin[ci]
+    lo, hi = _extent(rel, ci, axis, n)
+    blo, bhi = _extent(rel, ci, nrm, n)
     inside = (a0 <= lo) & (a1 >= hi) & (b0 <= blo) & (b1 >= bhi)
     out = geoms.copy()
-    cut = np.flatnonzero(~inside & ~shapely.is_empty(geoms))
+    cut = np.flatnonzero(~inside & (np.bincount(ci, minlength=n) > 0))  # an empty geometry has no coordinates
     if len(cut) == 0:
         return out
-    ok, xy, owner = _convex_rings(geoms[cut])
+    pos = np.full(n, -1, np.int64)
+    pos[cut] = np.arange(len(cut))
+    sub = pos[ci] >= 0
+    ok, xy, owner = _convex_rings(geoms[cut], (c[sub], pos[ci[sub]]))
     fast = cut[ok]
     if len(fast):
         pos = np.full(n, -1, np.int64)
@@ -318,20 +331,21 @@ def ring(area, depth) -> np.ndarray:
 
 def axis_extent(geoms, axis, origin=None):
     """Lowest and highest projection (m) of each geometry's points on its ``axis`` (from ``origin``)."""
-    n = len(geoms)
+    c, ci = shapely.get_coordinates(geoms, return_index=True)
+    if origin is not None:
+        c = c - origin[ci]
+    return _extent(c, ci, axis, len(geoms))
+
+
+def _extent(c, ci, axis, n):
+    """:func:`axis_extent` from the coordinates ``c`` (relative to the origin) of geometries ``ci`` (increasing)."""
     lo = np.zeros(n)
     hi = np.zeros(n)
-    c, ci = shapely.get_coordinates(geoms, return_index=True)
     if len(ci):
-        if origin is not None:
-            c = c - origin[ci]
         t = np.einsum("ij,ij->i", c, axis[ci])
-        lo[:] = np.inf
-        hi[:] = -np.inf
-        np.minimum.at(lo, ci, t)
-        np.maximum.at(hi, ci, t)
-        none = ~np.isfinite(lo)
-        lo[none] = hi[none] = 0.0
+        start = np.flatnonzero(np.r_[True, ci[1:] != ci[:-1]])  # each geometry's coordinates are consecutive
+        lo[ci[start]] = np.minimum.reduceat(t, start)
+        hi[ci[start]] = np.maximum.reduceat(t, start)
     return lo, hi
 
 

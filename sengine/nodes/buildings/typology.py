@@ -48,7 +48,7 @@ References
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import shapely
@@ -132,6 +132,8 @@ class Site:
     side: np.ndarray  # side setback (m) per lot
     rear: np.ndarray  # rear setback (m) per lot
     podium_depth: float = 20.0
+    #: footprints already drawn, per typology: (depth per lot row, footprint per lot row); see :func:`_footprints`
+    memo: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
         n = len(self.area)
@@ -189,27 +191,59 @@ def _union(a, b):
     return polygonal(out)
 
 
+#: Typologies of one main part per lot, its whole length a function of the depth alone.
+_SIMPLE = ("box", "I", "L", "U", "O")
+
+
+def _footprint(code: str, site: Site, rows, d):
+    """Full-length footprint of a :data:`_SIMPLE` typology ``code`` on lots ``rows`` at depth ``d`` (m)."""
+    A = site.area[rows]
+    fs, ss = site.front[rows], site.side[rows]
+    if code == "box":
+        return A
+    if code == "I":
+        return band(A, site.front_lines[rows], fs + d)
+    if code == "L":
+        return _union(band(A, site.front_lines[rows], fs + d), band(A, site.left_lines[rows], ss + d))
+    if code == "U":
+        g = _union(band(A, site.front_lines[rows], fs + d), band(A, site.left_lines[rows], ss + d))
+        return _union(g, band(A, site.right_lines[rows], ss + d))
+    # O: the ring thins to keep a court of COURT_MIN; an area too narrow for both has none
+    d = np.minimum(d, np.maximum((rectangle_width(A) - COURT_MIN) / 2.0, 0.0))
+    return np.where(d >= RING_MIN, ring(A, np.maximum(d, RING_MIN)), A)
+
+
+def _footprints(code: str, site: Site, rows, d):
+    """:func:`_footprint`, each lot's drawn once per depth.
+
+    The FAR loop (:mod:`.far`) shortens a footprint once its depth is at
+    its floor: those lots are redrawn at the very depth they had, and the
+    footprint (each lot's alone: every step is element-wise) is taken from
+    ``site.memo`` instead of cutting and uniting its bands again.
+    """
+    n = len(site.area)
+    depth_of, geom_of = site.memo.setdefault(code, (np.full(n, np.nan), np.full(n, None, dtype=object)))
+    rows = np.asarray(rows, np.int64)
+    d = np.asarray(d, np.float64)
+    out = geom_of[rows]
+    miss = np.flatnonzero(depth_of[rows] != d)
+    if len(miss):
+        g = _footprint(code, site, rows[miss], d[miss])
+        out[miss] = g
+        depth_of[rows[miss]] = d[miss]
+        geom_of[rows[miss]] = g
+    return out
+
+
 def _generate(code: str, site: Site, rows, d, frac, *, podium_depth: float):
     """Parts of typology ``code`` on lots ``rows``: (geometries, row of each, role of each)."""
     A = site.area[rows]
     ax = site.axis[rows]
-    fs, ss, rs = site.front[rows], site.side[rows], site.rear[rows]
+    fs, rs = site.front[rows], site.rear[rows]
 
-    def main(g):
+    if code in _SIMPLE:
+        g = _footprints(code, site, rows, d)
         return limit_length(g, ax, frac), np.asarray(rows), np.full(len(rows), MAIN)
-
-    if code == "box":
-        return main(A)
-    if code == "I":
-        return main(band(A, site.front_lines[rows], fs + d))
-    if code == "L":
-        return main(_union(band(A, site.front_lines[rows], fs + d), band(A, site.left_lines[rows], ss + d)))
-    if code == "U":
-        g = _union(band(A, site.front_lines[rows], fs + d), band(A, site.left_lines[rows], ss + d))
-        return main(_union(g, band(A, site.right_lines[rows], ss + d)))
-    if code == "O":  # the ring thins to keep a court of COURT_MIN; an area too narrow for both has none
-        d = np.minimum(d, np.maximum((rectangle_width(A) - COURT_MIN) / 2.0, 0.0))
-        return main(np.where(d >= RING_MIN, ring(A, np.maximum(d, RING_MIN)), A))
     if code == "tower":
         g, r = centred_boxes(A, ax, d, d)
         return limit_length(g, ax[r], frac[r]), np.asarray(rows)[r], np.full(len(r), MAIN)
@@ -368,7 +402,7 @@ def roof_kinds(uses, typologies, role, seed: int, key: str, ids) -> np.ndarray:
     out = np.full(n, "flat", dtype=object)
     for (use, typ), table in ROOFS.items():
         if typ == "*":
-            sel = (uses == use) & ~np.array([(use, t) in ROOFS for t in typologies], bool)
+            sel = (uses == use) & ~np.isin(typologies, [t for u, t in ROOFS if u == use])
         else:
             sel = (uses == use) & (typologies == typ)
         idx = np.flatnonzero(sel & (np.asarray(role) == MAIN))
