@@ -111,6 +111,32 @@ SLOT = shapely.from_wkt(
     "(680006 5600002, 680018 5600002, 680018 5600006, 680006 5600006, 680006 5600002))"
 )
 
+#: Found by hypothesis: a five-point star whose gable roof is lowered to keep MIN_WALL of wall (10 m
+#: of roof over 3 m of wall at 13 m), and a 5 m square whose stepped roof stood on a base of
+#: -0.66 m, where base + (z - base) missed the terrace's z by an ulp and the solid stayed open.
+STAR = shapely.Polygon(
+    [
+        (679983.8196601125, 5599988.244294954),
+        (679990.0, 5600000.0),
+        (679983.8196601125, 5600011.755705046),
+        (679996.9098300562, 5600009.510565163),
+        (680006.1803398875, 5600019.021130326),
+        (680008.0901699438, 5600005.877852523),
+        (680020.0, 5600000.0),
+        (680008.0901699438, 5599994.122147477),
+        (680006.1803398875, 5599980.978869674),
+        (679996.9098300562, 5599990.489434837),
+    ]
+)
+SMALL = shapely.Polygon(
+    [
+        (679999.8255025165, 5600004.996954135),
+        (680004.8224566516, 5600005.171451619),
+        (680004.9969541351, 5600000.174497483),
+        (680000.0, 5600000.0),
+    ]
+)
+
 
 @SETTINGS
 @given(g=footprints(), kind=st.sampled_from(KINDS), height=st.floats(4.0, 80.0), base=st.floats(-5.0, 50.0))
@@ -118,13 +144,16 @@ SLOT = shapely.from_wkt(
 @example(g=RING, kind="hip", height=12.0, base=0.0)
 @example(g=SLOT, kind="stepped", height=4.0, base=0.0)
 @example(g=SLOT, kind="parapet", height=4.0, base=0.0)
+@example(g=STAR, kind="gable", height=13.0, base=0.0)
+@example(g=SMALL, kind="stepped", height=11.0, base=-0.6595188500030398)
 def test_every_roof_is_a_closed_outward_solid(g, kind, height, base):
     note(g.wkt)
     s = roofs.building_solids(np.array([g], object), [height], roof=[kind], base=base)
     (tm,) = solids_ok(s, 1)
     area = g.area
     assert tm.volume <= area * height * (1 + 1e-9) + 1e-6
-    assert tm.volume >= area * min(height / 2, height - 3.0) * (1 - 1e-9) - 1e-6  # walls at least to the eave
+    # walls at least to the eave: a roof keeps MIN_WALL of wall under it (half the height below 2 x that)
+    assert tm.volume >= area * min(roofs.MIN_WALL, height / 2) * (1 - 1e-9) - 1e-6
     z = s.vertices[:, 2]
     assert z.min() == pytest.approx(base, abs=1e-9)
     assert z.max() == pytest.approx(base + height, abs=1e-6)

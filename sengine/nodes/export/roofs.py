@@ -450,7 +450,7 @@ def _terrace(parts, rings: Rings, sel: np.ndarray, kind: int, top, rh, base):
     ring_z = top[sel] if kind == PARAPET else top[sel] - rh[sel]  # the ring (parapet top or terrace)
     pieces = []
     # outer prism without its top: floor and walls up to the ring
-    v, f, vf = mesh.extrude(parts[sel], ring_z - base[sel], base=base[sel])
+    v, f, vf = _topped(mesh.extrude(parts[sel], ring_z - base[sel], base=base[sel]), ring_z)
     fk = _prism_kinds(len(v) // 2, len(f))
     keep = fk != 2
     pieces.append((v, f[keep], vf, fk[keep]))
@@ -466,7 +466,7 @@ def _terrace(parts, rings: Rings, sel: np.ndarray, kind: int, top, rh, base):
     pieces.append((v, f, vf, np.full(len(f), 2, np.uint8)))
     if kind == PARAPET:  # the well: walls facing in, the deck facing up
         deck = ring_z - rh[sel]
-        v, f, vf = mesh.extrude(inner, ring_z - deck, base=deck)
+        v, f, vf = _topped(mesh.extrude(inner, ring_z - deck, base=deck), ring_z)
         fk = _prism_kinds(len(v) // 2, len(f))
         keep = fk != 2
         f, fk = f[keep][:, [0, 2, 1]], fk[keep]
@@ -484,6 +484,19 @@ def _terrace(parts, rings: Rings, sel: np.ndarray, kind: int, top, rh, base):
         off += len(v)
     v, f, vp = mesh.weld(np.concatenate(vs), np.concatenate(fs), np.concatenate(vps))
     return (v, f, vp, np.concatenate(fks)), bad
+
+
+def _topped(solid, z: np.ndarray):
+    """A :func:`mesh.extrude` solid with its top ring exactly at ``z`` of its feature.
+
+    ``base + (z - base)`` can miss ``z`` by a unit in the last place, and the
+    ring drawn beside the top at ``z`` would then not weld to it: the solid
+    stays open there (a stepped roof on a base of -0.66 m did).
+    """
+    v, f, vf = solid
+    n = len(v) // 2  # bottom ring vertices, then the top ones
+    v[n:, 2] = np.asarray(z, np.float64)[vf[n:]]
+    return v, f, vf
 
 
 def _strips(outer: np.ndarray, inner: np.ndarray, d: float):
