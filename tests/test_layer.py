@@ -180,6 +180,8 @@ def test_geojson_round_trip_and_precision():
     data = lay.to_geojson(precision=2)
     assert data["features"][0]["geometry"]["coordinates"] == [1.23, 2.5]
     assert lay.to_geojson()["features"][0]["geometry"]["coordinates"] == [1.23456, 2.5]
+    fine = Layer.from_geoms([shapely.Point(1.123456789, 0.0)]).to_geojson()  # 7 decimals by default
+    assert fine["features"][0]["geometry"]["coordinates"] == [1.1234568, 0.0]
     shifted = lay.to_geojson(lambda xy: xy + 100.0)
     assert shifted["features"][1]["geometry"]["coordinates"] == [103.0, 104.0]
     back = Layer.from_geojson(lay.to_geojson())
@@ -229,6 +231,8 @@ def test_geopandas_bool_objects_crs_and_meta():
     gdf2 = gdf.to_crs(4326)
     gdf2.attrs["sengine_meta"] = {"crs": "custom", "origin": (1, 2)}
     assert Layer.from_geopandas(gdf2).meta == {"crs": "custom", "origin": (1, 2)}
+    first = gpd.GeoDataFrame({"geometry": gpd.GeoSeries(boxes(1)), "a": [1], "b": ["x"]}, geometry="geometry")
+    assert Layer.from_geopandas(first).columns == ["a", "b"]  # columns after the geometry are kept
     none = gpd.GeoDataFrame({"v": [1]}, geometry=gpd.GeoSeries(boxes(1)))
     assert Layer.from_geopandas(none).meta == {} and Layer.from_geopandas(none).columns == ["v"]
     empty = gpd.GeoDataFrame({"flag": pd.Series([], dtype=object)}, geometry=gpd.GeoSeries([]))
@@ -253,29 +257,30 @@ def test_to_geopandas_names_the_missing_dependency(monkeypatch):
 def test_networkx_from_junction_columns():
     pytest.importorskip("networkx")
     lines = [shapely.LineString([(0, 0), (10, 0)]), shapely.LineString([(10, 0), (10, 5), (10, 10)])]
-    nodes = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]])
+    # the node table's own numbering (not the sorted end points): junction 0 is (10, 10)
+    nodes = np.array([[10.0, 10.0], [0.0, 0.0], [10.0, 0.0]])
     lay = Layer.from_geoms(
         lines,
         ids=[11, 12],
         meta={"nodes": nodes.ravel().tolist(), "crs": "EPSG:32631"},
-        u=np.array([0.0, 1.0]),
-        v=np.array([1.0, 2.0]),
+        u=np.array([1.0, 2.0]),
+        v=np.array([2.0, 0.0]),
         name=np.array(["a", "b"], dtype=object),
         width=np.array([4, 6], np.int32),
     )
     g = lay.to_networkx()
     assert g.graph["crs"] == "EPSG:32631"
     assert sorted(g.nodes(data=True)) == [
-        (0, {"x": 0.0, "y": 0.0}),
-        (1, {"x": 10.0, "y": 0.0}),
-        (2, {"x": 10.0, "y": 10.0}),
+        (0, {"x": 10.0, "y": 10.0}),
+        (1, {"x": 0.0, "y": 0.0}),
+        (2, {"x": 10.0, "y": 0.0}),
     ]
     assert all(type(k) is int for k in g.nodes)
     edges = sorted(g.edges(keys=True, data=True), key=lambda e: e[2])
-    assert [(u, v, k) for u, v, k, _ in edges] == [(0, 1, 11), (1, 2, 12)]
+    assert [(min(u, v), max(u, v), k) for u, v, k, _ in edges] == [(1, 2, 11), (0, 2, 12)]
     data = edges[1][3]
     assert data["length"] == 10.0 and data["name"] == "b" and data["width"] == 6 and type(data["width"]) is int
-    assert data["u"] == 1.0 and type(data["u"]) is float and data["geometry"].equals(lines[1])
+    assert data["u"] == 2.0 and type(data["u"]) is float and data["geometry"].equals(lines[1])
     # junction columns without the node table: the end points are the nodes
     g2 = Layer.from_geoms(lines, u=[0, 1], v=[1, 2]).to_networkx()
     assert g2.number_of_nodes() == 3 and g2.graph["crs"] is None
@@ -285,9 +290,9 @@ def test_networkx_from_junction_columns():
     assert only_u.number_of_nodes() == 3
     only_v = Layer.from_geoms(lines, v=[5, 6], meta={"nodes": [[0.0, 0.0]]}).to_networkx()
     assert only_v.number_of_nodes() == 3
-    both = Layer.from_geoms(lines, u=[0, 1], v=[1, 2], meta={"nodes": nodes})
+    both = Layer.from_geoms(lines, u=[1, 2], v=[2, 0], meta={"nodes": nodes})
     g3 = both.to_networkx()
-    assert sorted(g3.edges(keys=True)) == [(0, 1, 0), (1, 2, 1)] and g3.nodes[2] == {"x": 10.0, "y": 10.0}
+    assert sorted(g3.edges(keys=True)) == [(0, 2, 1), (1, 2, 0)] and g3.nodes[0] == {"x": 10.0, "y": 10.0}
     empty = Layer.empty(u=np.int64, v=np.int64, meta={"nodes": np.zeros((0, 2))}).to_networkx()
     assert empty.number_of_nodes() == 0 and empty.number_of_edges() == 0
     assert Layer.empty().to_networkx().number_of_edges() == 0
