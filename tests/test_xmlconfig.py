@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from conftest import FIXTURES
 
-from sengine.errors import ConfigError, ParameterError, Problems, SEngineError
+from sengine.errors import ConfigError, NetworkError, ParameterError, Problems, SEngineError
 from sengine.plan import CityPlan, MapSpec, Rule
 from sengine.xmlconfig import (
     MAX_CITY_SIZE,
@@ -57,6 +57,8 @@ def test_doctype_is_refused_at_its_first_line(tmp_path):
     err = error_of(parse, write(tmp_path, "d.xml", text), "d.xml")
     assert isinstance(err, ConfigError)
     assert str(err) == "d.xml:2: DOCTYPE declarations (DTDs and entities) are not allowed in sengine files"
+    second = error_of(parse, write(tmp_path, "n.xml", '\n<!DOCTYPE sengine>\n<sengine version="1"/>\n'), "n.xml")
+    assert str(second) == "n.xml:2: DOCTYPE declarations (DTDs and entities) are not allowed in sengine files"
     first = error_of(parse, write(tmp_path, "e.xml", '<!DOCTYPE sengine>\n<sengine version="1"/>\n'), "e.xml")
     assert str(first) == "e.xml:1: DOCTYPE declarations (DTDs and entities) are not allowed in sengine files"
 
@@ -66,6 +68,10 @@ def test_a_doctype_the_byte_scan_misses_is_refused_after_parsing(tmp_path):
     text = '<?xml version="1.0" encoding="UTF-16"?>\n<!DOCTYPE sengine SYSTEM "nowhere.dtd">\n<sengine version="1"/>\n'
     err = error_of(parse, write(tmp_path, "u.xml", text.encode("utf-16")), "u.xml")
     assert str(err) == "u.xml:1: DOCTYPE declarations (DTDs and entities) are not allowed in sengine files"
+    write(tmp_path, "bad.dtd", '<!ENTITY % x "garbage <<<')  # never read: no DTD is loaded
+    ext = f'<?xml version="1.0" encoding="UTF-16"?>\n<!DOCTYPE sengine SYSTEM "{tmp_path / "bad.dtd"}">\n<sengine/>\n'
+    err = error_of(parse, write(tmp_path, "w.xml", ext.encode("utf-16")), "w.xml")
+    assert str(err) == "w.xml:1: DOCTYPE declarations (DTDs and entities) are not allowed in sengine files"
     internal = '<?xml version="1.0" encoding="UTF-16"?>\n<!DOCTYPE sengine [<!ELEMENT sengine ANY>]>\n<sengine/>\n'
     err = error_of(parse, write(tmp_path, "v.xml", internal.encode("utf-16")), "v.xml")
     assert str(err) == "v.xml:1: DOCTYPE declarations (DTDs and entities) are not allowed in sengine files"
@@ -73,8 +79,9 @@ def test_a_doctype_the_byte_scan_misses_is_refused_after_parsing(tmp_path):
 
 def test_syntax_errors_name_the_line_without_lxml_position(tmp_path):
     err = error_of(parse, write(tmp_path, "t.xml", '<sengine version="1">\n  <city>\n</sengine>\n'), "t.xml")
-    assert str(err).startswith("t.xml:3: not well-formed XML: ")
-    assert "line 3" not in str(err) and "column" not in str(err) and len(err.message) > len("not well-formed XML: x")
+    assert str(err) == "t.xml:3: not well-formed XML: Opening and ending tag mismatch: city line 2 and sengine"
+    err = error_of(read_network_file, tmp_path / "t.xml", label="L")
+    assert str(err).startswith("L:3: not well-formed XML: ")
 
 
 def test_deep_nesting_is_refused_by_the_parser(tmp_path):
@@ -211,10 +218,17 @@ def test_floats_reads_n_numbers_or_names_the_attribute():
 
 
 def test_map_twice_and_unknown_map_kind(tmp_path):
-    city = '  <city>\n    <map kind="height" src="a.png"/>\n    <map kind="height" src="b.png"/>\n  </city>\n'
+    city = '  <city>\n    <map kind="height" src="a.png"/>\n    <map kind="height" src="b.png"/>\n'
+    city += '    <map kind="district" src="d.png"/>\n  </city>\n'
     path = write(tmp_path, "m.xml", config(city, SQUARES))
-    err = error_of(load_config, path)
-    assert str(err) == f"{path}:5: a map of kind 'height' is given twice (first at {path}:4)"
+    with pytest.raises(ConfigError, match="given twice"):
+        load_config(path)
+    from sengine.xmlconfig import _read_plan
+
+    problems: list = []
+    plan, _ = _read_plan(parse(path, "m.xml").find("city"), "m.xml", tmp_path, problems)
+    assert [str(p) for p in problems] == ["m.xml:5: a map of kind 'height' is given twice (first at m.xml:4)"]
+    assert sorted(plan.maps) == ["district", "height"] and plan.maps["height"].src == (tmp_path / "a.png").resolve()
     path = write(tmp_path, "k.xml", config('  <city>\n    <map kind="heigth" src="a.png"/>\n  </city>\n', SQUARES))
     err = error_of(load_config, path)
     assert str(err).startswith(f"{path}:4: unknown map kind 'heigth'; did you mean 'height'? (map kinds: district, ")
@@ -229,6 +243,11 @@ def test_rule_attributes_are_checked_against_their_declarations(tmp_path):
     assert str(err.problems[1]).startswith(f"{path}:5: ") and "far" in str(err.problems[1])
     assert check_rule("rule", {"anything": "1"}, "w") == []
     assert check_rule("district", {"color": "#ff0000", "spacing": "80 80"}, "w") == []
+    two = check_rule("district", {"colr": "#fff", "spacng": "1 1"}, "w")
+    assert [p.message.split(";")[0] for p in two] == [
+        "<district> unknown attribute 'colr'",
+        "<district> unknown attribute 'spacng'",
+    ]
     probs = check_rule("district", {"spacing": "abc", "colr": "#fff"}, "here:9")
     assert len(probs) == 2 and all(str(p).startswith("here:9: ") for p in probs)
     assert "<district> spacing" in str(probs[0]) and "<district> unknown attribute 'colr'" in str(probs[1])
@@ -272,7 +291,9 @@ def test_base_network_associations_and_replacements(tmp_path):
         "  </network>\n"
     )
     path = write(tmp_path, "p.xml", config("", network, plugin=False))
-    assert load_config(path).specs["lots"].type == "null"
+    whole = load_config(write(tmp_path, "q.xml", config('  <city name="pp" seed="7"/>\n', network, plugin=False)))
+    assert whole.specs["lots"].type == "null" and whole.plan.name == "pp" and whole.seed == 7
+    assert whole.source == str(tmp_path / "q.xml") and whole.base_dir == tmp_path.resolve()
     from sengine.xmlconfig import _apply_network, _base_network
     from sengine.xmlconfig import parse as parse_
 
@@ -325,6 +346,20 @@ def test_network_files_include_each_other_up_to_eight_deep(tmp_path):
     assert str(err) == "f9.xml:2: network files include each other too deeply (a loop?)"
 
 
+def test_a_config_includes_network_files_eight_deep(tmp_path):
+    chain(tmp_path, 8)
+    path = write(tmp_path, "c.xml", config("", '  <network file="f1.xml"/>\n'))
+    assert list(load_config(path).specs) == ["z"]
+
+
+def test_network_problems_are_reported_with_the_others(tmp_path):
+    path = write(tmp_path, "x.xml", config("", '  <network>\n    <node id="i" type="demo.inset"/>\n  </network>\n'))
+    err = error_of(load_config, path, maps=["bad"])
+    assert isinstance(err, Problems) and len(err.problems) == 2
+    assert str(err.problems[0]) == "--map 'bad' must be KIND=PATH"
+    assert isinstance(err.problems[1], NetworkError) and "required input 'polygons'" in str(err.problems[1])
+
+
 def test_a_config_includes_a_network_file(tmp_path):
     write(
         tmp_path,
@@ -360,7 +395,8 @@ def test_map_overrides(tmp_path):
     own = MapSpec("height", tmp_path / "y.png", {"max": "9"}, "cmd")
     assert load_config(path, maps=[own]).plan.maps["height"] == own
     fresh = MapSpec("district", tmp_path / "z.png", {}, "cmd")
-    assert load_config(path, maps=[fresh, given]).plan.maps["district"] == fresh
+    both = load_config(path, maps=[fresh, given]).plan.maps
+    assert both["district"] == fresh and both["height"].where == "batch"
     err = error_of(load_config, path, maps=["height", "=x.png", "height=", "district=d.png"])
     assert isinstance(err, Problems) and str(err) == f"{path}: 3 problems"
     assert [str(p) for p in err.problems] == [
