@@ -323,8 +323,11 @@ def _plain(value: Any) -> bool:
 
 
 def _default(dtype: np.dtype) -> Any:
-    if dtype.kind in "iu":
+    """The fill of a column missing from a layer: -1 (all ones when unsigned), NaN, False, "" or None."""
+    if dtype.kind == "i":
         return -1
+    if dtype.kind == "u":  # -1 does not fit an unsigned column (NumPy 2 raises): its bit pattern does
+        return np.iinfo(dtype).max
     if dtype.kind == "f":
         return np.nan
     if dtype.kind == "b":
