@@ -416,6 +416,15 @@ def test_partition_a_slanted_block_edge_leaves_no_sliver_of_street():
     st.tuples(st.floats(8.0, 60.0), st.floats(8.0, 60.0)),
     st.floats(0.0, 15.0),
 )
+@example(
+    [
+        shapely.Polygon(
+            [(12.125, 0.499), (4.243, 25.614), (1.118, 45.808), (47.965, 48.695), (50.503, 4.248), (44.195, 1.533)]
+        )
+    ],
+    (40.0, 42.0),
+    0.0,
+)
 def test_partition_lot_width_min_on_random_blocks(polys, size, width):
     """Concave, thin, tiny and holed blocks: an exact partition; a street lot narrower than lot_width_min
     is left only where the report counts it (no neighbour in its block, or no union one polygon)."""
@@ -425,7 +434,9 @@ def test_partition_lot_width_min_on_random_blocks(polys, size, width):
     if real and all(too_small):
         return  # an error (tested above)
     blocks, lots, ran = partition(params, polys)
-    check_lots(blocks, lots, "lots.partition", known_whole=sum(too_small))
+    # a block under two cells' area may rightly be one lot: its remainders join the one cell it holds
+    one_lot = [small or p.area < 2 * size[0] * size[1] for p, small in zip(real, too_small, strict=True)]
+    check_lots(blocks, lots, "lots.partition", known_whole=sum(one_lot))
     narrow = narrow_street_lots(lots, width)
     assert int(narrow.sum()) == ran.report.get("narrow_left", 0)
     # what is left narrow is (nearly always) a block's only street lot

@@ -143,6 +143,10 @@ def _count_edges(length, ncell, cluster):
     return edges[keep], np.bincount(own[keep], minlength=len(length)) - 1
 
 
+#: m: a lot whose frontage misses ``lot_width_min`` by less than this (rounding) is not narrow.
+WIDTH_TOL = 1e-6
+
+
 def merge_narrow(lots, owner, blocks, lot_width_min, *, skip=None, fronts=None, box=None, rounds=3):
     """Street lots narrower than ``lot_width_min`` joined to a neighbour, a street-facing one first.
 
@@ -197,7 +201,7 @@ def merge_narrow(lots, owner, blocks, lot_width_min, *, skip=None, fronts=None, 
             on, front[idx] = street_segments(lots[idx], owner[idx], blocks, fronts=fronts, box=box)
             seg = np.repeat(look, marks.counts)
             marks.flat[seg] = on  # a subset's segments come in the same order
-        narrow = (front > 0) & (front < lot_width_min)
+        narrow = (front > 0) & (front < lot_width_min - WIDTH_TOL)
         if r == rounds or not narrow.any():
             break
         # only the lots of blocks with a narrow one take part (neighbours are of the same block): the
@@ -223,7 +227,7 @@ def merge_narrow(lots, owner, blocks, lot_width_min, *, skip=None, fronts=None, 
         keep, owner, front = keep[alive], owner[alive], front[alive]
         grown = grown[alive] | changed
         look = changed
-    left = int(((front > 0) & (front < lot_width_min)).sum())
+    left = int(((front > 0) & (front < lot_width_min - WIDTH_TOL)).sum())
     return lots, keep, grown, front, marks, merged, left
 
 
