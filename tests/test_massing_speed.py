@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 from _city import monaco_lots
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from sengine.geom.boundary import ring_segments, segments_on_lines
@@ -96,6 +96,7 @@ def test_extents_match_every_coordinate(geoms, angle):
 
 @SETTINGS
 @given(shapes, st.floats(0.0, 2 * np.pi), st.floats(-20.0, 20.0), st.floats(0.5, 40.0))
+@example([shapely.Polygon(), shapely.Polygon([(0.0, -1.0), (1.0, 1.0), (1.0, 0.0)])], 0.0, 1.4256811894307327e-19, 1.0)
 def test_clip_box_cuts_to_its_box(geoms, angle, a0, width):
     geoms = np.array(geoms, dtype=object)
     n = len(geoms)

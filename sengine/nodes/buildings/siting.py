@@ -115,6 +115,10 @@ def _convex_rings(geoms, coords=None):
     return ok, xy, owner
 
 
+#: m: a vertex this close to a cutting line counts as on it (coordinates of about 1e6 m carry 1e-10 m).
+ON_LINE = 1e-9
+
+
 def _halfplane(xy, owner, normal, offset):
     """Sutherland-Hodgman: convex rings cut to ``dot(normal, p) >= offset``.
 
@@ -129,8 +133,11 @@ def _halfplane(xy, owner, normal, offset):
     end = np.r_[start[1:], True]
     nxt = np.arange(len(owner)) + 1
     nxt[end] = first[end]
-    inside = s >= 0
-    cross = (inside != inside[nxt]) & (s != 0) & (s[nxt] != 0)
+    # a vertex within ON_LINE of the cut is on it: kept, and no crossing made beside it (a crossing a
+    # hair from its vertex gave two vertices 1e-19 m apart and a self-touching ring)
+    on = np.abs(s) <= ON_LINE
+    inside = (s >= 0) | on
+    cross = (inside != inside[nxt]) & ~on & ~on[nxt]
     with np.errstate(invalid="ignore"):  # an infinite offset (no cut) gives inf - inf where nothing crosses
         t = np.where(cross, s / np.where(cross, s - s[nxt], 1.0), 0.0)
     hit = xy + t[:, None] * (xy[nxt] - xy)
