@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 import sengine
 from sengine import Context, Layer
+from sengine.errors import ParameterError
 from sengine.nodes.buildings.context import neighbour_floors
 from sengine.registry import get
 
@@ -61,6 +62,13 @@ def test_a_lots_own_rules_win_and_high_rise_keeps_every_typology():
     out, _ = run(lots, _houses([0, 20, 40, 60], [7, 8, 8, 9]))
     assert out["floors"].tolist() == [8.0, 4.0]
     assert out["typology"].tolist() == ["", "tower"]  # eight storeys is no low-rise neighbourhood
+
+
+@pytest.mark.parametrize("text", ["bogus", "I:-1", ""])
+def test_a_bad_low_rise_typology_is_refused_naming_the_parameter(text):
+    with pytest.raises(ParameterError, match="low_rise_typology") as err:
+        Node("context", {"low_rise_typology": text}, Context(seed=1))
+    assert "context" in str(err.value) and "\n" not in str(err.value)
 
 
 @settings(max_examples=40, deadline=None)

@@ -35,6 +35,9 @@ import shapely
 from scipy.spatial import cKDTree
 
 from sengine import Layer, NodeResult, Param, Port, SENode, register
+from sengine.errors import ParameterError
+
+from .typology import TYPOLOGIES, parse_choices
 
 __all__ = ["neighbour_floors", "BuildingsContext"]
 
@@ -107,6 +110,16 @@ class BuildingsContext(SENode):
         ),
         "low_rise_typology": Param("str", "I:3,L", doc="typologies of lots in a low-rise neighbourhood"),
     }
+
+    @classmethod
+    def check_params(cls, values, where):
+        """The declared checks, and ``low_rise_typology`` read as ``buildings.massing`` will read it."""
+        p = super().check_params(values, where)
+        try:
+            parse_choices(p.low_rise_typology, TYPOLOGIES, what="typology")
+        except ValueError as exc:
+            raise ParameterError(f"low_rise_typology: {exc}", where=where) from None
+        return p
 
     def run(self, *, lots: Layer, existing: Layer | None = None) -> NodeResult:
         n = len(lots)

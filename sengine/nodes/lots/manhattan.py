@@ -44,15 +44,7 @@ def touches_along(lots, owner, blocks, *, fronts=None, box=None) -> np.ndarray:
     its ``fronts`` (per block, its street-facing boundary or ``None``: all of it; indexed
     like ``blocks``): a lot on open land only has no frontage either.
     """
-    p0, p1, si, _, on = segments_on_boundary(lots, owner, blocks, tol=ON_TOL)
-    on &= np.hypot(*(p1 - p0).T) > 1e-9
-    if box is not None:
-        on &= ~segments_on_box(p0, p1, box)
-    if fronts is not None and on.any():
-        sel = np.flatnonzero(on)
-        lines = np.asarray(fronts, dtype=object)[np.asarray(owner, np.int64)[si[sel]]]
-        on[sel] = segments_on_lines(p0[sel], p1[sel], lines)
-    return np.bincount(si[on], minlength=len(lots)) > 0
+    return street_segments(lots, owner, blocks, fronts=fronts, box=box)[1] > 0
 
 
 def street_segments(lots, owner, blocks, *, fronts=None, box=None):
