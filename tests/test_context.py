@@ -18,8 +18,8 @@ from sengine.registry import get
 Node = get("buildings.context")
 
 
-def run(lots, existing=None, **params):
-    out = Node("context", params, Context(seed=1)).run(lots=lots, existing=existing)
+def run(lots, existing=None, roads=None, **params):
+    out = Node("context", params, Context(seed=1)).run(lots=lots, existing=existing, roads=roads)
     return out["lots"], out.report
 
 
@@ -41,7 +41,7 @@ def test_a_lot_takes_the_median_storeys_of_its_tagged_neighbours():
     out, report = run(lots, houses)
     assert out["floors"][0] == 2.0 and np.isnan(out["floors"][1])
     assert out["typology"].tolist() == ["I:3,L", ""]  # two storeys around: bars and L's, no towers
-    assert report == {"lots_fitted": 1, "low_rise_lots": 1}
+    assert report == {"lots_fitted": 1, "low_rise_lots": 1, "rural_lots": 0, "town_lots": 0}
 
 
 def test_untagged_buildings_and_too_few_neighbours_set_nothing():
@@ -106,3 +106,76 @@ def test_a_village_gets_no_towers(tmp_path):
     assert not np.isin(np.asarray(gen["typology"]).astype(str), ("tower", "towers", "U", "hall")).any()
     assert np.asarray(gen["floors"]).max() <= 3
     assert result.stats["report"]["context"]["lots_fitted"] == result.stats["counts"]["lots"]
+
+
+def _street_grid(x0, y0, size, spacing, kind="residential"):
+    """Streets every ``spacing`` m both ways over a ``size`` m square at (x0, y0)."""
+    ticks = np.arange(0.0, size + 1e-9, spacing)
+    lines = [shapely.LineString([(x0 + t, y0), (x0 + t, y0 + size)]) for t in ticks]
+    lines += [shapely.LineString([(x0, y0 + t), (x0 + size, y0 + t)]) for t in ticks]
+    return lines, np.full(len(lines), kind, dtype=object)
+
+
+def test_the_street_grain_sets_storeys_and_typologies_where_the_map_has_no_buildings():
+    # a dense grid (100 m: 20 km/km2), a looser one (200 m: 10) and a lone country road
+    dense, k1 = _street_grid(0.0, 0.0, 3000.0, 100.0)
+    loose, k2 = _street_grid(10_000.0, 0.0, 3000.0, 200.0)
+    road = [shapely.LineString([(20_000.0, 0.0), (20_000.0, 3000.0)])]
+    roads = Layer.from_geoms(dense + loose + road, **{"class": np.concatenate([k1, k2, ["unclassified"]])})
+    lots = Layer.from_geoms(
+        [shapely.box(x + 10, 1510, x + 25, 1540) for x in (1500.0, 11_500.0, 20_000.0)], ids=np.arange(3)
+    )
+    out, report = run(lots, roads=roads)
+    grain = out["grain"]
+    # 2 / spacing, give or take the one street each way that the 1,050 m square may catch or miss
+    assert abs(grain[0] - 20.0) <= 2.0 and abs(grain[1] - 10.0) <= 2.0
+    assert grain[2] < 8.0  # one road serves a band of land, not the fields beyond it
+    assert np.isnan(out["floors"][0]) and out["typology"][0] == ""  # urban: left to the massing
+    assert out["floors"][1:].tolist() == [2.0, 2.0]
+    assert out["typology"][1:].tolist() == ["I:3,L", "house"]
+    assert report == {"lots_fitted": 0, "low_rise_lots": 0, "rural_lots": 1, "town_lots": 1}
+
+
+def test_motorways_add_no_grain_and_map_buildings_win_over_it():
+    lots = _lots([0.0])
+    motorway = Layer.from_geoms(
+        [shapely.LineString([(-500.0, y), (500.0, y)]) for y in np.arange(-500.0, 501.0, 50.0)],
+        **{"class": np.full(21, "motorway", dtype=object)},
+    )
+    out, report = run(lots, roads=motorway)
+    assert out["grain"][0] == 0.0 and report["rural_lots"] == 1
+    out, report = run(lots, _houses([0, 20, 40], [6, 6, 6]), roads=motorway)
+    assert out["floors"][0] == 6.0 and report["rural_lots"] == 0 and report["lots_fitted"] == 1
+
+
+def test_a_rural_grain_above_the_urban_one_is_refused():
+    with pytest.raises(ParameterError, match="rural_grain") as err:
+        Node("context", {"rural_grain": 20.0, "urban_grain": 10.0}, Context(seed=1))
+    assert "context" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_village_from_its_streets_alone_gets_detached_houses():
+    """Kirchberg an der Iller with its map buildings set aside: the village streets say houses, and houses stand apart."""
+    net = sengine.load(
+        ROOT / "configs" / "helsinki.xml", maps=[f"osm={ROOT / 'configs' / 'data' / 'kirchberg_iller.osm'}"]
+    )
+    net.set_param("context", "min_neighbours", 200)  # no lot has that many map buildings near
+    result = net.run(seed=1)
+    lots = result.layers["context"]["lots"]
+    assert (np.asarray(lots["grain"]) < 8.0).all()
+    gen = result.layers["generated"]["buildings"]
+    typ = np.asarray(gen["typology"]).astype(str)
+    assert len(gen) > 10 and (typ == "house").mean() > 0.8
+    assert np.asarray(gen["floors"]).max() <= 2
+    houses = gen.geometry[typ == "house"]
+    # detached: no two houses touch, and each keeps within the greatest house width along its street
+    tree = shapely.STRtree(houses)
+    a, b = tree.query(houses, predicate="dwithin", distance=1.0)
+    assert (a == b).all()
+    # massing's `house`: at most 10 m along its street (the roof's direction is the street's)
+    angle = np.radians(np.asarray(gen["roof_direction"])[typ == "house"])
+    xy, which = shapely.get_coordinates(houses, return_index=True)
+    t = xy[:, 0] * np.cos(angle[which]) + xy[:, 1] * np.sin(angle[which])
+    along = np.maximum.reduceat(t, np.r_[0, np.flatnonzero(np.diff(which)) + 1])
+    along -= np.minimum.reduceat(t, np.r_[0, np.flatnonzero(np.diff(which)) + 1])
+    assert (along <= 10.0 + 1e-6).all()

@@ -286,8 +286,23 @@ def on_context():
     return {"lots": lots(), "existing": osm()["buildings"]}
 
 
+def on_grain():
+    return {"lots": lots(), "roads": roads()}
+
+
 def _fitted(out):
     return out.report["lots_fitted"]
+
+
+def _report(key):
+    def measure(out):
+        return out.report[key]
+
+    return measure
+
+
+def _grain_sum(out):
+    return float(np.sum(out["lots"]["grain"]))
 
 
 def _low_rise(out):
@@ -320,6 +335,7 @@ for _node, _extra in (("buildings.massing", ()), ("buildings.far", (("loc", 1), 
         Case(_node, "setback_rear", 2.0, 12.0, area(B), -1, on_lots, _extra + (("depth", 60.0),)),
         Case(_node, "depth", 8.0, 20.0, area(B), +1, on_lots, _extra + (("typology", "I"),)),
         Case(_node, "tower", 12.0, 24.0, area(B), +1, on_lots, _extra + (("typology", "tower"),)),
+        Case(_node, "house", 6.0, 14.0, area(B), +1, on_lots, _extra + (("typology", "house"),)),
         Case(_node, "podium_floors", 1, 4, podium("height"), +1, on_lots, _extra + (("typology", "towers"),)),
         Case(_node, "podium_depth", 8.0, 24.0, podium("area"), +1, on_lots, _extra + (("typology", "towers"),)),
         Case(_node, "floors", 3, 6, mean(B, "height"), +1, on_lots, _extra),
@@ -410,6 +426,30 @@ CASES: list[Case] = [
     Case("buildings.context", "neighbours", 1, 40, _floors_sum, 0, on_context, base=(("min_neighbours", 1),)),
     Case("buildings.context", "low_rise", 0, 30, _low_rise, +1, on_context),
     Case("buildings.context", "low_rise_typology", "I:3,L", "I", _bars_only, +1, on_context, base=(("low_rise", 30),)),
+    Case("buildings.context", "grain_radius", 100.0, 1000.0, _grain_sum, 0, on_grain),
+    Case("buildings.context", "urban_grain", 8.0, 60.0, _report("town_lots"), +1, on_grain),
+    Case("buildings.context", "rural_grain", 0.0, 14.0, _report("rural_lots"), +1, on_grain),
+    Case("buildings.context", "town_floors", 1, 4, _floors_sum, +1, on_grain, base=(("urban_grain", 200.0),)),
+    Case(
+        "buildings.context",
+        "rural_floors",
+        1,
+        4,
+        _floors_sum,
+        +1,
+        on_grain,
+        base=(("rural_grain", 200.0), ("urban_grain", 200.0)),
+    ),
+    Case(
+        "buildings.context",
+        "rural_typology",
+        "house",
+        "I",
+        _bars_only,
+        +1,
+        on_grain,
+        base=(("rural_grain", 200.0), ("urban_grain", 200.0)),
+    ),
     # stats and filters
     Case("stats.planning", "m2_per_resident", 25.0, 100.0, lambda out: out.report["city"]["residents"], -1, on_stats),
     Case("stats.planning", "walls", False, True, lambda out: len(out.report), +1, on_stats),

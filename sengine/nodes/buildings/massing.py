@@ -87,7 +87,7 @@ log = logging.getLogger(__name__)
 #: Building parts per lot at most: a part's id is ``lot id x PARTS + k``.
 PARTS = 16
 _TOWERLIKE = (TYPOLOGIES.index("tower"), TYPOLOGIES.index("towers"), TYPOLOGIES.index("hall"))
-_FREE = (TYPOLOGIES.index("tower"),)  # stands free whatever the siting
+_FREE = (TYPOLOGIES.index("tower"), TYPOLOGIES.index("house"))  # stand free whatever the siting
 
 
 class _Massing(SENode):
@@ -151,6 +151,9 @@ class _Massing(SENode):
             "setback_rear": Param("float", 4.0, min=0.0, max=100.0, unit="m", doc="setback from the rear lot line"),
             "depth": Param("float", 14.0, min=4.0, max=200.0, unit="m", doc="building depth (loc 1)"),
             "tower": Param("float", 24.0, min=6.0, max=200.0, unit="m", doc="side of a tower's square (loc 1)"),
+            "house": Param(
+                "float", 10.0, min=4.0, max=100.0, unit="m", doc="greatest width of a detached house along the street"
+            ),
             "podium_floors": Param("int", 2, min=1, max=20, unit="1", doc="floors of podiums and linking corridors"),
             "podium_depth": Param("float", 20.0, min=4.0, max=200.0, unit="m", doc="depth of podiums from the street"),
             "floors": Param(
@@ -285,7 +288,7 @@ class _Massing(SENode):
         if free.any():
             ss = np.where(free, np.maximum(ss, r["setback_side"].astype(np.float64)), ss)
             area[free] = building_area(L.geometry[free], _sub_edges(edges, free), fs[free], ss[free], rs[free])
-        site = Site(area, edges, fs, ss, rs, podium_depth=p.podium_depth)
+        site = Site(area, edges, fs, ss, rs, podium_depth=p.podium_depth, house=p.house)
         lot_area = shapely.area(L.geometry) if n else np.zeros(0)
         far = np.array([np.nan if v is None else float(v) for v in r["far"]], np.float64)
         _, hmax = class_bounds(np.where(r["height_class"] == None, "", r["height_class"]).astype(str))  # noqa: E711

@@ -27,7 +27,13 @@ code       paper 004 type   footprint
                             low corridor between them
 ``box``    (CityEngine's    the whole building area
            extrusion)
+``house``  (detached house) the street band, ``house`` m long at most, centred
+                            on the front; it keeps its side setbacks
 ========== ================ ====================================================
+
+The detached house is not one of paper 004's types, which build city
+zones; it is what lines a village street or a suburb's (``buildings.context``
+gives it to lots where streets are sparse).
 
 Roofs (004 §3.4, Fig. 7): flat, flat with parapet, single slope (``shed``),
 double slope (``gable``), hip, pyramid and stepped; slope, hip and pyramid
@@ -75,7 +81,7 @@ __all__ = [
 ]
 
 #: The footprint generators, in a fixed order (a typology's code is its index).
-TYPOLOGIES = ("I", "L", "U", "O", "tower", "towers", "hall", "linked", "box")
+TYPOLOGIES = ("I", "L", "U", "O", "tower", "towers", "hall", "linked", "box", "house")
 #: Land uses with a typology table (004 Fig. 5); any other use builds as ``residential``.
 USES = ("residential", "commercial", "office", "industrial", "educational", "mixed")
 #: Land use -> typologies and their shares (004 Fig. 5).
@@ -132,6 +138,7 @@ class Site:
     side: np.ndarray  # side setback (m) per lot
     rear: np.ndarray  # rear setback (m) per lot
     podium_depth: float = 20.0
+    house: float = 10.0  # greatest length of a detached house along the street (m)
     #: footprints already drawn, per typology: (depth per lot row, footprint per lot row); see :func:`_footprints`
     memo: dict = field(default_factory=dict, repr=False)
 
@@ -244,6 +251,11 @@ def _generate(code: str, site: Site, rows, d, frac, *, podium_depth: float):
     if code in _SIMPLE:
         g = _footprints(code, site, rows, d)
         return limit_length(g, ax, frac), np.asarray(rows), np.full(len(rows), MAIN)
+    if code == "house":
+        g = _footprints("I", site, rows, d)
+        lo_, hi_ = _axis_extent(g, ax)
+        cap = np.where(hi_ > lo_, site.house / np.maximum(hi_ - lo_, 1e-9), 1.0)
+        return limit_length(g, ax, np.minimum(frac, cap)), np.asarray(rows), np.full(len(rows), MAIN)
     if code == "tower":
         g, r = centred_boxes(A, ax, d, d)
         return limit_length(g, ax[r], frac[r]), np.asarray(rows)[r], np.full(len(r), MAIN)
