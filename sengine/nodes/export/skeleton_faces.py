@@ -44,7 +44,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from .mesh import Rings, cluster_points, stable_argsort, triangulate
+from .mesh import Rings, cluster_points, stable_argsort, triangulate, unique_int
 from .wavefront import MAX_VERTICES, wavefront_skeletons
 
 __all__ = ["hip_solids", "SNAP", "FLAT_TURN"]
@@ -176,7 +176,7 @@ def hip_solids(
     eu, ev = canon[erow[:, 0]], canon[erow[:, 1]]
     live = (eu != ev) & ~bad[epoly]
     eu, ev = eu[live], ev[live]
-    ek = np.unique(np.minimum(eu, ev) * (1 << 32) + np.maximum(eu, ev))
+    ek = unique_int(np.minimum(eu, ev) * (1 << 32) + np.maximum(eu, ev))
     eu, ev = ek >> 32, ek & ((1 << 32) - 1)
     ne = len(eu)
     hu, hv = np.concatenate([eu, ev]), np.concatenate([ev, eu])

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .mesh import stable_argsort
+from .mesh import stable_argsort, unique_int
 
 __all__ = ["wavefront_skeletons", "MAX_VERTICES"]
 
@@ -313,7 +313,7 @@ def _dup(p: np.ndarray) -> np.ndarray:
     """True for every element whose value came before (keeps the first of each polygon)."""
     if not len(p):
         return np.zeros(0, bool)
-    _, first = np.unique(p, return_index=True)
+    _, first = unique_int(p, return_index=True)
     out = np.ones(len(p), bool)
     out[first] = False
     return out
