@@ -18,7 +18,7 @@ from shapely.geometry import Polygon, box
 
 from sengine.nodes.export import roofs, skeleton
 from sengine.nodes.export.mesh import ring_arrays, stable_argsort, unique_int, weld
-from sengine.nodes.export.skeleton_faces import _roof_closed, hip_solids
+from sengine.nodes.export.skeleton_faces import ROW_SORT_MAX, _roof_closed, _sort_around, hip_solids
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -49,6 +49,18 @@ def test_unique_int_is_numpys_unique(keys, big):
         got, want = unique_int(k, **flags), np.unique(k, **flags)
         assert len(got) == len(want)
         assert all(np.array_equal(g, w.reshape(g.shape)) for g, w in zip(got, want))
+
+
+@SETTINGS
+@given(
+    src=st.lists(st.integers(0, 40), max_size=300),
+    angles=st.lists(st.sampled_from([-3.0, -1.5, 0.0, 0.5, 0.5000000001, 2.0, 3.1]), min_size=300, max_size=300),
+    busy=st.integers(0, 3 * ROW_SORT_MAX),
+)
+def test_sort_around_is_lexsort(src, angles, busy):
+    s = np.array(src + [7] * busy, np.int64)  # node 7 with more half-edges than a row holds
+    a = np.resize(np.array(angles), len(s))  # ties in angle: kept in input order
+    assert np.array_equal(_sort_around(s, a), np.lexsort((a, s)))
 
 
 def _weld_oracle(vertices, faces, owner):
