@@ -36,6 +36,14 @@ def test_stable_argsort_is_numpys_stable_argsort(keys, big):
 
 
 @SETTINGS
+@given(runs=st.lists(st.tuples(st.integers(-5, 5) | st.integers(-(2**61), 2**61), st.integers(1, 30)), max_size=40))
+def test_stable_argsort_of_runs_is_numpys_stable_argsort(runs):
+    # a building's vertices come in runs of one key: the runs are sorted, a key's runs in input order
+    k = np.repeat(np.array([v for v, _ in runs], np.int64), [c for _, c in runs])
+    assert np.array_equal(stable_argsort(k), np.argsort(k, kind="stable"))
+
+
+@SETTINGS
 @given(
     keys=st.lists(st.integers(-(2**40), 2**40), max_size=300) | st.lists(st.integers(0, 5), max_size=300),
     big=st.booleans(),

@@ -664,12 +664,20 @@ def stable_argsort(keys: np.ndarray) -> np.ndarray:
 
     Each key becomes ``key * n + position``, all distinct, and one plain
     (SIMD) sort of those gives the stable order; keys spanning too much for
-    that in 64 bits take numpy's stable sort.
+    that in 64 bits take numpy's stable sort.  Keys in long runs (eight
+    elements a run or more on average) sort their runs only.
     """
     keys = np.asarray(keys)
     n = len(keys)
     if n < 2:
         return np.arange(n)
+    change = keys[1:] != keys[:-1]
+    n_runs = int(np.count_nonzero(change)) + 1
+    if n_runs * 8 <= n:  # long runs of one key (a building's vertices): the runs sorted, then laid out
+        rs = np.flatnonzero(np.concatenate([[True], change]))
+        ro = stable_argsort(keys[rs])
+        start, size = rs[ro], np.diff(np.append(rs, n))[ro]
+        return np.repeat(start - (np.cumsum(size) - size), size) + np.arange(n)
     lo, hi = int(keys.min()), int(keys.max())
     if (hi - lo + 1) * n >= 1 << 62:
         return np.argsort(keys, kind="stable")

@@ -325,12 +325,13 @@ def hip_solids(
     roof_tri = np.column_stack([rot[fo[tf]], rot[fo[tf] + tk], rot[fo[tf] + tk + 1]])
     # a face convex within CONVEX_TOL may still fold a fan triangle (a round footprint's faces turn right
     # by a hair at many vertices): such faces go with the others
-    fold = np.bincount(tf[_folded(plan[roof_tri])], minlength=len(faces)) > 0
+    folded = _folded(plan[roof_tri])
+    fold = np.bincount(tf[folded], minlength=len(faces)) > 0
     fold &= ~wall
     if fold.any():
         convex &= ~fold
         keep_t = convex[tf]
-        roof_tri, tf = roof_tri[keep_t], tf[keep_t]
+        roof_tri, tf, folded = roof_tri[keep_t], tf[keep_t], folded[keep_t]
     roof_kind = np.where(wall[tf], 1, 2).astype(np.uint8)
     hard = np.flatnonzero(~convex)
     if hard.size:
@@ -340,9 +341,10 @@ def hip_solids(
         more = rot[sidx][triangulate(sub)]
         roof_tri = np.concatenate([roof_tri, more])
         roof_kind = np.concatenate([roof_kind, np.full(len(more), 2, np.uint8)])
+        folded = np.concatenate([folded, _folded(plan[more])])
 
     # no roof triangle folds over (a skeleton that came out wrong): every one turns left in plan
-    folded = _folded(plan[roof_tri]) & (roof_kind == 2)
+    folded &= roof_kind == 2
     bad[vpoly_plan[roof_tri[folded, 0]]] = True
 
     # 6. the solid: heights, walls, floor; each polygon checked closed
