@@ -386,10 +386,16 @@ def hip_solids(
 def _drop_flat(q: np.ndarray, vring: np.ndarray, ring_start: np.ndarray):
     """Ring vertices to keep (repeats and vertices turning less than :data:`FLAT_TURN` left out).
 
+    Four passes drop flat vertices, never two neighbours in one pass; a last
+    one drops the repeats left over (two vertices on one grid point at the
+    end of a longer run of flat ones: the wavefront has no line for the edge
+    between them).
+
     Returns the kept vertices' indices, their rings and the rings' offsets among them.
     """
     idx = np.arange(len(q))
-    for _ in range(4):
+    step = 0
+    while step < 5:
         r = vring[idx]
         first = np.ones(len(idx), bool)
         first[1:] = r[1:] != r[:-1]
@@ -400,20 +406,27 @@ def _drop_flat(q: np.ndarray, vring: np.ndarray, ring_start: np.ndarray):
         is_last = np.zeros(len(idx), bool)
         is_last[last] = True
         nx = np.where(is_last, fs[g], k + 1)
-        pv = np.empty_like(nx)
-        pv[nx] = k
         p = q[idx]
-        d0, d1 = p - p[pv], p[nx] - p
-        cross = d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]
-        dot = (d0 * d1).sum(axis=1)
-        cand = (d1 == 0).all(axis=1) | (np.abs(np.arctan2(cross, dot)) <= FLAT_TURN)
-        drop = cand & ~cand[pv]  # never two neighbours in one pass: a gentle curve keeps its chord close
+        d1 = p[nx] - p
+        repeat = (d1 == 0).all(axis=1)
+        if step < 4:
+            pv = np.empty_like(nx)
+            pv[nx] = k
+            d0 = p - p[pv]
+            cross = d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]
+            dot = (d0 * d1).sum(axis=1)
+            cand = repeat | (np.abs(np.arctan2(cross, dot)) <= FLAT_TURN)
+            drop = cand & ~cand[pv]  # never two neighbours in one pass: a gentle curve keeps its chord close
+        else:
+            drop = repeat  # the point stays, once
         # never below three vertices a ring
         left = np.bincount(g, weights=~drop, minlength=len(fs))
         drop &= left[g] >= 3
-        if not drop.any():
-            break
-        idx = idx[~drop]
+        if drop.any():
+            idx = idx[~drop]
+            step += 1
+        else:  # nothing flat left: on to the repeat pass (or done)
+            step = 4 if step < 4 else 5
     r = vring[idx]
     kstart = np.searchsorted(r, np.arange(len(ring_start)))
     return idx, r, kstart.astype(np.int64)
