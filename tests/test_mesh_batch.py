@@ -1,4 +1,4 @@
-"""The batched pieces under the LoD2 roofs (mesh.stable_argsort, skeleton_faces._roof_closed, roofs._strips).
+"""The batched pieces under the LoD2 roofs (mesh.stable_argsort, unique_int, weld, skeleton_faces._roof_closed, roofs._strips).
 
 Each is checked against the construction it replaced or a plain oracle, on
 real footprints (Monaco's) and hypothesis inputs.
@@ -17,8 +17,8 @@ from hypothesis import strategies as st
 from shapely.geometry import Polygon, box
 
 from sengine.nodes.export import roofs, skeleton
-from sengine.nodes.export.mesh import ring_arrays, stable_argsort
-from sengine.nodes.export.skeleton_faces import _roof_closed, hip_solids
+from sengine.nodes.export.mesh import ring_arrays, stable_argsort, unique_int, weld
+from sengine.nodes.export.skeleton_faces import ROW_SORT_MAX, _roof_closed, _sort_around, hip_solids
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -33,6 +33,72 @@ def test_stable_argsort_is_numpys_stable_argsort(keys, big):
     if big and len(k):  # keys spanning too much for key * n + position: numpy's own sort
         k[0] = 2**61
     assert np.array_equal(stable_argsort(k), np.argsort(k, kind="stable"))
+
+
+@SETTINGS
+@given(runs=st.lists(st.tuples(st.integers(-5, 5) | st.integers(-(2**61), 2**61), st.integers(1, 30)), max_size=40))
+def test_stable_argsort_of_runs_is_numpys_stable_argsort(runs):
+    # a building's vertices come in runs of one key: the runs are sorted, a key's runs in input order
+    k = np.repeat(np.array([v for v, _ in runs], np.int64), [c for _, c in runs])
+    assert np.array_equal(stable_argsort(k), np.argsort(k, kind="stable"))
+
+
+@SETTINGS
+@given(
+    keys=st.lists(st.integers(-(2**40), 2**40), max_size=300) | st.lists(st.integers(0, 5), max_size=300),
+    big=st.booleans(),
+)
+def test_unique_int_is_numpys_unique(keys, big):
+    k = np.array(keys, np.int64)
+    if big and len(k):  # keys spanning too much for one sort of key * n + position
+        k[0] = 2**61
+    assert np.array_equal(unique_int(k), np.unique(k))
+    for flags in ({"return_index": True}, {"return_inverse": True}, {"return_index": True, "return_inverse": True}):
+        got, want = unique_int(k, **flags), np.unique(k, **flags)
+        assert len(got) == len(want)
+        assert all(np.array_equal(g, w.reshape(g.shape)) for g, w in zip(got, want))
+
+
+@SETTINGS
+@given(
+    src=st.lists(st.integers(0, 40), max_size=300),
+    angles=st.lists(st.sampled_from([-3.0, -1.5, 0.0, 0.5, 0.5000000001, 2.0, 3.1]), min_size=300, max_size=300),
+    busy=st.integers(0, 3 * ROW_SORT_MAX),
+)
+def test_sort_around_is_lexsort(src, angles, busy):
+    s = np.array(src + [7] * busy, np.int64)  # node 7 with more half-edges than a row holds
+    a = np.resize(np.array(angles), len(s))  # ties in angle: kept in input order
+    assert np.array_equal(_sort_around(s, a), np.lexsort((a, s)))
+
+
+def _weld_oracle(vertices, faces, owner):
+    """The weld as a dictionary: first input vertex of each (owner, x, y, z), -0.0 as 0.0."""
+    first: dict[tuple, int] = {}
+    for i, (p, o) in enumerate(zip((vertices + 0.0).tolist(), owner.tolist())):
+        first.setdefault((o, *p), i)
+    return first
+
+
+@SETTINGS
+@given(
+    pts=st.lists(st.tuples(st.integers(0, 3), st.integers(0, 3), st.sampled_from([0.0, -0.0, 1.5])), max_size=80),
+    owners=st.integers(1, 3),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_weld_merges_equal_vertices_of_one_owner_keeping_the_first(pts, owners, seed):
+    rng = np.random.default_rng(seed)
+    v = np.array(pts, np.float64).reshape(-1, 3)
+    owner = rng.integers(0, owners, len(v))
+    faces = rng.integers(0, max(len(v), 1), (len(v), 3)) if len(v) else np.empty((0, 3), np.int64)
+    wv, wf, wo = weld(v, faces, owner)
+    first = _weld_oracle(v, faces, owner)
+    assert len(wv) == len(first) == len(wo)
+    # every welded vertex is the first input vertex of its key (bit for bit, a -0.0 kept as it came)
+    firsts = sorted(first.values())
+    assert sorted(map(tuple, wv.view(np.uint64).tolist())) == sorted(map(tuple, v[firsts].view(np.uint64).tolist()))
+    # each face corner lands on the welded vertex of its input vertex's key
+    assert np.array_equal(wv[wf] + 0.0, v[faces] + 0.0)
+    assert np.array_equal(wo[wf], owner[faces])
 
 
 @lru_cache(maxsize=1)

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .mesh import Rings, triangulate
+from .mesh import Rings, triangulate, unique_int
 
 __all__ = ["envelope_solids"]
 
@@ -217,7 +217,7 @@ def _cut(tri, bnd, borig, xy, vpoly, s, sg, nverts):
     eb = np.concatenate([v2[oz], v1[tz], v0[tz], bnd[bcross, 1]])
     lo_, hi_ = np.minimum(ea, eb), np.maximum(ea, eb)
     key = lo_ * (1 << 31) + hi_
-    ukey, inv = np.unique(key, return_inverse=True)
+    ukey, inv = unique_int(key, return_inverse=True)
     p, q = ukey // (1 << 31), ukey % (1 << 31)
     t = s[p] / (s[p] - s[q])
     new_xy = xy[p] + t[:, None] * (xy[q] - xy[p])

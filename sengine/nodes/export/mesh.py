@@ -42,6 +42,7 @@ __all__ = [
     "merge",
     "weld",
     "stable_argsort",
+    "unique_int",
 ]
 
 
@@ -593,9 +594,13 @@ def weld(vertices: np.ndarray, faces: np.ndarray, owner: np.ndarray, *, return_m
     """Merge vertices of one owner with exactly equal coordinates.
 
     One sort of a 64-bit hash of (owner, coordinate bits), then equal
-    neighbours merge: a few times faster than sorting on four keys.  Returns
-    ``(vertices, faces, owner)`` and, with ``return_merged``, a mask of the
-    welded vertices that stand for more than one input vertex.
+    neighbours merge: a few times faster than sorting on four keys.  The
+    welded vertices come in the order of their hashes, each the first of its
+    input vertices.  Keys that share a hash (coordinates with many trailing
+    zero bits do: whole metres) are sorted on the keys themselves.  Returns
+    ``(vertices, faces, owner)`` and, with
+    ``return_merged``, a mask of the welded vertices that stand for more than
+    one input vertex.
     """
     v = np.ascontiguousarray(vertices, np.float64) + 0.0  # -0.0 and 0.0 alike
     bits = v.view(np.uint64).reshape(-1, 3)
@@ -605,14 +610,20 @@ def weld(vertices: np.ndarray, faces: np.ndarray, owner: np.ndarray, *, return_m
         h ^= bits[:, 2] * np.uint64(0x94D049BB133111EB)
         h ^= np.asarray(owner).astype(np.uint64) * np.uint64(0xD6E8FEB86659FD93)
         h ^= h >> np.uint64(31)
-    order = np.argsort(h, kind="stable")
-    hs, vs, o = h[order], v[order], np.asarray(owner)[order]
+    owner = np.asarray(owner)
+    order = np.argsort(h)  # not stable (4x faster): each group's first input vertex is found below
+    hs, vs, o = h[order], v[order], owner[order]
     new = np.ones(len(order), bool)
     new[1:] = (hs[1:] != hs[:-1]) | (o[1:] != o[:-1]) | (vs[1:] != vs[:-1]).any(axis=1)
+    if (~new[1:] != (hs[1:] == hs[:-1])).any():  # a hash shared by two keys (round coordinates): exact order
+        order = np.lexsort((bits[:, 2], bits[:, 1], bits[:, 0], owner, h))
+        hs, vs, o = h[order], v[order], owner[order]
+        new[1:] = (hs[1:] != hs[:-1]) | (o[1:] != o[:-1]) | (vs[1:] != vs[:-1]).any(axis=1)
     group = np.cumsum(new) - 1
     remap = np.empty(len(order), np.int64)
     remap[order] = group
-    out = vertices[order][new], remap[faces], o[new]
+    first = np.minimum.reduceat(order, np.flatnonzero(new)) if len(order) else order  # as a stable sort's
+    out = vertices[first], remap[faces], o[new]
     if return_merged:
         return (*out, np.bincount(group, minlength=int(new.sum())) > 1)
     return out
@@ -653,16 +664,53 @@ def stable_argsort(keys: np.ndarray) -> np.ndarray:
 
     Each key becomes ``key * n + position``, all distinct, and one plain
     (SIMD) sort of those gives the stable order; keys spanning too much for
-    that in 64 bits take numpy's stable sort.
+    that in 64 bits take numpy's stable sort.  Keys in long runs (eight
+    elements a run or more on average) sort their runs only.
     """
     keys = np.asarray(keys)
     n = len(keys)
     if n < 2:
         return np.arange(n)
+    change = keys[1:] != keys[:-1]
+    n_runs = int(np.count_nonzero(change)) + 1
+    if n_runs * 8 <= n:  # long runs of one key (a building's vertices): the runs sorted, then laid out
+        rs = np.flatnonzero(np.concatenate([[True], change]))
+        ro = stable_argsort(keys[rs])
+        start, size = rs[ro], np.diff(np.append(rs, n))[ro]
+        return np.repeat(start - (np.cumsum(size) - size), size) + np.arange(n)
     lo, hi = int(keys.min()), int(keys.max())
     if (hi - lo + 1) * n >= 1 << 62:
         return np.argsort(keys, kind="stable")
     return np.sort((keys.astype(np.int64) - lo) * n + np.arange(n)) % n
+
+
+def unique_int(keys: np.ndarray, *, return_index: bool = False, return_inverse: bool = False):
+    """``np.unique`` of a 1-d integer array by one sort: the same values, first indices and inverse.
+
+    NumPy 2's ``np.unique`` hashes integers before sorting the distinct
+    values: 20-30 times slower than a plain sort on arrays of 10,000 to
+    1,000,000 skeleton edge keys.
+    """
+    keys = np.asarray(keys)
+    if not (return_index or return_inverse):
+        s = np.sort(keys)
+        new = np.ones(len(s), bool)
+        new[1:] = s[1:] != s[:-1]
+        return s[new]
+    n = len(keys)
+    wide = n > 1 and (int(keys.max()) - int(keys.min()) + 1) * n >= 1 << 62
+    order = np.argsort(keys) if wide and not return_index else stable_argsort(keys)  # ties alike for an inverse
+    s = keys[order]
+    new = np.ones(len(s), bool)
+    new[1:] = s[1:] != s[:-1]
+    out = [s[new]]
+    if return_index:
+        out.append(order[new])
+    if return_inverse:
+        inv = np.empty(len(keys), np.int64)
+        inv[order] = np.cumsum(new) - 1
+        out.append(inv)
+    return tuple(out)
 
 
 def subset_rings(rings: Rings, sel: np.ndarray) -> Rings:
