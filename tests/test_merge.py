@@ -213,3 +213,31 @@ def test_a_union_that_loses_area_is_redone(by_cell):
     assert merged == 1 and keep.tolist() == [0] and grown.tolist() == [True]
     assert out[0].is_valid and shapely.get_type_id(out[0]) == 3
     assert abs(out[0].area - whole) <= 1e-6 * whole
+
+
+# a Liege partition lot and the 0.6 m2 scrap beside it (touching it at points only, the scrap's vertices
+# 3e-13 m off the lot's edge): GEOS's snap rounding on a 1 nm grid fails at these coordinates (a
+# TopologyException, "Ring edge missing"): the next grid is tried
+LIEGE_CELL = shapely.Polygon(
+    [
+        (685481.7420237429, 5612335.370943255),
+        (685481.2438049274, 5612332.813288114),
+        (685467.9248081277, 5612297.310632572),
+        (685444.6474449289, 5612301.844950017),
+        (685452.2954986155, 5612341.10698352),
+    ]
+)
+LIEGE_SCRAP = shapely.Polygon(
+    [
+        (685482.1719067547, 5612335.28720413),
+        (685481.2438049277, 5612332.813288115),
+        (685481.742023743, 5612335.370943255),
+    ]
+)
+
+
+def test_a_snap_that_fails_tries_the_next_grid():
+    out, keep, grown, merged, dropped = merge_small(np.array([LIEGE_CELL, LIEGE_SCRAP]), np.zeros(2, int), 1.0)
+    assert merged + dropped == 1 and keep.tolist() == [0]
+    assert out[0].is_valid and shapely.get_type_id(out[0]) == 3
+    assert abs(out[0].area - LIEGE_CELL.area - merged * LIEGE_SCRAP.area) <= 1e-6 * LIEGE_CELL.area

@@ -176,6 +176,25 @@ def shared_length(a, b, touch: float = TOUCH) -> np.ndarray:
     return np.bincount(pair[ok], weights=(hi - lo)[ok], minlength=k)
 
 
+def _snapped_union(parts, area, outline, touch):
+    """Union of ``parts`` on the finest of :data:`SNAP_GRIDS` (up to ``touch``) that makes one polygon of their area.
+
+    A grid fine next to the coordinates (1 nm at 5,600 km north) can make GEOS's snap rounding fail
+    (a ``TopologyException``): the next grid is tried.  The coarsest grid's union is returned whatever it is.
+    """
+    grids = [g for g in SNAP_GRIDS if g < touch] + [touch]
+    for grid in grids:
+        try:
+            u = shapely.union_all(parts, grid_size=grid)
+        except shapely.errors.GEOSException:
+            if grid == grids[-1]:
+                raise
+            continue
+        if shapely.get_type_id(u) == 3 and kept_area(np.array([u]), [area], [outline], grid)[0]:
+            break
+    return u
+
+
 def kept_area(unions, area, outline, touch: float = TOUCH) -> np.ndarray:
     """Unions whose area is their parts' ``area`` (m2), to what snapping to ``touch`` (m) moves an ``outline`` (m).
 
@@ -255,13 +274,7 @@ def _merge_pass(polys, group, min_area, touch, cell=None, *, area=None):
         bad = (shapely.get_type_id(u) != 3) | ~kept_area(u, whole, outline, touch)
         for q in np.flatnonzero(bad):  # the finest grid that makes one polygon moves the outline least
             parts = np.r_[polys[t[q] : t[q] + 1], polys[i[start[q] : start[q] + cnt[q]]]]
-            for grid in SNAP_GRIDS:
-                u[q] = shapely.union_all(parts, grid_size=min(grid, touch))
-                if (
-                    shapely.get_type_id(u[q]) == 3
-                    and kept_area(u[q : q + 1], whole[q : q + 1], outline[q : q + 1], grid)[0]
-                ):
-                    break
+            u[q] = _snapped_union(parts, whole[q], outline[q], touch)
         good = (shapely.get_type_id(u) == 3) & shapely.is_valid(u) & kept_area(u, whole, outline, touch)
         out[t[good]] = u[good]
         took[t[good]] = True

@@ -372,8 +372,11 @@ def _merge_into(faces, small, group, fpart, rounds=4, strict=False, adj=None):
             row, weights=shapely.length(faces[src]), minlength=len(hosts)
         )
         wrong = np.flatnonzero(~kept_area(u, whole, outline))
-        if len(wrong):
-            u[wrong] = shapely.union_all(grid[wrong], axis=1, grid_size=TOUCH)
+        for q in wrong:  # snapped (a failing snap leaves the wrong union, refused below)
+            try:
+                u[q] = shapely.union_all(grid[q], grid_size=TOUCH)
+            except shapely.errors.GEOSException:
+                pass
         one = (shapely.get_type_id(u) == 3) & shapely.is_valid(u) & kept_area(u, whole, outline)
         faces[hosts[one]] = u[one]
         changed[hosts[one]] = True
