@@ -17,7 +17,6 @@ from hypothesis import strategies as st
 from sengine.geom.grid import _boxes, clip_frame_grid
 from sengine.geom.polygons import clip_frame_boxes, obb_frame
 
-
 # a courtyard whose sides run 0.5 mm inside the 10 m grid's lines: the cells beside it are not inside by 1 mm
 HOLE_NEAR_EDGE = shapely.Polygon(
     shapely.box(0, 0, 100, 100).exterior.coords, [shapely.box(40.0005, 40.0005, 59.9995, 59.9995).exterior.coords]
