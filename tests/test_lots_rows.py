@@ -303,6 +303,32 @@ HOLE_CELL = shapely.from_wkt(
 )
 
 
+def _holed_square(side, half_hole, angle):
+    """A square block ``side`` m with a centred square hole ``2 half_hole`` m, turned ``angle`` degrees."""
+    c = side / 2
+    hole = shapely.box(c - half_hole, c - half_hole, c + half_hole, c + half_hole)
+    poly = shapely.Polygon(shapely.box(0, 0, side, side).exterior.coords, [hole.exterior.coords])
+    return shapely.affinity.rotate(poly, angle, origin=(0, 0))
+
+
+# Found by hypothesis (issue 11, defect a): a 99.6 m square with a centred 36 m hole, ratio mode with 1.2-2.4 m
+# wide cells (narrower than lot_width_min): GEOS 3.14 united two thin neighbours whose shared vertex differs by
+# 3e-15 m into one of them alone, the lots lost 3 % of the block and the block was kept whole
+HOLED_SQUARE = _holed_square(99.6134570490665, 18.04823970610724, 126.32191717283106)
+
+# Found by hypothesis (this session, failing on main too): a 0.25 m2 block cut 3 x 2: its 0.04 m2 cells join
+# pieces that touch them at points only, a union snapped to a 1 um grid, which stuck out of the block by
+# 3.4e-7 m2 (1.4e-6 of it); the finest grid that makes one polygon (here 1 nm) is used now
+TINY_TILTED = shapely.Polygon(
+    [
+        (2.4996145181203615, 0.0196299078795343),
+        (2.479984610240827, 0.5192444259998957),
+        (1.9803700921204657, 0.49961451812036145),
+        (2.0, 0.0),
+    ]
+)
+
+
 @SETTINGS
 @given(
     st.lists(block_polygon(), min_size=1, max_size=3),
@@ -315,6 +341,8 @@ HOLE_CELL = shapely.from_wkt(
 @example([shapely.box(0, 0, 24, 28), shapely.box(0, 0, 50, 57)], "size", (25.0, 40.0), (2, 2))  # the first holds no lot
 @example([shapely.box(0, 1, 1, 3)], "count", (3.0, 3.0), (1, 1))  # 6 cells of 0.33 m2: merged to one lot
 @example([HOLE_CELL], "size", (3.0, 3.0), (1, 1))  # a cell in the hole, touching its ring: GEOS's clip kept it whole
+@example([HOLED_SQUARE], "ratio", (4.8234947927489555, 24.203806345555055), (2, 2))  # a union that lost area
+@example([TINY_TILTED], "count", (3.0, 3.0), (1, 1))  # cells touching at points, united on a 1 um grid: stuck out
 def test_partition_random_blocks(polys, mode, size, cluster):
     """Random blocks and modes: an exact partition, valid lots, none under 1 m2 unless a whole tiny block;
     a size no block can hold is an error."""

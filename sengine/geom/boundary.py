@@ -112,7 +112,13 @@ def segments_on_boundary(geoms, owner, polys, *, tol: float = 1e-6, chunk: int =
 
     if len(idx) == 0:
         return out()
-    b0, b1, bown, _ = ring_segments(np.asarray(polys, dtype=object))
+    polys = np.asarray(polys, dtype=object).ravel()
+    if return_match:  # matches are numbered over all of polys' segments
+        b0, b1, bown, _ = ring_segments(polys)
+    else:  # only the owners' segments: a few geometries need not index a whole city's boundaries
+        used = np.unique(owner)
+        b0, b1, bi_, _ = ring_segments(polys[used])
+        bown = used[bi_]
     if len(bown) == 0:
         return out()
     lo = np.minimum(b0, b1) - tol

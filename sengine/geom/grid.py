@@ -4,8 +4,11 @@
 so a polygon of ``V`` vertices cut into ``nx * ny`` cells costs
 ``V * nx * ny``: ruinous for a large block cut into thousands of lots.
 :func:`clip_frame_grid` makes the cells that lie wholly inside their polygon
-as plain rectangles (one prepared-geometry test each), drops those wholly
-outside, and clips only the cells on the outline: about ``V * (nx + ny)``.
+as plain rectangles, drops those wholly outside, and clips only the cells on
+the outline: about ``V * (nx + ny)``.  Which cells come near a ring is found
+in numpy (each ring segment marks the cells its extent meets, column by
+column); the others are inside or outside as their centre is (one point
+test each), and only the cells near a ring see GEOS's box predicates.
 """
 
 from __future__ import annotations
@@ -87,23 +90,37 @@ def clip_frame_grid(geoms, center, axis, xs, nx, ys, ny, *, margin=None, clearan
     a1 = np.where(ix == nx[own] - 1, x_hi[own] + margin[own], xs[xstart[own] + ix + 1])
     b0 = np.where(iy == 0, y_lo[own] - margin[own], ys[ystart[own] + iy])
     b1 = np.where(iy == ny[own] - 1, y_hi[own] + margin[own], ys[ystart[own] + iy + 1])
-    boxes = _boxes(center[own], axis[own], a0, a1, b0, b1)
+    c = float(clearance)
+    # cells farther than the clearance from every ring are wholly inside or wholly outside: their centre
+    # tells which (numpy and one point test each); only the cells near a ring see GEOS's box predicates
+    near = _near_rings(geoms, center, axis, xs, nx, ys, ny, c)
+    inside = np.zeros(len(own), bool)
+    edge = np.zeros(len(own), bool)
+    far = np.flatnonzero(~near)
+    nr = np.flatnonzero(near)
     fresh = geoms[~shapely.is_prepared(geoms)]  # the caller's own preparations stay as they are
     shapely.prepare(fresh)
     try:
-        c = float(clearance)
-        inside = shapely.contains_properly(geoms[own], boxes)
-        edge = np.zeros(len(own), bool)
+        mid = _frame_points(center[own[far]], axis[own[far]], (a0[far] + a1[far]) / 2, (b0[far] + b1[far]) / 2)
+        inside[far] = shapely.contains_xy(geoms[own[far]], mid[:, 0], mid[:, 1])
+        boxes_nr = _boxes(center[own[nr]], axis[own[nr]], a0[nr], a1[nr], b0[nr], b1[nr])
+        held = shapely.contains_properly(geoms[own[nr]], boxes_nr)
         if c > 0:  # a box the geometry holds, grown by the clearance (only those: a grown box held is held too)
-            s = np.flatnonzero(inside)
+            s = nr[held]
             grown = _boxes(center[own[s]], axis[own[s]], a0[s] - c, a1[s] + c, b0[s] - c, b1[s] + c)
             inside[s] = shapely.contains_properly(geoms[own[s]], grown)
             edge[s] = ~inside[s]  # held, but too near a ring: on the outline's side
-        rest = np.flatnonzero(~inside & ~edge)
-        edge[rest] = shapely.intersects(geoms[own[rest]], boxes[rest])
+        else:
+            inside[nr[held]] = True
+        rest = ~held
+        edge[nr[rest]] = shapely.intersects(geoms[own[nr[rest]]], boxes_nr[rest])
     finally:
         shapely.destroy_prepared(fresh)
-    cells = np.where(inside, boxes, None)
+    cells = np.full(len(own), None, dtype=object)
+    cells[nr] = boxes_nr
+    fi = far[inside[far]]
+    cells[fi] = _boxes(center[own[fi]], axis[own[fi]], a0[fi], a1[fi], b0[fi], b1[fi])
+    cells[~inside] = None
     e = np.flatnonzero(edge)
     # outline cells: the geometry clipped to each column holding one, then that column to the cell
     col = own[e] * (int(nx.max()) + 1) + ix[e]
@@ -132,6 +149,92 @@ def clip_frame_grid(geoms, center, axis, xs, nx, ys, ny, *, margin=None, clearan
         off = ~shapely.intersects_xy(geoms[own[w]], xy[:, 0], xy[:, 1])
         live[w[off]] = False
     return cells[live], own[live], ix[live], iy[live], inside[live], whole[live]
+
+
+def _frame_points(center, axis, a, b):
+    """Points ``a`` along ``axis`` and ``b`` along its left normal from ``center`` (world coordinates)."""
+    nrm = np.stack([-axis[:, 1], axis[:, 0]], axis=1)
+    return center + a[:, None] * axis + b[:, None] * nrm
+
+
+def _grouped_count(edges, start, count, group, value, span, *, strict):
+    """For each query, how many of its group's sorted ``edges[start : start + count]`` are below ``value``.
+
+    ``strict``: below (``<``); else at most (``<=``).  One ``searchsorted``
+    over all groups: each group's edges and queries are shifted by a
+    multiple of ``span``, more than twice every value's magnitude (a value
+    is then compared to within ``span * groups * 2**-52``).
+    """
+    if len(value) == 0:
+        return np.zeros(0, np.int64)
+    ng = len(start)
+    eg = np.repeat(np.arange(ng), count)
+    shifted = edges + eg * span
+    pos = np.searchsorted(shifted, value + group * span, side="left" if strict else "right")
+    return np.clip(pos - start[group], 0, count[group])
+
+
+def _near_rings(geoms, center, axis, xs, nx, ys, ny, clearance):
+    """Cells (column by column, as :func:`clip_frame_grid` numbers them) within ``clearance`` of a ring.
+
+    Conservative: each ring segment marks the cells its bounding box in the
+    frame, grown by the clearance and a tolerance, meets column by column
+    (the segment clipped to the column's extent), so every cell it comes
+    within ``clearance`` of is marked (and a few more).
+    """
+    n = len(geoms)
+    parts, pidx = shapely.get_parts(shapely.boundary(geoms), return_index=True)
+    xy, ci = shapely.get_coordinates(parts, return_index=True)
+    e = np.flatnonzero(ci[1:] == ci[:-1])
+    g = pidx[ci[e]]
+    nrm = np.stack([-axis[:, 1], axis[:, 0]], axis=1)
+    q0, q1 = xy[e] - center[g], xy[e + 1] - center[g]
+    u0, u1 = np.einsum("ij,ij->i", q0, axis[g]), np.einsum("ij,ij->i", q1, axis[g])
+    v0, v1 = np.einsum("ij,ij->i", q0, nrm[g]), np.einsum("ij,ij->i", q1, nrm[g])
+    # the tolerance: far above the rounding of frame coordinates (1 um) and of the shifted searches
+    scale = max(float(np.abs(xs).max()) if len(xs) else 0.0, float(np.abs(ys).max()) if len(ys) else 0.0, 1.0)
+    span = 4.0 * (scale + clearance + 1.0)  # queries lie within the grid's extent grown by r (< 1 m)
+    r = clearance + 1e-6 + 8.0 * span * max(n, 1) * np.finfo(np.float64).eps
+    # inner edges of each grid (the outer cells reach out without end)
+    xstart = np.cumsum(nx + 1) - (nx + 1)
+    kx = np.repeat(np.arange(n), nx + 1)
+    ky = np.repeat(np.arange(n), ny + 1)
+    jx = _ramp(nx + 1)
+    jy = _ramp(ny + 1)
+    ex = xs[(jx > 0) & (jx < nx[kx])]
+    ey = ys[(jy > 0) & (jy < ny[ky])]
+    nex, ney = np.maximum(nx - 1, 0), np.maximum(ny - 1, 0)
+    sx, sy = np.cumsum(nex) - nex, np.cumsum(ney) - ney
+    # columns each segment's u range (grown) meets
+    ulo, uhi = np.minimum(u0, u1) - r, np.maximum(u0, u1) + r
+    c_lo = _grouped_count(ex, sx, nex, g, ulo, span, strict=True)
+    c_hi = _grouped_count(ex, sx, nex, g, uhi, span, strict=False)
+    cnt = np.maximum(c_hi - c_lo + 1, 0)
+    seg = np.repeat(np.arange(len(e)), cnt)
+    col = c_lo[seg] + _ramp(cnt)
+    gs = g[seg]
+    # the segment's part within the column (grown): its v range
+    left = np.where(col > 0, xs[xstart[gs] + col] - r, -np.inf)
+    right = np.where(col < nx[gs] - 1, xs[xstart[gs] + col + 1] + r, np.inf)
+    du = u1[seg] - u0[seg]
+    flat = np.abs(du) <= 1e-12 * scale
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ta = np.where(flat, 0.0, (left - u0[seg]) / np.where(flat, 1.0, du))
+        tb = np.where(flat, 1.0, (right - u0[seg]) / np.where(flat, 1.0, du))
+    t0 = np.clip(np.minimum(ta, tb), 0.0, 1.0)
+    t1 = np.clip(np.maximum(ta, tb), 0.0, 1.0)
+    dv = v1[seg] - v0[seg]
+    va, vb = v0[seg] + t0 * dv, v0[seg] + t1 * dv
+    vlo, vhi = np.minimum(va, vb) - r, np.maximum(va, vb) + r
+    r_lo = _grouped_count(ey, sy, ney, gs, vlo, span, strict=True)
+    r_hi = _grouped_count(ey, sy, ney, gs, vhi, span, strict=False)
+    rc = np.maximum(r_hi - r_lo + 1, 0)
+    row = np.repeat(r_lo, rc) + _ramp(rc)
+    cstart = np.cumsum(nx * ny) - nx * ny
+    pair = np.repeat(np.arange(len(seg)), rc)
+    near = np.zeros(int((nx * ny).sum()), bool)
+    near[cstart[gs[pair]] + col[pair] * ny[gs[pair]] + row] = True
+    return near
 
 
 def _boxes(center, axis, a0, a1, b0, b1):

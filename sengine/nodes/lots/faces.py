@@ -17,6 +17,7 @@ import numpy as np
 import shapely
 
 from sengine.geom.boundary import ring_segments
+from sengine.geom.merge import TOUCH, kept_area
 from sengine.geom.planar import planar_faces
 from sengine.geom.polygons import threaded
 from sengine.geom.segments import argsort_int, merge_points
@@ -364,7 +365,19 @@ def _merge_into(faces, small, group, fpart, rounds=4, strict=False, adj=None):
         grid[:, 0] = faces[hosts]
         grid[np.repeat(np.arange(len(hosts)), cnt), 1 + ramp(cnt)] = faces[src]
         u = shapely.union_all(grid, axis=1)
-        one = (shapely.get_type_id(u) == 3) & shapely.is_valid(u)
+        # a union GEOS got wrong (area lost: thin faces with nearly coincident edges) is redone snapped
+        row = np.repeat(np.arange(len(hosts)), cnt)
+        whole = shapely.area(faces[hosts]) + np.bincount(row, weights=shapely.area(faces[src]), minlength=len(hosts))
+        outline = shapely.length(faces[hosts]) + np.bincount(
+            row, weights=shapely.length(faces[src]), minlength=len(hosts)
+        )
+        wrong = np.flatnonzero(~kept_area(u, whole, outline))
+        for q in wrong:  # snapped (a failing snap leaves the wrong union, refused below)
+            try:
+                u[q] = shapely.union_all(grid[q], grid_size=TOUCH)
+            except shapely.errors.GEOSException:
+                pass
+        one = (shapely.get_type_id(u) == 3) & shapely.is_valid(u) & kept_area(u, whole, outline)
         faces[hosts[one]] = u[one]
         changed[hosts[one]] = True
         went = one[np.repeat(np.arange(len(hosts)), cnt)]

@@ -43,7 +43,10 @@ block subdivision, for all blocks at once:
    recursive method into inner lots under ``inner_area_max``: backland
    parcels, not one lot the size of a district),
    ``split`` (cut into inner lots under ``lot_area_max`` by the recursive
-   method, flagged), ``park`` (one courtyard / park lot per component,
+   method, flagged; every piece, those the cuts leave without an edge of
+   the interior's outline too, so no compact inner lot stays larger: a
+   piece no cut can halve within the method's aspect limit stays and is
+   counted, ``skeleton_inner_over_max``), ``park`` (one courtyard / park lot per component,
    flagged ``park`` too) or ``merge`` (each part of the interior joins the
    street lot whose back edge is nearest, so every lot reaches a street).
 
@@ -551,9 +554,9 @@ def skeleton_lots(
             min_frontage=0.0,
             jitter=min(0.9, float(irr_b.max())),  # the node passes one irregularity for all its blocks
             seeds=seeds[own[fpart[ii]]],
-            # backland: every piece under inner_area_max (interior=split keeps the recursive method's compact
-            # inside, as it always did), rows half its side deep,
-            # no scrap under a twentieth of it either (backland parcels are large)
+            # backland: every piece under inner_area_max, rows half its side deep, no scrap under a twentieth
+            # of it either (backland parcels are large); split: every piece under lot_area_max too (the
+            # recursive method's compact inside left pieces cut off all round as large as 118 ha on Liege)
             **(
                 {
                     "inner": "split",
@@ -561,7 +564,7 @@ def skeleton_lots(
                     "min_area": 0.05 * imax_b[own[fpart[ii]]],
                 }
                 if backland
-                else {}
+                else {"inner": "split"}
             ),
         )
         faces = np.r_[faces[~cut], sub[0]]
@@ -585,6 +588,8 @@ def skeleton_lots(
         fpart, inner = fpart[alive], inner[alive]
         marks, known = _after_merge(marks.take(np.flatnonzero(alive)), faces, changed), known[alive] & ~changed
     report["skeleton_slivers"] = int((shapely.area(faces) < SLIVER).sum())
+    if interior == "split":  # pieces no cut could halve (counted, as the recursive method's stuck ones)
+        report["skeleton_inner_over_max"] = int((inner & (shapely.area(faces) > amax_b[own[fpart]] + 1e-6)).sum())
     park = inner.copy() if interior == "park" else np.zeros(len(faces), bool)
     o = np.lexsort((np.arange(len(faces)), own[fpart]))
     marks = marks.take(o)

@@ -1,0 +1,132 @@
+"""clip_frame_grid (sengine.geom.grid): the numpy test of which cells lie near a ring changes nothing.
+
+Cells farther than the clearance from every ring are classified by their centre alone; the result must
+be the one GEOS's box predicates give on every cell (the reference below, the function as it was):
+same cells, byte for byte, same flags.  Blocks: random convex, concave and holed polygons, grids
+aligned with their edges or not, cell edges through their vertices, clearances 0 to 1 mm.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+import shapely.affinity
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
+
+from sengine.geom.grid import _boxes, clip_frame_grid
+from sengine.geom.polygons import clip_frame_boxes, obb_frame
+
+# a courtyard whose sides run 0.5 mm inside the 10 m grid's lines: the cells beside it are not inside by 1 mm
+HOLE_NEAR_EDGE = shapely.Polygon(
+    shapely.box(0, 0, 100, 100).exterior.coords, [shapely.box(40.0005, 40.0005, 59.9995, 59.9995).exterior.coords]
+)
+
+
+def reference(geoms, center, axis, xs, nx, ys, ny, clearance):
+    """Every cell through GEOS's box predicates (clip_frame_grid before the numpy test)."""
+    n = len(geoms)
+    xstart = np.cumsum(nx + 1) - (nx + 1)
+    ystart = np.cumsum(ny + 1) - (ny + 1)
+    x_lo, x_hi, y_lo, y_hi = xs[xstart], xs[xstart + nx], ys[ystart], ys[ystart + ny]
+    margin = 1.0 + 0.01 * ((x_hi - x_lo) + (y_hi - y_lo))
+    own = np.repeat(np.arange(n), nx * ny)
+    j = np.arange(int((nx * ny).sum())) - np.repeat(np.cumsum(nx * ny) - nx * ny, nx * ny)
+    ix, iy = j // ny[own], j % ny[own]
+    a0 = np.where(ix == 0, x_lo[own] - margin[own], xs[xstart[own] + ix])
+    a1 = np.where(ix == nx[own] - 1, x_hi[own] + margin[own], xs[xstart[own] + ix + 1])
+    b0 = np.where(iy == 0, y_lo[own] - margin[own], ys[ystart[own] + iy])
+    b1 = np.where(iy == ny[own] - 1, y_hi[own] + margin[own], ys[ystart[own] + iy + 1])
+    boxes = _boxes(center[own], axis[own], a0, a1, b0, b1)
+    c = clearance
+    inside = shapely.contains_properly(geoms[own], boxes)
+    edge = np.zeros(len(own), bool)
+    if c > 0:
+        s = np.flatnonzero(inside)
+        grown = _boxes(center[own[s]], axis[own[s]], a0[s] - c, a1[s] + c, b0[s] - c, b1[s] + c)
+        inside[s] = shapely.contains_properly(geoms[own[s]], grown)
+        edge[s] = ~inside[s]
+    rest = np.flatnonzero(~inside & ~edge)
+    edge[rest] = shapely.intersects(geoms[own[rest]], boxes[rest])
+    cells = np.where(inside, boxes, None)
+    e = np.flatnonzero(edge)
+    strips = clip_frame_boxes(
+        geoms[own[e]],
+        center[own[e]],
+        axis[own[e]],
+        a0[e],
+        a1[e],
+        y_lo[own[e]] - margin[own[e]],
+        y_hi[own[e]] + margin[own[e]],
+    )
+    cells[e] = clip_frame_boxes(strips, center[own[e]], axis[own[e]], a0[e], a1[e], b0[e], b1[e])
+    return cells, own, ix, iy, inside, edge
+
+
+@st.composite
+def block(draw):
+    kind = draw(st.sampled_from(["convex", "star", "holed", "rect"]))
+    rng = np.random.default_rng(draw(st.integers(0, 2**31)))
+    size = draw(st.floats(20.0, 300.0))
+    if kind == "convex":
+        poly = shapely.MultiPoint(rng.uniform(0, size, (10, 2))).convex_hull
+    elif kind == "star":
+        k = draw(st.integers(5, 12))
+        ang = np.sort(rng.uniform(0, 2 * np.pi, k))
+        r = rng.uniform(5, 0.5 * size + 5, k)
+        poly = shapely.Polygon(np.c_[r * np.cos(ang), r * np.sin(ang)])
+    elif kind == "holed":
+        a, b = draw(st.floats(0.15, 0.45)), draw(st.floats(0.55, 0.85))
+        poly = shapely.Polygon(
+            shapely.box(0, 0, size, size).exterior.coords,
+            [shapely.box(a * size, a * size, b * size, b * size).exterior.coords],
+        )
+    else:
+        poly = shapely.box(0, 0, size, draw(st.floats(5.0, 200.0)))
+    poly = shapely.make_valid(poly)
+    parts = [p for p in shapely.get_parts(poly) if p.geom_type == "Polygon"]
+    poly = max(parts, key=lambda p: p.area) if parts else shapely.box(0, 0, 10, 10)
+    poly = shapely.affinity.rotate(poly, draw(st.floats(0, 180)), origin=(0, 0))
+    return shapely.affinity.translate(poly, draw(st.floats(-1e5, 1e5)), draw(st.floats(-1e5, 1e5)))
+
+
+def grid(polys, cell, aligned):
+    """Each block's own frame (its oriented box) with cells ``cell`` m (edges from its box's corner)."""
+    center, axis, L, W = obb_frame(polys)
+    if not aligned:  # a frame turned off the box: cell edges cross the outline at a slant
+        t = np.radians(7.0)
+        axis = np.c_[axis[:, 0] * np.cos(t) - axis[:, 1] * np.sin(t), axis[:, 0] * np.sin(t) + axis[:, 1] * np.cos(t)]
+        L = W = np.hypot(L, W)
+    nx = np.maximum(1, np.ceil(L / cell[0])).astype(np.int64)
+    ny = np.maximum(1, np.ceil(W / cell[1])).astype(np.int64)
+    xs = np.concatenate([np.minimum(np.arange(k + 1) * cell[0], length) - length / 2 for k, length in zip(nx, L)])
+    ys = np.concatenate([np.minimum(np.arange(k + 1) * cell[1], w) - w / 2 for k, w in zip(ny, W)])
+    return center, axis, xs, nx, ys, ny
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(block(), min_size=1, max_size=4),
+    st.tuples(st.floats(1.0, 60.0), st.floats(1.0, 60.0)),
+    st.booleans(),
+    st.sampled_from([0.0, 1e-6, 1e-3]),
+)
+@example([shapely.box(0, 0, 90, 60), shapely.box(1e4, 1e4, 1e4 + 30, 1e4 + 30)], (30.0, 20.0), True, 1e-6)
+@example([HOLE_NEAR_EDGE], (10.0, 10.0), True, 1e-3)  # the cells beside the hole are within 0.5 mm of it: near
+def test_the_numpy_classification_gives_what_geos_gives(polys, cell, aligned, clearance):
+    geoms = np.array(polys, dtype=object)
+    center, axis, xs, nx, ys, ny = grid(geoms, cell, aligned)
+    got = clip_frame_grid(geoms, center, axis, xs, nx, ys, ny, clearance=clearance)
+    cells, own, ix, iy, inside, edge = reference(geoms, center, axis, xs, nx, ys, ny, clearance)
+    live = inside | edge
+    live[edge] &= ~shapely.is_empty(cells[edge])
+    # the function also drops whole cells lying in a hole: compare the cells it keeps with the reference's
+    key = own * 10**6 + ix * 10**3 + iy
+    kept = np.isin(key, got[1] * 10**6 + got[2] * 10**3 + got[3])
+    assert (kept <= live).all() and (live & ~kept <= ~inside).all()
+    assert np.array_equal(got[1], own[kept]) and np.array_equal(got[2], ix[kept]) and np.array_equal(got[3], iy[kept])
+    assert np.array_equal(got[4], inside[kept])
+    assert shapely.to_wkb(got[0]).tolist() == shapely.to_wkb(cells[kept]).tolist()
+    # and the cells partition the blocks
+    for b, g in enumerate(geoms):
+        assert abs(shapely.area(got[0][got[1] == b]).sum() - g.area) <= 1e-6 * g.area
