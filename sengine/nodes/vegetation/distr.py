@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import numpy as np
 import shapely
-from scipy.spatial import cKDTree
 
 from sengine.random import hash01, mix64
 
@@ -71,6 +70,8 @@ def hard_core(xy: np.ndarray, r: float, mark: np.ndarray, fixed: np.ndarray | No
     keep = np.ones(n, bool)
     if n == 0 or r <= 0:
         return keep
+    from scipy.spatial import cKDTree  # 0.1 s to import: only where points are thinned
+
     if fixed is not None and len(fixed):
         d, _ = cKDTree(fixed).query(xy, k=1, distance_upper_bound=r)
         keep &= ~(d < r)
@@ -88,6 +89,8 @@ def far_from(xy: np.ndarray, fixed, r: float) -> np.ndarray:
     ``fixed`` is an (k, 2) array or a :class:`scipy.spatial.cKDTree` of one,
     built once by a caller that asks many times.
     """
+    from scipy.spatial import cKDTree
+
     if fixed is not None and not isinstance(fixed, cKDTree):
         fixed = cKDTree(fixed) if len(fixed) else None
     if len(xy) == 0 or fixed is None or r <= 0:
@@ -166,7 +169,12 @@ def distr(
     acc_xy, acc_reg, acc_mark = [np.empty((0, 2))], [np.empty(0, np.int64)], [np.empty(0)]
     placed = np.asarray(fixed, np.float64).reshape(-1, 2) if fixed is not None else np.empty((0, 2))
     # the fixed points' tree once, not a round (400,000 avenue trees on whole Liège: 0.1 s a build)
-    placed = cKDTree(placed) if spacing > 0 and len(placed) else None
+    if spacing > 0 and len(placed):
+        from scipy.spatial import cKDTree  # 0.1 s to import: only where points are thinned
+
+        placed = cKDTree(placed)
+    else:
+        placed = None
     for _ in range(max(int(rounds), 1)):
         need = wanted - got
         if not (need > 0).any():
