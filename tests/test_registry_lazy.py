@@ -191,7 +191,9 @@ def test_third_party_lazy_plugin(tmp_path):
     assert res.returncode == 0, res.stderr
     lines = res.stdout.strip().splitlines()
     assert lines[0] == "True False" and lines[1] == "lazy.ok False"
-    assert lines[2].startswith("node 'lazy.bad': module lazyplug.bad failed to import (not_installed_anywhere is missing)")
+    assert lines[2].startswith(
+        "node 'lazy.bad': module lazyplug.bad failed to import (not_installed_anywhere is missing)"
+    )
     config = tmp_path / "c.xml"
     config.write_text(
         '<sengine version="1"><plugin module="lazyplug"/><network><node id="s" type="lazy.ok"/></network></sengine>'
