@@ -575,6 +575,7 @@ def cmd_nodes(args: argparse.Namespace) -> int:
 
     for spec in args.plugin:
         registry.load_plugin(spec, base_dir=Path.cwd(), where=f"--plugin {spec}")
+    registry.load_all()  # every module of the lazily declared libraries: a broken one is a warning
     described = [registry.get(name).describe() for name in registry.names()]
     rules = {tag: [p.describe(k) for k, p in decl.items()] for tag, decl in sorted(registry.RULES.items())}
     kinds = {

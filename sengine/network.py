@@ -347,12 +347,12 @@ class Network:
             return True
 
         for kind in self.plan.maps:
-            port_kind = registry.MAP_KINDS.get(kind, (None, ""))[0]
+            port_kind = registry.map_kinds().get(kind, (None, ""))[0]
             if port_kind in sources:
                 ensure(f"{kind}Map", sources[port_kind], kind)
         named = {(c.dst, c.dst_port) for c in self.connections if c.dst_port}
         for spec in list(self.specs.values()):
-            cls = registry.REGISTRY.get(spec.type)
+            cls = registry.find(spec.type)
             if cls is None or cls.source_for:
                 continue
             for port_name, port in cls.inputs.items():

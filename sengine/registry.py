@@ -9,6 +9,13 @@ nodes when imported; they arrive four ways, all through :func:`load_plugin`:
 * ``<plugin path="..."/>`` (a ``.py`` file or a package folder);
 * ``--plugin MODULE_OR_PATH`` on the command line.
 
+A plugin package may instead declare what its modules register
+(:func:`declare_lazy`, an index made by :func:`survey`): each module is then
+imported when something it registers is first asked for (a node type of the
+configuration, a ``<district>`` rule, a network base), so that a run imports
+only the modules, and their dependencies, that it uses.  The built-in node
+library does so (:mod:`sengine.nodes._index`).
+
 References
 ----------
 .. [1] R. Ridorsa and G. Patow, "skylineEngine: an urban procedural modelling system",
@@ -23,6 +30,7 @@ import importlib
 import importlib.metadata
 import importlib.util
 import logging
+import pkgutil
 import re
 import sys
 import warnings
@@ -54,6 +62,11 @@ __all__ = [
     "declare_map_kind",
     "map_kinds",
     "formats",
+    "declare_lazy",
+    "survey",
+    "write_index",
+    "load_all",
+    "find",
 ]
 
 log = logging.getLogger(__name__)
@@ -69,6 +82,13 @@ MAP_KINDS: dict[str, tuple[str, str]] = {}  # <map kind=...> -> (kind of the por
 _loaded: dict[str, str] = {}  # plugin key -> module name
 _broken: dict[str, str] = {}
 _entry_points_loaded = False
+#: What lazily declared plugin modules register (:func:`declare_lazy`): category -> key -> modules.
+LAZY_CATEGORIES = ("node", "network", "rule", "kind", "map_kind", "source", "format")
+_LAZY: dict[str, dict[str, tuple[str, ...]]] = {c: {} for c in LAZY_CATEGORIES}
+_LAZY_PACKAGES: list[str] = []  # packages whose every module a miss imports (a stale index stays correct)
+_SHADOWED: dict[str, tuple[str, ...]] = {}  # node name -> the lazy modules whose class a plugin replaced first
+#: Which modules declared what (category, key) -> module names, for :func:`survey`.
+_ORIGIN: dict[tuple[str, str], set[str]] = {}
 
 N = TypeVar("N", bound=type[SENode])
 
@@ -88,6 +108,14 @@ def register(cls: N | None = None, *, name: str | None = None, replace: bool = F
         if not c.name or not NAME_RE.match(c.name):
             raise RegistryError(f"{c.__qualname__}: node name {c.name!r} must be dotted identifiers like 'lots.paris'")
         c.check_declaration()
+        if c.__module__ in _SHADOWED.get(c.name, ()):
+            return c  # a plugin replaced this lazily declared node before its module was imported
+        lazy = _LAZY["node"].get(c.name)
+        if lazy and c.__module__ not in lazy:
+            if replace:
+                _SHADOWED[c.name] = _LAZY["node"].pop(c.name)
+            else:  # the lazily declared class first: two classes under one name are an error below
+                _need("node", c.name, fallback=False)
         old = REGISTRY.get(c.name)
         if old is not None and old is not c and not replace and _qualname(old) != _qualname(c):
             raise RegistryError(f"node name {c.name!r} is registered twice: {_qualname(old)} and {_qualname(c)}")
@@ -102,19 +130,27 @@ def _qualname(c: type) -> str:
 
 
 def get(name: str, *, where: str | None = None) -> type[SENode]:
-    """The node class registered as ``name``; the error lists close names."""
-    load_entry_points()
-    try:
-        return REGISTRY[name]
-    except KeyError:
-        close = difflib.get_close_matches(name, REGISTRY, n=3, cutoff=0.5)
+    """The node class registered as ``name`` (its module imported if not yet); the error lists close names."""
+    cls = find(name, where=where)
+    if cls is None:
+        close = difflib.get_close_matches(name, names(), n=3, cutoff=0.5)
         hint = f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
-        raise RegistryError(f"unknown node type {name!r}{hint}", where=where) from None
+        raise RegistryError(f"unknown node type {name!r}{hint}", where=where)
+    return cls
+
+
+def find(name: str, *, where: str | None = None) -> type[SENode] | None:
+    """The node class registered as ``name``, or None; imports the module that registers it if needed."""
+    load_entry_points()
+    if name not in REGISTRY:
+        _need("node", name, where=where)
+    return REGISTRY.get(name)
 
 
 def names() -> list[str]:
+    """Every registered node name, sorted (lazily declared ones included, their modules not imported)."""
     load_entry_points()
-    return sorted(REGISTRY)
+    return sorted(set(REGISTRY) | set(_LAZY["node"]))
 
 
 def check_formats(formats) -> frozenset[str]:
@@ -136,8 +172,7 @@ def check_formats(formats) -> frozenset[str]:
         return asked
     known: list[str] = []
     hints: dict[str, str] = {}
-    for name in names():
-        cls = get(name)
+    for cls in _writers():
         known += [f for f in getattr(cls, "formats", ()) if f not in known]
         hints.update(getattr(cls, "format_hints", {}) or {})
     if not known:
@@ -160,6 +195,10 @@ def register_network(name: str) -> Callable[[type], type]:
 
     def deco(cls: type) -> type:
         old = NETWORKS.get(name)
+        lazy = _LAZY["network"].get(name)
+        if lazy and cls.__module__ not in lazy:
+            _need("network", name, fallback=False)
+            old = NETWORKS.get(name)
         if old is not None and _qualname(old) != _qualname(cls):
             raise RegistryError(f"network base {name!r} is registered twice: {_qualname(old)} and {_qualname(cls)}")
         NETWORKS[name] = cls
@@ -171,20 +210,21 @@ def register_network(name: str) -> Callable[[type], type]:
 def network_class(name: str, *, where: str | None = None) -> type:
     """The network class registered as ``name``; the error lists the known ones."""
     load_entry_points()
+    if name not in NETWORKS:
+        _need("network", name, where=where)
     try:
         return NETWORKS[name]
     except KeyError:
-        close = difflib.get_close_matches(name, NETWORKS, n=1, cutoff=0.5)
+        known = network_names()
+        close = difflib.get_close_matches(name, known, n=1, cutoff=0.5)
         hint = f"; did you mean {close[0]!r}?" if close else ""
-        raise RegistryError(
-            f"unknown network base {name!r} (known: {', '.join(sorted(NETWORKS))}){hint}", where=where
-        ) from None
+        raise RegistryError(f"unknown network base {name!r} (known: {', '.join(known)}){hint}", where=where) from None
 
 
 def network_names() -> list[str]:
     """The registered network bases, sorted."""
     load_entry_points()
-    return sorted(NETWORKS)
+    return sorted(set(NETWORKS) | set(_LAZY["network"]))
 
 
 def load_entry_points() -> None:
@@ -300,6 +340,7 @@ def declare_rule(tag: str, params: dict[str, Param]) -> None:
     every rule before anything runs and ``sengine nodes`` lists them. An
     attribute declared twice must be declared the same way.
     """
+    _origin("rule", tag)
     have = RULES.setdefault(tag, {})
     for name, param in params.items():
         if name in have and have[name] != param:
@@ -310,6 +351,7 @@ def declare_rule(tag: str, params: dict[str, Param]) -> None:
 def rule_params(tag: str) -> dict[str, Param] | None:
     """The declared attributes of ``<tag>``, or None when nothing declares the element."""
     load_entry_points()
+    _need("rule", tag, fallback=tag not in RULES)
     return RULES.get(tag)
 
 
@@ -328,6 +370,7 @@ def declare_kind(kind: str, columns: dict[str, tuple[str, bool, str]], *, doc: s
 
     A column declared twice must be declared the same way.
     """
+    _origin("kind", kind)
     have = KINDS.setdefault(kind, {})
     for name, decl in columns.items():
         if name in have and have[name] != decl:
@@ -343,6 +386,7 @@ KIND_DOCS: dict[str, str] = {}
 def kinds() -> dict[str, dict[str, tuple[str, bool, str]]]:
     """Every declared layer kind and its columns."""
     load_entry_points()
+    _need_all("kind")
     return {k: dict(v) for k, v in KINDS.items()}
 
 
@@ -354,6 +398,7 @@ def check_kind(layer, kind: str, *, where: str | None = None) -> None:
     """
     from .errors import NetworkError
 
+    _need("kind", kind, fallback=False)
     decl = KINDS.get(kind)
     if decl is None:
         return
@@ -373,16 +418,24 @@ def check_kind(layer, kind: str, *, where: str | None = None) -> None:
 def source_classes() -> dict[str, type[SENode]]:
     """Layer kind -> the registered node class that is the plan's source of it (:attr:`SENode.source_for`)."""
     load_entry_points()
+    _need_all("source")
     return {c.source_for: c for c in REGISTRY.values() if c.source_for}
 
 
 def formats() -> dict[str, str]:
     """Every output format some registered node writes (its class attribute ``formats``) and that node's name."""
     out: dict[str, str] = {}
-    for name in names():
-        for f in getattr(get(name), "formats", ()) or ():
-            out.setdefault(f, name)
+    for cls in _writers():
+        for f in getattr(cls, "formats", ()) or ():
+            out.setdefault(f, cls.name)
     return out
+
+
+def _writers() -> list[type[SENode]]:
+    """The registered classes that declare output formats, by node name (their modules imported)."""
+    load_entry_points()
+    _need_all("format")
+    return [REGISTRY[n] for n in sorted(REGISTRY) if getattr(REGISTRY[n], "formats", ())]
 
 
 def declare_map_kind(kind: str, port_kind: str, doc: str = "") -> None:
@@ -392,6 +445,7 @@ def declare_map_kind(kind: str, port_kind: str, doc: str = "") -> None:
     mean"; the node registered as the source of ``port_kind``
     (:attr:`SENode.source_for`) turns each such map into a node.
     """
+    _origin("map_kind", kind)
     old = MAP_KINDS.get(kind)
     if old is not None and old[0] != port_kind:
         raise RegistryError(f"map kind {kind!r} is declared twice, differently")
@@ -401,4 +455,154 @@ def declare_map_kind(kind: str, port_kind: str, doc: str = "") -> None:
 def map_kinds() -> dict[str, tuple[str, str]]:
     """Every declared map kind: its port kind and doc."""
     load_entry_points()
+    _need_all("map_kind")
     return dict(MAP_KINDS)
+
+
+# -- lazy plugins: an index of what each module registers ------------------------------
+
+
+def declare_lazy(index: dict[str, dict[str, list[str] | tuple[str, ...]]], *, package: str | None = None) -> None:
+    """Declare what a plugin's modules register, to import each only when something of it is asked for.
+
+    Parameters
+    ----------
+    index : dict
+        Category (one of :data:`LAZY_CATEGORIES`: ``node`` names, ``network``
+        bases, ``rule`` tags, layer ``kind`` names, ``map_kind`` names, the
+        port kinds a ``source`` class makes, output ``format`` names) -> key
+        -> the modules whose import registers or declares it, as made by
+        :func:`survey`.
+    package : str, optional
+        The package the index describes: when something is asked for that
+        no loaded module nor the index knows (a node type, a network base, a
+        rule element), every module of the package is imported before the
+        answer, so an index that is out of date is slower, never wrong.
+    """
+    for cat, entries in index.items():
+        if cat not in _LAZY:
+            raise RegistryError(f"lazy index: unknown category {cat!r} (known: {', '.join(LAZY_CATEGORIES)})")
+        for key, modules in entries.items():
+            _LAZY[cat][key] = tuple(dict.fromkeys((*_LAZY[cat].get(key, ()), *modules)))
+    if package and package not in _LAZY_PACKAGES:
+        _LAZY_PACKAGES.append(package)
+
+
+def _need(cat: str, key: str, *, where: str | None = None, fallback: bool = True) -> None:
+    """Import the modules that register ``key`` of category ``cat``; with none known, every lazy package's."""
+    modules = _LAZY[cat].pop(key, None)
+    if modules:
+        for module in modules:
+            _import_lazy(module, what=f"{cat.replace('_', ' ')} {key!r}", where=where)
+    elif fallback and _LAZY_PACKAGES:
+        load_all(where=where)
+
+
+def _need_all(cat: str) -> None:
+    """Import every module that registers something of category ``cat``."""
+    for key in list(_LAZY[cat]):
+        _need(cat, key, fallback=False)
+
+
+def _import_lazy(module: str, *, what: str, where: str | None = None) -> None:
+    try:
+        importlib.import_module(module)
+    except RegistryError:
+        raise
+    except Exception as exc:
+        missing = f" ({exc.name} is missing)" if isinstance(exc, ModuleNotFoundError) and exc.name else ""
+        raise RegistryError(
+            f"{what}: module {module} failed to import{missing}: {type(exc).__name__}: {exc}", where=where
+        ) from None
+
+
+def load_all(*, where: str | None = None) -> list[str]:
+    """Import every module of the lazily declared packages (``sengine nodes``, an unknown name); return them.
+
+    A module that fails to import is a warning, kept for :func:`broken_plugins`.
+    """
+    load_entry_points()
+    done = []
+    for package in list(_LAZY_PACKAGES):
+        for module in _modules(package):
+            try:
+                importlib.import_module(module)
+                done.append(module)
+            except RegistryError:
+                raise
+            except Exception as exc:
+                _broken[module] = f"{type(exc).__name__}: {exc}"
+                warnings.warn(f"sengine module {module} failed to import: {exc}", SEngineWarning, stacklevel=2)
+    for cat in _LAZY.values():
+        cat.clear()
+    _LAZY_PACKAGES.clear()
+    return done
+
+
+def _modules(package: str) -> list[str]:
+    """Every module of ``package`` but private ones (a leading underscore), sorted by name."""
+    pkg = importlib.import_module(package)
+    found = pkgutil.walk_packages(getattr(pkg, "__path__", []), prefix=f"{package}.")
+    return sorted(m.name for m in found if not m.name.rpartition(".")[2].startswith("_"))
+
+
+def _origin(cat: str, key: str) -> None:
+    """Remember which module declares ``key`` of ``cat`` (the caller's caller), for :func:`survey`."""
+    module = sys._getframe(2).f_globals.get("__name__")
+    if module:
+        _ORIGIN.setdefault((cat, key), set()).add(module)
+
+
+def survey(package: str) -> dict[str, dict[str, list[str]]]:
+    """Import every module of ``package`` and index what each registers (the argument of :func:`declare_lazy`).
+
+    Node and network classes are indexed under the module that defines
+    them, rules, layer kinds and map kinds under the modules that declare
+    them; keys and modules sorted.
+    """
+    for module in _modules(package):
+        importlib.import_module(module)
+
+    def mine(module: str) -> bool:
+        return module == package or module.startswith(f"{package}.")
+
+    index: dict[str, dict[str, set[str]]] = {c: {} for c in LAZY_CATEGORIES}
+    for name, cls in REGISTRY.items():
+        if mine(cls.__module__):
+            index["node"].setdefault(name, set()).add(cls.__module__)
+            if cls.source_for:
+                index["source"].setdefault(cls.source_for, set()).add(cls.__module__)
+            for f in getattr(cls, "formats", ()) or ():
+                index["format"].setdefault(f, set()).add(cls.__module__)
+    for base, cls in NETWORKS.items():
+        if mine(cls.__module__):
+            index["network"].setdefault(base, set()).add(cls.__module__)
+    for (cat, key), modules in _ORIGIN.items():
+        for module in modules:
+            if mine(module):
+                index[cat].setdefault(key, set()).add(module)
+    return {cat: {k: sorted(v) for k, v in sorted(entries.items())} for cat, entries in index.items()}
+
+
+def write_index(package: str) -> Path:
+    """Write :func:`survey`'s index of ``package`` as ``INDEX`` in its module ``_index.py``; return the path.
+
+    The module's other text (its docstring) is kept; a missing module is
+    made.  The file is formatted with ``ruff format`` when ruff is installed.
+    """
+    import pprint
+
+    table = pprint.pformat(survey(package), width=110, sort_dicts=False)
+    path = Path(importlib.import_module(package).__file__).parent / "_index.py"
+    text = (
+        path.read_text() if path.exists() else f'"""What the modules of {package} register (made by write_index)."""\n'
+    )
+    head = text.split("\nINDEX", 1)[0].rstrip("\n")
+    path.write_text(f"{head}\n\nINDEX: dict[str, dict[str, list[str]]] = {table}\n")
+    import shutil
+    import subprocess
+
+    ruff = shutil.which("ruff") or shutil.which("ruff", path=str(Path(sys.executable).parent))
+    if ruff:  # the project's style (the file is checked with the rest)
+        subprocess.run([ruff, "format", "--quiet", str(path)], check=False)
+    return path

@@ -31,7 +31,7 @@ import shapely
 
 from sengine import Context, Layer
 from sengine.nodes.maps import plan_inputs
-from sengine.registry import REGISTRY, get, load_entry_points
+from sengine.registry import REGISTRY, get, load_all, load_entry_points
 from sengine.xmlconfig import load_config
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -922,7 +922,7 @@ PENDING: dict[str, str] = {}
 
 
 def all_params() -> set[str]:
-    load_entry_points()
+    load_all()  # the built-in library is imported lazily: every module, so that every node is here
     return {
         f"{name}.{p}"
         for name, cls in REGISTRY.items()

@@ -67,3 +67,38 @@ def test_pinched_faces_keep_each_lobe():
     assert np.isclose(sum(p.area for p in pf.polygons), 100.0)
     shells = pf.walk_polygon[pf.walk_polygon >= 0]
     assert sorted(pf.polygons[shells].tolist(), key=lambda p: p.area)[0].area == 9.0
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(0, 10**6), min_size=0, max_size=400), st.integers(0, 2**32 - 1))
+def test_permutation_cycles_are_scipys_components(keys, seed):
+    """The cycles of a permutation labelled as scipy's weak components: by their lowest element."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from sengine.geom.planar import permutation_cycles
+
+    n = len(keys)
+    perm = np.argsort(np.asarray(keys, np.int64), kind="stable") if n else np.zeros(0, np.int64)
+    if n and seed % 3 == 0:  # long cycles too: one n-cycle through a shuffled order
+        order = np.random.default_rng(seed).permutation(n)
+        perm = np.empty(n, np.int64)
+        perm[order] = np.roll(order, -1)
+    count, label = permutation_cycles(perm)
+    graph = csr_matrix((np.ones(n, np.int8), (np.arange(n), perm)), shape=(n, n))
+    want_count, want = connected_components(graph, directed=True, connection="weak")
+    assert count == want_count
+    assert label.dtype == np.int64 and np.array_equal(label, want)
+    # a cycle's elements share its label, and following the permutation never leaves it
+    assert np.array_equal(label[perm], label)
+
+
+def test_permutation_cycles_of_a_long_cycle():
+    from sengine.geom.planar import permutation_cycles
+
+    n = 100_003
+    perm = np.roll(np.arange(n), 1)  # one cycle through every element
+    count, label = permutation_cycles(perm)
+    assert count == 1 and not label.any()
+    count, label = permutation_cycles(np.arange(7))
+    assert count == 7 and np.array_equal(label, np.arange(7))

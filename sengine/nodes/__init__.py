@@ -1,17 +1,21 @@
 """sengine's built-in node library: the city (roads, blocks, lots, parks, buildings, exporters).
 
 It is the first plugin of the ``sengine.nodes`` entry-point group, loaded the
-way a user's node package is: importing it registers every node and every
-standard network.  One sub-package or module per family (the paper's
-modules): ``roads`` (districts, patterns, minor roads, clean-up, road images,
-OBJ), ``osm``, ``blocks``, ``lots``, ``parks``, ``buildings``, ``filters``,
-``stats`` and ``export`` (the city writers); ``standard`` holds the standard
-networks, whose wiring lives in ``networks/``.
+way a user's node package is.  One sub-package or module per family (the
+paper's modules): ``roads`` (districts, patterns, minor roads, clean-up, road
+images, OBJ), ``osm``, ``blocks``, ``lots``, ``parks``, ``buildings``,
+``filters``, ``stats`` and ``export`` (the city writers); ``standard`` holds
+the standard networks, whose wiring lives in ``networks/``.
+
+Importing the package imports none of them: it declares what each module
+registers (:data:`sengine.nodes._index.INDEX`, made by
+:func:`sengine.registry.write_index`) and the registry imports a module when
+a run first asks for something of it (:func:`sengine.registry.declare_lazy`),
+so a run pays for the modules, and the libraries, it uses.
 """
 
-import importlib as _importlib
-import pkgutil as _pkgutil
+from sengine.registry import declare_lazy as _declare_lazy
 
-for _info in sorted(_pkgutil.walk_packages(__path__, prefix=f"{__name__}."), key=lambda m: m.name):
-    if not _info.name.rpartition(".")[2].startswith("_"):
-        _importlib.import_module(_info.name)
+from ._index import INDEX as _INDEX
+
+_declare_lazy(_INDEX, package=__name__)

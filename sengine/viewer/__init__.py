@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import base64
 import functools
-import http.server
 import json
 import logging
 import shutil
@@ -38,10 +37,14 @@ import threading
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import ParameterError
+
+if TYPE_CHECKING:
+    import http.server
 
 __all__ = ["ASSETS", "DATA_FILE", "PAGE_FILES", "ViewLayer", "tiles", "view_text", "write_view", "write_page", "serve"]
 
@@ -366,9 +369,15 @@ def write_view(out: str | Path, layers: Sequence[ViewLayer], **meta) -> dict:
     return counts
 
 
-class _QuietHandler(http.server.SimpleHTTPRequestHandler):
-    def log_message(self, format, *args):  # noqa: A002 (the standard library's name)
-        log.debug("serve: " + format, *args)
+def _quiet_handler() -> type:
+    """A request handler that logs at debug level (http.server imported here: a run that writes never serves)."""
+    import http.server
+
+    class _QuietHandler(http.server.SimpleHTTPRequestHandler):
+        def log_message(self, format, *args):  # noqa: A002 (the standard library's name)
+            log.debug("serve: " + format, *args)
+
+    return _QuietHandler
 
 
 def serve(out: str | Path, *, port: int = 0, host: str = "127.0.0.1") -> http.server.ThreadingHTTPServer:
@@ -382,7 +391,9 @@ def serve(out: str | Path, *, port: int = 0, host: str = "127.0.0.1") -> http.se
     ParameterError
         The port is taken or cannot be had.
     """
-    handler = functools.partial(_QuietHandler, directory=str(Path(out)))
+    import http.server
+
+    handler = functools.partial(_quiet_handler(), directory=str(Path(out)))
     try:
         server = http.server.ThreadingHTTPServer((host, int(port)), handler)
     except OSError as err:

@@ -55,7 +55,6 @@ import logging
 
 import numpy as np
 import shapely
-from scipy.spatial import cKDTree
 
 from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import ParameterError
@@ -97,6 +96,8 @@ def neighbour_floors(
     if len(sites) == 0 or len(buildings) < min_count:
         return out
     k = min(int(k), len(buildings))
+    from scipy.spatial import cKDTree  # 0.1 s to import: only when there are buildings to ask
+
     dist, idx = cKDTree(buildings).query(sites, k=k, distance_upper_bound=radius)
     dist, idx = dist.reshape(len(sites), k), idx.reshape(len(sites), k)
     near = np.isfinite(dist)

@@ -208,9 +208,12 @@ def export_layers(
         Counts per format (features, triangles, nodes ...), ``clean`` (what
         was repaired or dropped per layer) and ``seconds``.
     """
+    import importlib
+
     from sengine.io import geojson
 
-    from . import cityjson, gltf, gpkg, html, obj, osmxml, parquet, preview, roofs
+    def writer(module: str):  # each writer's module imported when its format is asked for
+        return importlib.import_module(f"{__package__}.{module}")
 
     out = Path(out)
     asked = {str(f).strip().lower() for f in formats or ()} - {""}
@@ -237,13 +240,13 @@ def export_layers(
                 "png",
                 None,
                 partial(
-                    preview.write_preview,
+                    writer("preview").write_preview,
                     out / "preview.png",
                     layers,
                     size=preview_size,
                     extent=extent,
                     attribution=attribution,
-                    title=preview.city_title(city_name),
+                    title=writer("preview").city_title(city_name),
                     north=north_angle(any_crs, centre_ll),
                 ),
             )
@@ -254,7 +257,7 @@ def export_layers(
                 "glb",
                 None,
                 partial(
-                    gltf.write_glb,
+                    writer("gltf").write_glb,
                     out / "city.glb",
                     layers,
                     line_width=line_width,
@@ -271,12 +274,12 @@ def export_layers(
                 "html",
                 None,
                 partial(
-                    html.write_html,
+                    writer("html").write_html,
                     out,
                     layers,
                     offset=centre,
                     line_width=line_width,
-                    name=preview.city_title(city_name),
+                    name=writer("preview").city_title(city_name),
                     attribution=attribution,
                     crs=any_crs,
                     origin={"lat": centre_ll[0], "lon": centre_ll[1], "planar": [float(c) for c in centre]},
@@ -290,7 +293,7 @@ def export_layers(
                 "obj",
                 None,
                 partial(
-                    obj.write_obj,
+                    writer("obj").write_obj,
                     out / "city.obj",
                     layers,
                     line_width=line_width,
@@ -331,7 +334,7 @@ def export_layers(
                     "gpkg",
                     None,
                     partial(
-                        gpkg.write_gpkg,
+                        writer("gpkg").write_gpkg,
                         out / "city.gpkg",
                         layers,
                         transforms,
@@ -348,7 +351,7 @@ def export_layers(
                         "parquet",
                         name,
                         partial(
-                            parquet.write_parquet,
+                            writer("parquet").write_parquet,
                             out / f"{name}.parquet",
                             layers[name],
                             transforms[name],
@@ -365,7 +368,7 @@ def export_layers(
                 "osm",
                 None,
                 partial(
-                    osmxml.write_osm,
+                    writer("osmxml").write_osm,
                     out / "streets.osm",
                     layers["roads"],
                     to_lonlat(crs_of["roads"]),
@@ -379,7 +382,7 @@ def export_layers(
                 "cityjson",
                 None,
                 partial(
-                    cityjson.write_cityjson,
+                    writer("cityjson").write_cityjson,
                     out / "buildings.city.json",
                     layers["buildings"],
                     vegetation=layers.get("vegetation"),
@@ -408,15 +411,15 @@ def export_layers(
         with contextlib.ExitStack() as stack:
 
             def make_roofs() -> None:  # job 0: always this process's, first
-                stack.enter_context(roofs.shared_solids(b, lod))
+                stack.enter_context(writer("roofs").shared_solids(b, lod))
                 progress.advance(len(b))
 
             first = [make_roofs] if share else []
             if surfaces:
-                first.append(partial(gltf.make_surfaces, layers, line_width=line_width))
+                first.append(partial(writer("gltf").make_surfaces, layers, line_width=line_width))
             made = run_jobs(first + [j for j, s in zip(timed, solid) if not s], workers)
             if surfaces:
-                stack.enter_context(gltf.shared_surfaces(layers, made[len(first) - 1], line_width=line_width))
+                stack.enter_context(writer("gltf").shared_surfaces(layers, made[len(first) - 1], line_width=line_width))
             flat = made[len(first) :]
             solids = run_jobs([j for j, s in zip(timed, solid) if s], workers)
         flat.reverse()

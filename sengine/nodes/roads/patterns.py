@@ -41,6 +41,7 @@ __all__ = [
     "grid_lines",
     "radial_lines",
     "organic_sites",
+    "nearest_site",
     "organic_lines",
     "clip_lines",
     "split_cells",
@@ -195,7 +196,7 @@ def organic_sites(
     The region is covered by a regular lattice of about
     ``samples_per_site * sites`` sample points.  Each Lloyd iteration gives
     every sample to its nearest site (a discrete Voronoi diagram,
-    ``scipy.spatial.cKDTree``) and moves each site to the density-weighted
+    :func:`nearest_site`) and moves each site to the density-weighted
     mean of its samples.  With ``weights = 0`` the density is uniform and
     this is Lloyd's algorithm; with ``weights > 0`` the density is a smooth
     random field ``exp(weights * z)`` and the sites converge to a centroidal
@@ -222,8 +223,6 @@ def organic_sites(
     -------
     numpy.ndarray, shape (n, 2)
     """
-    from scipy.spatial import cKDTree
-
     if sites <= 0 or region.is_empty:
         return np.empty((0, 2))
     xmin, ymin, xmax, ymax = region.bounds
@@ -240,13 +239,38 @@ def organic_sites(
     pick = rng.choice(len(pts), size=n, replace=False, p=dens / dens.sum())
     seeds = pts[pick] + rng.uniform(-step / 2, step / 2, (n, 2))
     for _ in range(max(relax, 0)):
-        _, owner = cKDTree(seeds).query(pts)
+        owner = nearest_site(pts, seeds)
         w = np.bincount(owner, weights=dens, minlength=n)
         mx = np.bincount(owner, weights=dens * pts[:, 0], minlength=n)
         my = np.bincount(owner, weights=dens * pts[:, 1], minlength=n)
         ok = w > 0
         seeds[ok] = np.stack([mx[ok] / w[ok], my[ok] / w[ok]], axis=1)
     return seeds
+
+
+#: Up to this many sites, :func:`nearest_site` compares every sample with every site (numpy) rather than
+#: build a k-d tree: the same answers, no ``scipy.spatial`` to import (0.1 s) for a district's few dozen sites.
+BRUTE_FORCE_SITES = 256
+
+
+def nearest_site(points: np.ndarray, sites: np.ndarray) -> np.ndarray:
+    """Index of the nearest of ``sites`` to each of ``points`` (both (n, 2), m).
+
+    Squared distances ``dx**2 + dy**2`` compared directly for a few sites (in
+    chunks of about four million pairs), a ``scipy.spatial.cKDTree`` query
+    for more; equally distant sites (a tie to the last bit) may go either way.
+    """
+    if len(sites) > BRUTE_FORCE_SITES:
+        from scipy.spatial import cKDTree
+
+        return cKDTree(sites).query(points)[1]
+    out = np.empty(len(points), np.int64)
+    chunk = max(1, (1 << 22) // max(len(sites), 1))
+    for s in range(0, len(points), chunk):
+        p = points[s : s + chunk]
+        d = (p[:, None, 0] - sites[None, :, 0]) ** 2 + (p[:, None, 1] - sites[None, :, 1]) ** 2
+        out[s : s + chunk] = d.argmin(axis=1)
+    return out
 
 
 def organic_lines(region, seeds: np.ndarray) -> np.ndarray:
