@@ -352,10 +352,10 @@ class _Massing(SENode):
         report = {
             "buildings": len(out),
             "lots": n_all,
-            "lots_built": int(len(np.unique(out["lot"]))) if len(out) else 0,
+            "lots_built": distinct(out["lot"]),
             "courtyards": int(open_court.sum()),
             "custom": int(custom_lot.sum()),
-            "not_built": int(n - len(np.unique(row))),
+            "not_built": n - distinct(row),
             **report,
             "typologies": {str(t): int(c) for t, c in zip(*np.unique(out["typology"].astype(str), return_counts=True))}
             if len(out)
@@ -525,6 +525,12 @@ class _Drawn:
         role = np.concatenate([k[2] for k in keep])
         o = np.lexsort((role, row))
         return g[o], row[o], role[o]
+
+
+def distinct(values) -> int:
+    """How many different integers ``values`` holds (NumPy 2.4's hashing ``np.unique`` is 20-50x slower than a sort)."""
+    s = np.sort(np.asarray(values))
+    return int(len(s) and 1 + np.count_nonzero(s[1:] != s[:-1]))
 
 
 def _sub_edges(edges, mask):
