@@ -62,7 +62,7 @@ def _normals(u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 #: Most candidate pairs :func:`near_pairs` compares on its grid; more (a spacing large against the points'
 #: spread) go to a ``scipy.spatial.cKDTree``.
-GRID_PAIRS = 1 << 24
+GRID_PAIRS = 1 << 21
 
 
 def near_pairs(a: np.ndarray, b: np.ndarray, r: float, *, strict: bool = False) -> tuple[np.ndarray, np.ndarray]:
@@ -95,12 +95,11 @@ def near_pairs(a: np.ndarray, b: np.ndarray, r: float, *, strict: bool = False) 
     if sum(int(c.sum()) for _, c in ranges) > GRID_PAIRS:
         from scipy.spatial import cKDTree
 
+        # all in C: a list per point (query_ball_point) costs minutes when the pairs run to millions
+        m = cKDTree(a).sparse_distance_matrix(cKDTree(b), r, output_type="ndarray")
         if strict:
-            hits = cKDTree(b).query_ball_point(a, np.nextafter(r, 0.0))
-        else:
-            hits = cKDTree(b).query_ball_point(a, r)
-        cnt = np.fromiter((len(h) for h in hits), np.int64, len(a))
-        return np.repeat(np.arange(len(a)), cnt), np.fromiter((j for h in hits for j in h), np.int64, int(cnt.sum()))
+            m = m[m["v"] < r]
+        return m["i"].astype(np.int64), m["j"].astype(np.int64)
     out_i, out_j = [], []
     for s, cnt in ranges:
         total = int(cnt.sum())
