@@ -167,6 +167,9 @@ def test_planarize_keeps_input_types_when_nothing_crosses():
     [
         [(0, 0), (10, 10), (6, 4), (9, 1)],  # the lines cross at (5, 5), outside the second segment
         [(0, 0), (5, 5), (1, 0), (10, 0)],  # the first starts on the second's line, off the segment
+        [(6, 4), (9, 1), (0, 0), (10, 10)],  # the same two pairs, the other segment first
+        [(1, 0), (10, 0), (0, 0), (5, 5)],
+        [(0, 0), (10, 10), (3, 5), (3, 5)],  # a zero-length segment inside the other's box, off it
     ],
 )
 def test_planarize_does_not_split_segments_whose_lines_cross_elsewhere(xy):
@@ -252,6 +255,26 @@ def test_planarize_merges_a_crossing_with_a_node_within_a_nanometre():
     assert len(out10) == 7
 
 
+pt5 = st.tuples(st.integers(-5, 5), st.integers(-5, 5)).map(lambda p: (float(p[0]), float(p[1])))
+
+
+@SETTINGS
+@given(pt5, pt5, pt5, pt5)
+def test_planarize_two_segments_cross_as_shapely_says(a, b, c, d):
+    """Two segments on four distinct nodes: one crossing pair iff shapely says they meet; same union after."""
+    if a == b or c == d:
+        return
+    xy = [a, b, c, d]
+    out, u, v, src, n = planarize(xy, [0, 2], [1, 3])
+    s1, s2 = shapely.LineString([a, b]), shapely.LineString([c, d])
+    assert n == int(shapely.intersects(s1, s2))
+    pieces = shapely.linestrings(np.stack([out[u], out[v]], axis=1))
+    # the same drawing (a crossing at a third of a metre is rounded to 9 decimals)
+    assert shapely.hausdorff_distance(shapely.union_all(pieces), shapely.union_all([s1, s2])) < 1e-9
+    assert abs(shapely.length(pieces).sum() - s1.length - s2.length) < 1e-9
+    assert np.all(shapely.length(pieces) > 0)
+
+
 def test_planarize_logs_its_counts(caplog):
     with caplog.at_level(logging.INFO, logger="sengine.geom.segments"):
         planarize([(0, 0), (10, 0), (5, -5), (5, 5), (2, -5), (2, 5)], [0, 2, 4], [1, 3, 5])
@@ -321,6 +344,15 @@ def test_box_closure_by_hand_off_the_origin():
     assert out[5:].tolist() == [[-5, -2], [5, -2], [5, 9], [-5, 9]]
     assert cu.tolist() == [5, 0, 6, 1, 7, 2, 8, 3]
     assert cv.tolist() == [0, 6, 1, 7, 2, 8, 3, 5]
+
+
+def test_box_closure_by_hand_two_nodes_a_side():
+    """Each side is walked counter-clockwise: right side upwards, top leftwards, left side downwards."""
+    xy = np.array([(0, -2), (3, -2), (5, 4), (5, 7), (2, 9), (-1, 9), (-5, 6), (-5, 1), (0, 3)], float)
+    out, cu, cv = box_closure(xy)
+    assert out[9:].tolist() == [[-5, -2], [5, -2], [5, 9], [-5, 9]]
+    assert cu.tolist() == [9, 0, 1, 10, 2, 3, 11, 4, 5, 12, 6, 7]
+    assert cv.tolist() == [0, 1, 10, 2, 3, 11, 4, 5, 12, 6, 7, 9]
 
 
 @pytest.mark.parametrize(
