@@ -54,10 +54,19 @@ def test_from_polygons_empty_and_wrong_types():
     assert rs.n == 0 and rs.xy.shape == (0, 2)
     assert rs.ring.dtype == rs.poly.dtype == np.int64 and rs.flag.dtype == bool
     assert len(rs.polygons()) == 0
-    with pytest.raises(TypeError, match="Polygons only"):
+    assert len(rs.flag) == len(rs.ring) == len(rs.poly) == 0
+    assert rs.polygons().dtype == object
+    msg = r"^RingSet.from_polygons takes Polygons only \(explode MultiPolygons first\)$"
+    with pytest.raises(TypeError, match=msg):
         RingSet.from_polygons([shapely.MultiPolygon([TRIANGLE])])
-    with pytest.raises(TypeError, match="Polygons only"):
+    with pytest.raises(TypeError, match=msg):
         RingSet.from_polygons([TRIANGLE, shapely.LineString([(0, 0), (1, 1)])])
+
+
+def test_from_polygons_takes_empty_geometries_of_any_type():
+    """An empty intersection may come back as an empty collection: it is an empty polygon here."""
+    rs = RingSet.from_polygons([TRIANGLE, shapely.GeometryCollection(), shapely.LineString()])
+    assert rs.n == 3 and rs.areas().tolist() == [6.0, 0.0, 0.0]
 
 
 def test_cleaned_drops_repeats_and_short_rings():
@@ -143,13 +152,15 @@ def test_permuted_reorders_and_selects():
     assert p.n == 3 and p.areas().tolist() == [6.0, 15.0, 0.0]
     assert p.ring.tolist() == [0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 2] and p.poly.tolist() == [0, 1, 1]
     assert p.xy[:3].tolist() == [[10, 0], [13, 0], [13, 4]]
+    f = RingSet.concat([RingSet.from_polygons([TRIANGLE], flag=False), RingSet.from_polygons([TRIANGLE])])
+    assert f.permuted([1, 0]).flag.tolist() == [True] * 3 + [False] * 3
     q = rs.permuted(np.array([2, 2], np.int32))
     assert q.n == 2 and q.areas().tolist() == [6.0, 6.0] and q.ring.tolist() == [0, 0, 0, 1, 1, 1]
 
 
 def test_concat():
     e = RingSet.concat([])
-    assert e.n == 0 and e.xy.shape == (0, 2) and e.ring.dtype == e.poly.dtype == np.int64
+    assert e.n == 0 and e.xy.shape == (0, 2) and e.ring.dtype == e.poly.dtype == np.int64 and e.flag.dtype == bool
     a = RingSet.from_polygons([SQUARE_WITH_HOLE, shapely.Polygon()])
     b = RingSet.from_polygons([TRIANGLE], flag=False)
     c = RingSet.concat([a, b, RingSet.concat([])])
@@ -167,6 +178,13 @@ def test_extent_along_by_hand():
     ref, lo, hi = rs.extent_along(d)
     assert lo[2] == 0.0 and hi[2] == pytest.approx(3 * 0.6 + 4 * 0.8)
     assert lo[0] == 0.0 and hi[0] == pytest.approx(4 * 1.4)
+
+
+def test_extent_along_with_trailing_empty_polygons():
+    rs = RingSet.from_polygons([TRIANGLE, shapely.Polygon(), shapely.Polygon()])
+    ref, lo, hi = rs.extent_along(np.tile([1.0, 0.0], (3, 1)))
+    assert ref.tolist() == [[10, 0], [0, 0], [0, 0]]
+    assert lo.tolist() == [0.0, np.inf, np.inf] and hi.tolist() == [3.0, -np.inf, -np.inf]
 
 
 def test_extent_along_of_an_empty_set():
@@ -208,8 +226,11 @@ def test_min_rect_axis_big_polygons_use_the_oriented_envelope():
     ell = shapely.Polygon(
         np.c_[30 * np.cos(t), 10 * np.sin(t)] @ [[np.cos(0.5), np.sin(0.5)], [-np.sin(0.5), np.cos(0.5)]]
     )
-    rs = RingSet.from_polygons([ell, rect(0, 0, 5, 1, 2.0)])
+    rs = RingSet.from_polygons([ell, rect(0, 0, 5, 1, 2.0), shapely.Polygon()])
     axis = rs.min_rect_axis(max_vertices=128)
+    assert axis[2].tolist() == [1.0, 0.0]
+    only_big = RingSet.from_polygons([ell]).min_rect_axis()
+    assert abs(only_big[0] @ [np.cos(0.5), np.sin(0.5)]) == pytest.approx(1.0, abs=2e-3)
     assert abs(axis[0] @ [np.cos(0.5), np.sin(0.5)]) == pytest.approx(1.0, abs=2e-3)
     assert abs(axis[1] @ [np.cos(2.0), np.sin(2.0)]) == pytest.approx(1.0, abs=1e-12)
     # the same from the edge-aligned search when the limit is raised
@@ -241,3 +262,61 @@ def test_ringset_round_trip_and_measures_match_shapely(boxes):
     assert np.allclose(rs.flagged_length(), shapely.length(polys)) if polys else True
     order = np.arange(len(polys))[::-1]
     assert all(shapely.equals(a, polys[i]) for a, i in zip(rs.permuted(order).polygons(), order))
+
+
+def sawtooth(n: int) -> shapely.Polygon:
+    """An n-vertex 40 x 10 rectangle outline, every other vertex pushed 1 m out: no edge is along a side."""
+    t = np.linspace(0, 100, n, endpoint=False)  # along the perimeter of [0, 40] x [0, 10]
+    ring = shapely.box(0, 0, 40, 10).exterior
+    pts = shapely.get_coordinates(shapely.line_interpolate_point(ring, t + 0.3))
+    c = np.array([20.0, 5.0])
+    out = pts + (np.arange(n) % 2)[:, None] * np.sign(pts - c) * [1.0, 1.0]
+    return shapely.Polygon(out)
+
+
+def test_min_rect_axis_switches_to_the_envelope_above_max_vertices():
+    """128 exterior vertices: the edge-aligned search (no edge lies along the hull); 129: GEOS's envelope."""
+    from sengine.geom.polygons import obb_frame
+
+    for n, envelope in ((128, False), (129, True)):
+        p = sawtooth(n)
+        assert len(p.exterior.coords) - 1 == n and p.is_valid
+        axis = RingSet.from_polygons([p]).min_rect_axis()[0]
+        env = obb_frame([p])[1][0]
+        assert (abs(axis @ env) > 1 - 1e-9) == envelope
+
+
+def edge_box_areas(p: shapely.Polygon) -> np.ndarray:
+    """Area of the box aligned with each exterior edge of p (brute force)."""
+    xy = np.asarray(p.exterior.coords)[:-1]
+    e = np.roll(xy, -1, axis=0) - xy
+    e /= np.hypot(e[:, 0], e[:, 1])[:, None]
+    a, b = xy @ e.T, xy @ np.c_[-e[:, 1], e[:, 0]].T
+    return np.ptp(a, axis=0) * np.ptp(b, axis=0)
+
+
+@st.composite
+def star_polygons(draw):
+    """Simple polygons: 3-12 vertices at random radii and whole-degree angles round a centre, any scale and place."""
+    k = draw(st.integers(3, 12))
+    deg = draw(st.lists(st.integers(0, 359), min_size=k, max_size=k, unique=True))
+    ang = np.radians(np.sort(deg)) + draw(st.floats(0, 1))  # whole degrees apart: no vanishing edge
+    rad = np.asarray(draw(st.lists(st.floats(0.3, 1.0), min_size=k, max_size=k)))
+    scale = draw(st.sampled_from([0.2, 3.0, 50.0]))
+    cx, cy = draw(st.integers(-1000, 1000)), draw(st.integers(-1000, 1000))
+    p = shapely.Polygon(np.c_[cx + scale * rad * np.cos(ang), cy + scale * rad * np.sin(ang)])
+    return p if p.is_valid and p.area > 1e-3 * scale**2 else None
+
+
+@SETTINGS
+@given(st.lists(star_polygons(), min_size=1, max_size=4))
+def test_min_rect_axis_is_the_smallest_edge_aligned_box(polys):
+    polys = [p for p in polys if p is not None]
+    rs = RingSet.from_polygons(polys)
+    axis = rs.min_rect_axis()
+    for p, ax in zip(shapely.orient_polygons(np.array(polys, object)), axis):
+        xy = np.asarray(p.exterior.coords)[:-1]
+        length, width = np.ptp(xy @ ax), np.ptp(xy @ [-ax[1], ax[0]])
+        scale = np.sqrt(p.area)
+        assert length >= width - 1e-9 * scale  # the long side
+        assert length * width == pytest.approx(edge_box_areas(p).min(), rel=1e-9)
