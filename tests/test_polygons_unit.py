@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import shapely
+import shapely.affinity
 
 from sengine.geom.polygons import (
     PARALLEL_MIN,
@@ -48,6 +49,12 @@ def test_obb_frame_of_rotated_rectangles():
     assert np.allclose(np.hypot(axis[:, 0], axis[:, 1]), 1.0)
     for k, t in ((0, 0.3), (1, 2.0)):
         assert abs(axis[k] @ [np.cos(t), np.sin(t)]) == pytest.approx(1.0, abs=1e-9)
+
+
+def test_obb_frame_axis_is_a_unit_vector_for_small_boxes():
+    center, axis, length, width = obb_frame([rect(1, 2, 0.5, 0.2, 0.7)])
+    assert np.hypot(*axis[0]) == pytest.approx(1.0) and length[0] == pytest.approx(0.5)
+    assert abs(axis[0] @ [np.cos(0.7), np.sin(0.7)]) == pytest.approx(1.0)
 
 
 def test_obb_frame_of_lines_points_and_empties():
@@ -125,6 +132,10 @@ def test_inset_mitre_limit_and_rounded_joins():
     areas = [inset([notch], 0.5, mitre_limit=1.0)[0].area, inset([notch], 0.5)[0].area]  # 1, the default 3
     areas.append(inset([notch], 0.5, mitre_limit=10.0)[0].area)
     assert areas[0] > areas[1] + 0.5 > areas[2] + 1.0
+    assert areas[1] == inset([notch], 0.5, mitre_limit=3.0)[0].area
+    # the mitre limit reaches the polygons not rounded when some are
+    mixed = inset([notch, ell], 0.5, mitre_limit=10.0, rounded=[False, True])
+    assert mixed[0].area == areas[2]
     both = inset([ell, ell], 1.0, rounded=[False, True])
     assert both[0].equals(sharp) and both[1].equals(blunt)
     assert inset([ell], 1.0, rounded=[False])[0].equals(sharp)
@@ -133,11 +144,14 @@ def test_inset_mitre_limit_and_rounded_joins():
 def test_inset_threads_give_the_one_thread_result():
     rng = np.random.default_rng(4)
     xy = rng.uniform(0, 1000, (PARALLEL_MIN + 11, 2))
-    polys = shapely.box(xy[:, 0], xy[:, 1], xy[:, 0] + rng.uniform(2, 20, len(xy)), xy[:, 1] + 9)
-    d = rng.uniform(0.5, 3, len(xy))
-    one = inset(polys, d, threads=1)
-    for threads in (2, 3):
-        assert shapely.to_wkb(inset(polys, d, threads=threads)).tolist() == shapely.to_wkb(one).tolist()
+    notch = shapely.Polygon([(0, 0), (10, 0), (10, 10), (5.5, 10), (5, 4), (4.5, 10), (0, 10)])
+    polys = np.array([shapely.affinity.translate(notch, x, y) for x, y in xy])  # sharp re-entrant tips
+    d = rng.uniform(0.3, 0.6, len(xy))
+    for mitre in (3.0, 10.0):
+        one = inset(polys, d, threads=1, mitre_limit=mitre)
+        for threads in (2, 3):
+            got = inset(polys, d, threads=threads, mitre_limit=mitre)
+            assert shapely.to_wkb(got).tolist() == shapely.to_wkb(one).tolist()
 
 
 # --- clip_frame_boxes ----------------------------------------------------------------------------
@@ -158,7 +172,8 @@ def test_clip_frame_boxes_is_the_intersection_with_the_frame_box():
     assert np.allclose(shapely.area(got), shapely.area(want), atol=1e-9)
     assert np.allclose(shapely.area(shapely.symmetric_difference(got, want)), 0.0, atol=1e-7)
     assert (shapely.area(want) > 0).sum() > 30  # the check is not vacuous
-    assert len(clip_frame_boxes([], [], [], [], [], [], [])) == 0
+    empty = clip_frame_boxes([], [], [], [], [], [], [])
+    assert len(empty) == 0 and empty.dtype == object
 
 
 def test_clip_frame_boxes_by_hand():
@@ -172,9 +187,10 @@ def test_clip_frame_boxes_by_hand():
 
 def test_containing_lowest_index_and_none():
     polys = [shapely.box(0, 0, 10, 10), shapely.box(5, 5, 15, 15), shapely.box(20, 0, 30, 10)]
-    pts = shapely.points([(7, 7), (12, 12), (1, 1), (17, 2), (10, 2), (25, 5)])
-    assert containing(pts, polys).tolist() == [0, 1, 0, -1, -1, 2]  # (10, 2) is on a boundary: not within
-    assert containing(pts, []).tolist() == [-1] * 6
+    pts = shapely.points([(7, 7), (12, 12), (1, 1), (17, 2), (10, 2), (25, 5), (8, 8)])
+    # (10, 2) is on a boundary: not within; (7, 7) and (8, 8) lie in 0 and 1: the lowest
+    assert containing(pts, polys).tolist() == [0, 1, 0, -1, -1, 2, 0]
+    assert containing(pts, []).tolist() == [-1] * 7
     out = containing([], polys)
     assert out.dtype == np.int64 and len(out) == 0
     assert containing(shapely.points([(50, 50)]), polys).tolist() == [-1]
@@ -186,6 +202,9 @@ def test_shared_areas_empty_and_disjoint():
         assert len(gi) == len(oi) == len(area) == 0 and gi.dtype == oi.dtype == np.int64
     gi, oi, area = shared_areas([shapely.box(0, 0, 1, 1)], [shapely.box(5, 5, 6, 6)])
     assert len(gi) == len(area) == 0
+    tri = shapely.Polygon([(0, 0), (10, 0), (0, 10)])  # the box lies in its bounding box, off the triangle
+    gi, oi, area = shared_areas([tri], [shapely.box(8, 8, 9, 9), shapely.box(1, 1, 2, 2)])
+    assert gi.tolist() == [0] and oi.tolist() == [1] and area.tolist() == [1.0]
 
 
 def test_largest_share_ties_and_misses():
@@ -227,6 +246,14 @@ def test_subtract_buffers_distances_rounds_and_zero():
     assert out[1].area == pytest.approx(100 - 40)
 
 
+def test_subtract_buffers_distances_apart_by_more_than_a_mm_stay_apart():
+    sq = shapely.box(0, 0, 10, 10)
+    a = shapely.LineString([(-5, 2), (15, 2)])
+    b = shapely.LineString([(-5, 8), (15, 8)])
+    out = subtract_buffers([sq], [a, b], [0, 0], [1.0, 1.3])
+    assert out[0].area == pytest.approx(100 - 20 - 26)
+
+
 def test_subtract_buffers_merges_lines_of_one_distance():
     sq = shapely.box(0, 0, 10, 10)
     parts = [shapely.LineString([(-5, 5), (5, 5)]), shapely.LineString([(5, 5), (15, 5)])]
@@ -244,9 +271,24 @@ def test_right_of_lines_by_hand():
     assert shapely.equals(south, shapely.box(0, 0, 10, 5))
     (north,) = right_of_lines([east.reverse()], box)
     assert shapely.equals(north, shapely.box(0, 5, 10, 10))
-    assert len(right_of_lines([], box)) == 0
+    none = right_of_lines([], box)
+    assert len(none) == 0 and none.dtype == object
     assert len(right_of_lines([shapely.LineString([(2, 5), (8, 5)])], box)) == 0  # ends inside: closes nothing
     assert len(right_of_lines([shapely.LineString([(20, 5), (30, 5)])], box)) == 0  # outside: the box is whole
+
+
+def test_right_of_lines_probes_a_millimetre_off_long_lines():
+    """A 3 km coast 1 m inside a 4 m tall box: probes must stay a millimetre off it, whatever its length."""
+    (south,) = right_of_lines([shapely.LineString([(-1, 1), (3001, 1)])], (0, 0, 3000, 4))
+    assert shapely.equals(south, shapely.box(0, 0, 3000, 1))
+
+
+def test_right_of_lines_votes_add_up():
+    """The middle part is right of two segments and left of one: 2 - 1 > 0, it is kept."""
+    low = shapely.LineString([(11, 2), (5, 2), (-1, 2)])  # westwards: the right is north
+    high = shapely.LineString([(11, 8), (-1, 8)])
+    parts = right_of_lines([low, high], (0, 0, 10, 10))
+    assert sorted(shapely.bounds(parts).tolist()) == [[0, 2, 10, 8], [0, 8, 10, 10]]
 
 
 def test_right_of_lines_repeated_vertices_and_two_coasts():
