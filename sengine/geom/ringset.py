@@ -74,7 +74,7 @@ class RingSet:
         polys = shapely.orient_polygons(polys)
         rings, pidx = shapely.get_rings(polys, return_index=True)
         c, ci = shapely.get_coordinates(rings, return_index=True)
-        keep = np.r_[ci[1:] == ci[:-1], False]  # drop each ring's closing vertex
+        keep = np.r_[ci[1:] == ci[:-1], False] if len(ci) else np.zeros(0, bool)  # drop each closing vertex
         rs = cls(c[keep], ci[keep].astype(np.int64), np.full(int(keep.sum()), bool(flag)), pidx.astype(np.int64), n)
         return rs.cleaned()
 
