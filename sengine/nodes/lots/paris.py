@@ -60,7 +60,7 @@ from sengine.geom.polygons import threaded
 from sengine.geom.split import RingSet, split
 from sengine.random import hash01
 
-from .contour import Contour, Marks, ramp
+from .contour import Contour, Marks, Rings, ramp
 
 __all__ = ["paris_lots"]
 
@@ -77,9 +77,14 @@ def _normal(seed, key):
 
 
 def _clean(geoms, area):
-    """Simple, counter-clockwise polygons (the partition certificate's test)."""
+    """Simple, counter-clockwise polygons (the partition certificate's test).
+
+    ``geoms``: polygons, or their :class:`~.contour.Rings`, of which only
+    those of positive area are built.
+    """
     ok = np.asarray(area) > 0
-    ok[ok] = threaded(shapely.is_valid, np.asarray(geoms, dtype=object)[ok])  # GEOS runs without the GIL
+    geoms = geoms.polygons(ok) if isinstance(geoms, Rings) else np.asarray(geoms, dtype=object)[ok]
+    ok[ok] = threaded(shapely.is_valid, geoms)  # GEOS runs without the GIL
     return ok
 
 
@@ -90,15 +95,26 @@ RISK = 0.5  # an inner segment shorter than this share of its contour segment (o
 TOUCH = 1e-3  # m: less street than this is none (an inner lot may touch a street by less)
 
 
-def inscribed_radius(polys) -> np.ndarray:
-    """Radius (m) of the largest circle inside each polygon: half its inscribed depth (to 1 %)."""
+def inscribed_radius(polys, enough=np.inf) -> np.ndarray:
+    """Radius (m) of the largest circle inside each polygon: half its inscribed depth (to 1 %).
+
+    Where only whether the radius reaches ``enough`` (m) matters: a polygon
+    whose interior point (``point_on_surface``) lies farther than ``enough``
+    from its boundary, by more than the tolerance, gets that distance (a lower
+    bound, at least ``enough``, as GEOS's circle would be) without the search.
+    """
     polys = np.asarray(polys, dtype=object)
     out = np.zeros(len(polys))
-    ok = ~shapely.is_empty(polys) & (shapely.area(polys) > 0)
-    if ok.any():
+    ok = np.flatnonzero(~shapely.is_empty(polys) & (shapely.area(polys) > 0))
+    if len(ok):
         b = shapely.bounds(polys[ok])
         tol = 0.01 * np.maximum(np.minimum(b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]), 1e-6)
-        out[ok] = shapely.length(shapely.maximum_inscribed_circle(polys[ok], tol))
+        search = np.ones(len(ok), bool)
+        if np.isfinite(enough):
+            low = shapely.distance(shapely.point_on_surface(polys[ok]), shapely.boundary(polys[ok]))
+            search = ~(low >= enough + tol)
+            out[ok[~search]] = low[~search]
+        out[ok[search]] = shapely.length(shapely.maximum_inscribed_circle(polys[ok[search]], tol[search]))
     return out
 
 
@@ -139,7 +155,7 @@ class _Candidates(NamedTuple):
     poly: np.ndarray  # polygon of each candidate
     index: np.ndarray  # its index along its polygon's contour
     start: np.ndarray  # its first sample (3 per segment)
-    lot: np.ndarray  # its polygon: contour segment, then the displaced points backwards
+    lot: Rings  # its polygon: contour segment, then the displaced points backwards
     lot_area: np.ndarray  # signed area (m2): negative when it winds clockwise
     marks: Marks  # its segment marks
     core_part: np.ndarray  # no street (a cut edge), or its polygon has no candidate of min_frontage: joins the core
@@ -152,7 +168,7 @@ class _Corners(NamedTuple):
     poly: np.ndarray  # polygon of each run
     first: np.ndarray  # its first candidate
     count: np.ndarray  # how many candidates it spans
-    lot: np.ndarray  # the corner lot
+    lot: Rings  # the corner lot
     marks: Marks
     refused: np.ndarray  # still not simple (or short of street) after growing twice: its polygon is cut
 
@@ -175,7 +191,7 @@ def _candidates(rs, C, min_frontage) -> _Candidates:
     cp = np.repeat(np.arange(P), nseg)
     ci = ramp(nseg)
     ja = 3 * ci
-    q, qa, front, qm = C.chains(cp, ja, ja + 3, np.ones(len(cp), np.int64))
+    q, qa, front, qm = C.chains(cp, ja, ja + 3, np.ones(len(cp), np.int64), lazy=True)
     merge = front < TOUCH  # no street (a cut edge): part of the core
     # no candidate with enough street: the polygon is one lot (inner if it has no street)
     merge |= (np.bincount(cp, weights=front >= min_frontage, minlength=P) == 0)[cp]
@@ -202,7 +218,7 @@ def _overlapping_windows(C, cand: _Candidates) -> np.ndarray:
     bad_win = np.zeros(len(cp), bool)
     if len(wsel):
         one = np.ones(len(wsel), np.int64)
-        win, wa, _, _ = C.chains(cp[wsel], ja[wsel], ja[wsel] + 3 * w[wsel], one)
+        win, wa, _, _ = C.chains(cp[wsel], ja[wsel], ja[wsel] + 3 * w[wsel], one, lazy=True)
         bad_win[wsel] = ~_clean(win, wa)
     cstart = np.cumsum(nseg) - nseg
     overlapping = np.zeros(len(cp), bool)
@@ -224,7 +240,7 @@ def _corner_lots(C, cand: _Candidates, bad, min_frontage) -> tuple[_Corners, np.
     bad = bad.copy()
     for it in range(3):
         run_p, s_i, n_i = _runs(bad, cp, ci, nseg)
-        corner, ca, cfront, cm = C.chains(run_p, 3 * s_i, 3 * (s_i + n_i), 3 * n_i)
+        corner, ca, cfront, cm = C.chains(run_p, 3 * s_i, 3 * (s_i + n_i), 3 * n_i, lazy=True)
         refused = ~(_clean(corner, ca) & (cfront >= min_frontage))
         if not refused.any() or it == 2:
             break
@@ -297,7 +313,7 @@ def _pass(rs, depth, segment, min_frontage, C):
     # lots: good candidates, corner lots, cores (small cores join their longest neighbour)
     gsel = good & done[cp]
     csel = done[run_p]
-    lots = np.r_[cand.lot[gsel], corners.lot[csel]]
+    lots = np.r_[cand.lot.polygons(gsel), corners.lot.polygons(csel)]
     lpoly = np.r_[cp[gsel], run_p[csel]]
     shared = np.r_[
         _back_length(C, cp[gsel], ja[gsel], ja[gsel] + 3, 1),
@@ -474,7 +490,7 @@ def paris_lots(
         if rs.n == 0:
             break
         C = Contour(rs, segment)
-        cap = REACH * inscribed_radius(rs.polygons())
+        cap = REACH * inscribed_radius(rs.polygons(), enough=3.0 * depth / REACH * (1 + 1e-9))  # d <= 3 depth
         with np.errstate(over="ignore"):
             z = _normal(seeds[own][C.sp], key[C.sp] * np.uint64(1_000_003) + C.sj.astype(np.uint64))
         d = np.clip(depth + deviation * z, 0.2 * depth, 3.0 * depth)
