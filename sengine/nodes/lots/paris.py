@@ -36,7 +36,9 @@ How it is computed, for all blocks at once and without polygon overlay:
    candidate on each side, is cut in two across its main axis
    (:func:`sengine.geom.split.split`; the cut edges are not streets, so no lot
    faces them, and only lots without street are inner) and the halves start
-   again, a few times; what remains is kept whole and counted.
+   again, a few times; what remains is kept whole and counted.  A refused
+   piece smaller than one nominal lot (``segment`` x ``depth``) is not cut:
+   it is one lot (cutting it gave slivers that only joined their neighbours).
 
 Randomness is a hash of (block seed, piece, sample), so results do not depend
 on the order blocks are processed in.
@@ -439,7 +441,9 @@ def paris_lots(
         Receives ``paris_inner`` (inner lots: cores, and pieces without
         street kept whole), ``paris_corner`` (corner lots
         merged from overlapping candidates), ``paris_cut`` (cuts made) and
-        ``paris_fallback`` (pieces kept whole), ``merged_slivers`` and
+        ``paris_fallback`` (pieces kept whole after ``max_cuts``),
+        ``paris_small`` (refused pieces under ``segment`` x ``depth`` kept
+        whole: one lot, not cut into slivers), ``merged_slivers`` and
         ``dropped_slivers`` (under 1 m2, touching no neighbour along a side).
 
     street : bool
@@ -485,7 +489,7 @@ def paris_lots(
     # piece key: 1 + the part's rank in its block (then 2 k + side after cuts): batch independent
     key = (np.arange(rs.n) - np.searchsorted(own, own) + 1).astype(np.uint64)
     out_l, out_o, out_i, out_m, out_k = [], [], [], [], []
-    corners = cuts = 0
+    corners = cuts = small = 0
     for level in range(max_cuts + 1):
         if rs.n == 0:
             break
@@ -505,6 +509,19 @@ def paris_lots(
         out_m.append(marks)
         out_k.append(known)
         fail = np.flatnonzero(~done)
+        if len(fail) and level < max_cuts:
+            # a refused piece under one nominal lot (segment x depth) is one lot: cut, it gives slivers
+            tiny = fail[shapely.area(rs.take(fail).polygons()) < segment * depth]
+            if len(tiny):
+                sub = rs.take(tiny)
+                out_l.append(sub.polygons())
+                out_o.append(own[tiny])
+                out_i.append(sub.flagged_length() < TOUCH)
+                out_m.append(Marks.of(sub))
+                out_k.append(np.ones(len(tiny), bool))
+                small += len(tiny)
+                done[tiny] = True
+                fail = np.flatnonzero(~done)
         if len(fail) == 0 or level == max_cuts:
             break
         # cut the refused polygons in two across their main axis, and try again
@@ -551,6 +568,7 @@ def paris_lots(
             ("paris_corner", corners),
             ("paris_cut", cuts),
             ("paris_fallback", fallback),
+            ("paris_small", small),
             ("merged_slivers", merged),
             ("dropped_slivers", dropped),
         ):
