@@ -327,6 +327,27 @@ def test_paris_thin_concave_and_holed_blocks():
     assert (per_block >= 0.6 * shapely.length(blocks.geometry) / 20.0 - 2).all()
 
 
+def test_paris_small_refused_piece_is_one_lot(monaco_blocks):
+    """A piece the partition test refuses that is under segment x depth is one lot, not cut into slivers."""
+    polys = [
+        shapely.Polygon([(0, 0), (30, 0), (30, 6), (6, 6), (6, 30), (0, 30)]),  # thin L, 324 m2 < 20 x 22 m
+        shapely.Polygon([(0, 0), (20, 0), (20, 3), (3, 3), (3, 20), (20, 20), (20, 23), (0, 23)]),  # C, 171 m2
+    ]
+    blocks = Layer.from_geoms(polys)
+    ran = get("lots.paris")("lots", {})
+    ran = ran.run(blocks=blocks)
+    lots = ran["lots"]
+    check_lots(blocks, lots, "lots.paris")
+    assert len(lots) == 2 and ran.report["paris_small"] == 2 and ran.report["paris_cut"] == 0
+    assert np.allclose(shapely.area(lots.geometry), [324.0, 171.0], rtol=1e-12)
+    # on a real extract: refused pieces under one nominal lot are counted, and no lot is a sliver
+    ran = get("lots.paris")("lots", {}, Context(seed=2)).run(blocks=monaco_blocks)
+    check_lots(monaco_blocks, ran["lots"], "lots.paris")
+    assert ran.report["paris_small"] > 0
+    assert ran.report["merged_slivers"] < 0.05 * len(ran["lots"])
+    assert (shapely.area(ran["lots"].geometry) >= 1.0).all()
+
+
 def test_awkward_blocks():
     """Slivers, a 5000-vertex circle, holes touching the shell, repeated vertices, far coordinates, wiggles."""
     polys = [

@@ -543,8 +543,17 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     ring_hole = np.r_[np.zeros(len(shells), bool), np.ones(len(hole_units) + int((host >= 0).sum()), bool)]
     ok = ring_poly >= 0
     ring_units, ring_poly, ring_hole = ring_units[ok], ring_poly[ok], ring_hole[ok]
-    o = np.lexsort((ring_hole, ring_poly))
-    polygons = shapely.polygons(rings_all[ring_units[o]], indices=ring_poly[o]) if len(shells) else np.empty(0, object)
+    # polygons without holes are their shells, already built; only the holed ones are built again
+    polygons = shell_polys.copy() if len(shells) else np.empty(0, object)
+    holed = np.zeros(len(shells), bool)
+    holed[ring_poly[ring_hole]] = True
+    if holed.any():
+        sel = holed[ring_poly]
+        ru, rp, rh = ring_units[sel], ring_poly[sel], ring_hole[sel]
+        o = np.lexsort((rh, rp))
+        polygons[np.flatnonzero(holed)] = shapely.polygons(
+            rings_all[ru[o]], indices=np.searchsorted(np.flatnonzero(holed), rp[o])
+        )
     outline = shapely.polygons(shapely.reverse(rings_all[outer_units[host < 0]]))
     # per-edge faces
     hface = np.where(bounded_face[face], face_poly[face], face_host[face])

@@ -16,7 +16,7 @@ import shapely
 
 from sengine.geom.split import RingSet
 
-__all__ = ["Contour", "Marks", "ramp"]
+__all__ = ["Contour", "Marks", "Rings", "ramp"]
 
 
 def ramp(counts):
@@ -81,6 +81,46 @@ class Marks:
         return cls(rs.flag, np.bincount(rs.vertex_poly(), minlength=rs.n))
 
 
+def _build(xy, sizes):
+    """Polygons from closed rings given one after another."""
+    sizes = np.asarray(sizes, np.int64)
+    return shapely.from_ragged_array(
+        shapely.GeometryType.POLYGON, xy, (np.r_[0, np.cumsum(sizes)], np.arange(len(sizes) + 1))
+    )
+
+
+class Rings:
+    """Closed rings one after another (coordinates and counts): polygons not built until asked for."""
+
+    def __init__(self, xy, sizes):
+        self.xy = np.asarray(xy, np.float64)
+        self.sizes = np.asarray(sizes, np.int64)
+        self._built = None  # the polygons built so far (None: not yet)
+
+    def __len__(self) -> int:
+        return len(self.sizes)
+
+    def take(self, idx) -> Rings:
+        idx = np.asarray(idx)
+        if idx.dtype == bool:
+            idx = np.flatnonzero(idx)
+        c = self.sizes[idx]
+        return Rings(self.xy[np.repeat((np.cumsum(self.sizes) - self.sizes)[idx], c) + ramp(c)], c)
+
+    def polygons(self, idx=None) -> np.ndarray:
+        """The polygons (of rings ``idx``, all by default); each ring is built once."""
+        idx = np.arange(len(self)) if idx is None else np.asarray(idx)
+        if idx.dtype == bool:
+            idx = np.flatnonzero(idx)
+        if self._built is None:
+            self._built = np.full(len(self), None, dtype=object)
+        todo = np.unique(idx[shapely.is_missing(self._built[idx])])
+        if len(todo):
+            r = self.take(todo)
+            self._built[todo] = _build(r.xy, r.sizes)
+        return self._built[idx]
+
+
 # -- the contour ------------------------------------------------------------------------------
 
 
@@ -132,6 +172,7 @@ class Contour:
         self.pts = self._at(self.sp, self.s)
         self.nrm = np.zeros_like(self.pts)
         self.inner = self.pts
+        self._table = None  # (inner, coordinate table of _polygons)
 
     def _search(self, p, s, right=True):
         """Lap index of the last vertex at or before (``right``) / strictly before arc ``s``, plus one.
@@ -195,19 +236,19 @@ class Contour:
         i1 = self._search(p, self.arc(p, jb) - 1e-9, right=False)
         return i0, np.maximum(i1 - i0, 0)
 
-    def _polygons(self, kinds, idx, sizes, seg):
+    def _polygons(self, kinds, idx, sizes, seg, lazy=False):
         """Polygons from (kind, index) coordinates: kind 0 sample point, 1 inner point, 2 lap vertex.
 
         ``seg`` marks the segment starting at each coordinate as lying on
-        the contour's street edges.  Returns the polygons, their signed
-        areas and their segment marks (a :class:`Marks`).
+        the contour's street edges.  Returns the polygons (as :class:`Rings`
+        with ``lazy``), their signed areas and their segment marks (a
+        :class:`Marks`).
         """
         table_off = np.array([0, len(self.pts), 2 * len(self.pts)])
-        table = np.concatenate([self.pts, self.inner, self.lap_xy])
-        xy = table[table_off[kinds] + idx]
-        polys = shapely.from_ragged_array(
-            shapely.GeometryType.POLYGON, xy, (np.r_[0, np.cumsum(sizes)], np.arange(len(sizes) + 1))
-        )
+        if self._table is None or self._table[0] is not self.inner:  # made once per set of inner points
+            self._table = (self.inner, np.concatenate([self.pts, self.inner, self.lap_xy]))
+        xy = self._table[1][table_off[kinds] + idx]
+        polys = Rings(xy, sizes) if lazy else _build(xy, sizes)
         # signed areas of the closed rings, local to each ring's first vertex
         start = np.cumsum(sizes) - sizes
         ring = np.repeat(np.arange(len(sizes)), sizes)
@@ -218,11 +259,13 @@ class Contour:
         cr[last] = 0.0
         return polys, 0.5 * np.bincount(ring, weights=cr, minlength=len(sizes)), Marks(seg[~last], sizes - 1)
 
-    def chains(self, p, ja, jb, step):
+    def chains(self, p, ja, jb, step, lazy=False):
         """Polygons: contour from sample ``ja`` to ``jb`` then the inner points of jb, jb - step, ..., ja.
 
         ``jb`` is unwrapped (``ja < jb <= ja + m``) and ``step`` divides
-        ``jb - ja``.  Returns the polygons and their street length (m).
+        ``jb - ja``.  Returns the polygons (their :class:`Rings` with
+        ``lazy``: built only where asked), their signed areas, street
+        length (m) and marks.
         """
         p, ja, jb = (np.asarray(x, np.int64) for x in (p, ja, jb))
         step = np.broadcast_to(np.asarray(step, np.int64), p.shape)
@@ -248,7 +291,7 @@ class Contour:
         seg = np.zeros(len(row), bool)
         contour = r <= nvr
         seg[contour] = self.lap_flag[i0[row[contour]] - 1 + r[contour]]
-        polys, area, marks = self._polygons(kinds, idx, size, seg)
+        polys, area, marks = self._polygons(kinds, idx, size, seg, lazy)
         return polys, area, self.street(p, self.arc(p, ja), self.arc(p, jb)), marks
 
     def core(self, p, ja, jb, kind):

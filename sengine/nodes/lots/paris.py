@@ -36,7 +36,9 @@ How it is computed, for all blocks at once and without polygon overlay:
    candidate on each side, is cut in two across its main axis
    (:func:`sengine.geom.split.split`; the cut edges are not streets, so no lot
    faces them, and only lots without street are inner) and the halves start
-   again, a few times; what remains is kept whole and counted.
+   again, a few times; what remains is kept whole and counted.  A refused
+   piece smaller than one nominal lot (``segment`` x ``depth``) is not cut:
+   it is one lot (cutting it gave slivers that only joined their neighbours).
 
 Randomness is a hash of (block seed, piece, sample), so results do not depend
 on the order blocks are processed in.
@@ -60,7 +62,7 @@ from sengine.geom.polygons import threaded
 from sengine.geom.split import RingSet, split
 from sengine.random import hash01
 
-from .contour import Contour, Marks, ramp
+from .contour import Contour, Marks, Rings, ramp
 
 __all__ = ["paris_lots"]
 
@@ -77,9 +79,14 @@ def _normal(seed, key):
 
 
 def _clean(geoms, area):
-    """Simple, counter-clockwise polygons (the partition certificate's test)."""
+    """Simple, counter-clockwise polygons (the partition certificate's test).
+
+    ``geoms``: polygons, or their :class:`~.contour.Rings`, of which only
+    those of positive area are built.
+    """
     ok = np.asarray(area) > 0
-    ok[ok] = threaded(shapely.is_valid, np.asarray(geoms, dtype=object)[ok])  # GEOS runs without the GIL
+    geoms = geoms.polygons(ok) if isinstance(geoms, Rings) else np.asarray(geoms, dtype=object)[ok]
+    ok[ok] = threaded(shapely.is_valid, geoms)  # GEOS runs without the GIL
     return ok
 
 
@@ -90,15 +97,26 @@ RISK = 0.5  # an inner segment shorter than this share of its contour segment (o
 TOUCH = 1e-3  # m: less street than this is none (an inner lot may touch a street by less)
 
 
-def inscribed_radius(polys) -> np.ndarray:
-    """Radius (m) of the largest circle inside each polygon: half its inscribed depth (to 1 %)."""
+def inscribed_radius(polys, enough=np.inf) -> np.ndarray:
+    """Radius (m) of the largest circle inside each polygon: half its inscribed depth (to 1 %).
+
+    Where only whether the radius reaches ``enough`` (m) matters: a polygon
+    whose interior point (``point_on_surface``) lies farther than ``enough``
+    from its boundary, by more than the tolerance, gets that distance (a lower
+    bound, at least ``enough``, as GEOS's circle would be) without the search.
+    """
     polys = np.asarray(polys, dtype=object)
     out = np.zeros(len(polys))
-    ok = ~shapely.is_empty(polys) & (shapely.area(polys) > 0)
-    if ok.any():
+    ok = np.flatnonzero(~shapely.is_empty(polys) & (shapely.area(polys) > 0))
+    if len(ok):
         b = shapely.bounds(polys[ok])
         tol = 0.01 * np.maximum(np.minimum(b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]), 1e-6)
-        out[ok] = shapely.length(shapely.maximum_inscribed_circle(polys[ok], tol))
+        search = np.ones(len(ok), bool)
+        if np.isfinite(enough):
+            low = shapely.distance(shapely.point_on_surface(polys[ok]), shapely.boundary(polys[ok]))
+            search = ~(low >= enough + tol)
+            out[ok[~search]] = low[~search]
+        out[ok[search]] = shapely.length(shapely.maximum_inscribed_circle(polys[ok[search]], tol[search]))
     return out
 
 
@@ -139,7 +157,7 @@ class _Candidates(NamedTuple):
     poly: np.ndarray  # polygon of each candidate
     index: np.ndarray  # its index along its polygon's contour
     start: np.ndarray  # its first sample (3 per segment)
-    lot: np.ndarray  # its polygon: contour segment, then the displaced points backwards
+    lot: Rings  # its polygon: contour segment, then the displaced points backwards
     lot_area: np.ndarray  # signed area (m2): negative when it winds clockwise
     marks: Marks  # its segment marks
     core_part: np.ndarray  # no street (a cut edge), or its polygon has no candidate of min_frontage: joins the core
@@ -152,7 +170,7 @@ class _Corners(NamedTuple):
     poly: np.ndarray  # polygon of each run
     first: np.ndarray  # its first candidate
     count: np.ndarray  # how many candidates it spans
-    lot: np.ndarray  # the corner lot
+    lot: Rings  # the corner lot
     marks: Marks
     refused: np.ndarray  # still not simple (or short of street) after growing twice: its polygon is cut
 
@@ -175,7 +193,7 @@ def _candidates(rs, C, min_frontage) -> _Candidates:
     cp = np.repeat(np.arange(P), nseg)
     ci = ramp(nseg)
     ja = 3 * ci
-    q, qa, front, qm = C.chains(cp, ja, ja + 3, np.ones(len(cp), np.int64))
+    q, qa, front, qm = C.chains(cp, ja, ja + 3, np.ones(len(cp), np.int64), lazy=True)
     merge = front < TOUCH  # no street (a cut edge): part of the core
     # no candidate with enough street: the polygon is one lot (inner if it has no street)
     merge |= (np.bincount(cp, weights=front >= min_frontage, minlength=P) == 0)[cp]
@@ -202,7 +220,7 @@ def _overlapping_windows(C, cand: _Candidates) -> np.ndarray:
     bad_win = np.zeros(len(cp), bool)
     if len(wsel):
         one = np.ones(len(wsel), np.int64)
-        win, wa, _, _ = C.chains(cp[wsel], ja[wsel], ja[wsel] + 3 * w[wsel], one)
+        win, wa, _, _ = C.chains(cp[wsel], ja[wsel], ja[wsel] + 3 * w[wsel], one, lazy=True)
         bad_win[wsel] = ~_clean(win, wa)
     cstart = np.cumsum(nseg) - nseg
     overlapping = np.zeros(len(cp), bool)
@@ -224,7 +242,7 @@ def _corner_lots(C, cand: _Candidates, bad, min_frontage) -> tuple[_Corners, np.
     bad = bad.copy()
     for it in range(3):
         run_p, s_i, n_i = _runs(bad, cp, ci, nseg)
-        corner, ca, cfront, cm = C.chains(run_p, 3 * s_i, 3 * (s_i + n_i), 3 * n_i)
+        corner, ca, cfront, cm = C.chains(run_p, 3 * s_i, 3 * (s_i + n_i), 3 * n_i, lazy=True)
         refused = ~(_clean(corner, ca) & (cfront >= min_frontage))
         if not refused.any() or it == 2:
             break
@@ -297,7 +315,7 @@ def _pass(rs, depth, segment, min_frontage, C):
     # lots: good candidates, corner lots, cores (small cores join their longest neighbour)
     gsel = good & done[cp]
     csel = done[run_p]
-    lots = np.r_[cand.lot[gsel], corners.lot[csel]]
+    lots = np.r_[cand.lot.polygons(gsel), corners.lot.polygons(csel)]
     lpoly = np.r_[cp[gsel], run_p[csel]]
     shared = np.r_[
         _back_length(C, cp[gsel], ja[gsel], ja[gsel] + 3, 1),
@@ -423,7 +441,9 @@ def paris_lots(
         Receives ``paris_inner`` (inner lots: cores, and pieces without
         street kept whole), ``paris_corner`` (corner lots
         merged from overlapping candidates), ``paris_cut`` (cuts made) and
-        ``paris_fallback`` (pieces kept whole), ``merged_slivers`` and
+        ``paris_fallback`` (pieces kept whole after ``max_cuts``),
+        ``paris_small`` (refused pieces under ``segment`` x ``depth`` kept
+        whole: one lot, not cut into slivers), ``merged_slivers`` and
         ``dropped_slivers`` (under 1 m2, touching no neighbour along a side).
 
     street : bool
@@ -469,12 +489,12 @@ def paris_lots(
     # piece key: 1 + the part's rank in its block (then 2 k + side after cuts): batch independent
     key = (np.arange(rs.n) - np.searchsorted(own, own) + 1).astype(np.uint64)
     out_l, out_o, out_i, out_m, out_k = [], [], [], [], []
-    corners = cuts = 0
+    corners = cuts = small = 0
     for level in range(max_cuts + 1):
         if rs.n == 0:
             break
         C = Contour(rs, segment)
-        cap = REACH * inscribed_radius(rs.polygons())
+        cap = REACH * inscribed_radius(rs.polygons(), enough=3.0 * depth / REACH * (1 + 1e-9))  # d <= 3 depth
         with np.errstate(over="ignore"):
             z = _normal(seeds[own][C.sp], key[C.sp] * np.uint64(1_000_003) + C.sj.astype(np.uint64))
         d = np.clip(depth + deviation * z, 0.2 * depth, 3.0 * depth)
@@ -489,6 +509,19 @@ def paris_lots(
         out_m.append(marks)
         out_k.append(known)
         fail = np.flatnonzero(~done)
+        if len(fail) and level < max_cuts:
+            # a refused piece under one nominal lot (segment x depth) is one lot: cut, it gives slivers
+            tiny = fail[shapely.area(rs.take(fail).polygons()) < segment * depth]
+            if len(tiny):
+                sub = rs.take(tiny)
+                out_l.append(sub.polygons())
+                out_o.append(own[tiny])
+                out_i.append(sub.flagged_length() < TOUCH)
+                out_m.append(Marks.of(sub))
+                out_k.append(np.ones(len(tiny), bool))
+                small += len(tiny)
+                done[tiny] = True
+                fail = np.flatnonzero(~done)
         if len(fail) == 0 or level == max_cuts:
             break
         # cut the refused polygons in two across their main axis, and try again
@@ -535,6 +568,7 @@ def paris_lots(
             ("paris_corner", corners),
             ("paris_cut", cuts),
             ("paris_fallback", fallback),
+            ("paris_small", small),
             ("merged_slivers", merged),
             ("dropped_slivers", dropped),
         ):
