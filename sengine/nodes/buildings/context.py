@@ -35,10 +35,10 @@ as before.  The lots carry the grain as a ``grain`` column (km/km²).
 The defaults were read off the shipped extracts: the six- to eight-storey
 perimeter blocks of Helsinki's centre have a median grain of 17 and Monaco
 16, whole Liège's lots a median of 8 (quartiles 5.7 and 11.4; villages of
-the Hesbaye about 4); so 14 and 8.  With them whole Liège's street network
+its villages about 4); so 14 and 8.  With them whole Liège's street network
 (no buildings) houses about 2 million in the planning report instead of
-5.3 million (every lot built; the arrondissement's census counts about
-625,000).
+5.3 million (every lot built; the arrondissement the extract roughly covers
+has some 0.6 million inhabitants).
 
 References
 ----------
