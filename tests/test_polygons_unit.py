@@ -185,6 +185,22 @@ def test_clip_frame_boxes_by_hand():
 # --- containing, shared_areas, largest_share -----------------------------------------------------
 
 
+def test_clip_frame_boxes_flat_and_reversed_frames_and_scalars():
+    sq = shapely.box(0, 0, 10, 10)
+    # a zero-width interval is no rectangle: nothing is kept (it once gave a 1 m strip)
+    flat_a, flat_b = clip_frame_boxes([sq, sq], [0, 0], [1, 0], [2, 2], [2, 6], [1, 3], [5, 3])
+    assert flat_a.is_empty and flat_b.is_empty
+    # reversed ends are the interval between them, as frame_boxes makes it
+    (rev,) = clip_frame_boxes([sq], [0, 0], [1, 0], [6], [2], [5], [1])
+    assert rev.equals(shapely.box(2, 1, 6, 5))
+    # scalar bounds and one frame broadcast over every geometry
+    got = clip_frame_boxes([sq, shapely.box(0, 0, 3, 3)], [0, 0], [1, 0], 2, 6, 1, 5)
+    assert got[0].equals(shapely.box(2, 1, 6, 5)) and got[1].equals(shapely.box(2, 1, 3, 3))
+    # a flat row among good ones leaves the good ones as the all-good call makes them
+    mixed = clip_frame_boxes([sq, sq], [0, 0], [1, 0], [2, 2], [2, 6], [1, 1], [5, 5])
+    assert mixed[0].is_empty and mixed[1].equals(shapely.box(2, 1, 6, 5))
+
+
 def test_containing_lowest_index_and_none():
     polys = [shapely.box(0, 0, 10, 10), shapely.box(5, 5, 15, 15), shapely.box(20, 0, 30, 10)]
     pts = shapely.points([(7, 7), (12, 12), (1, 1), (17, 2), (10, 2), (25, 5), (8, 8)])

@@ -232,18 +232,29 @@ def clip_frame_boxes(geoms, center, axis, a0, a1, b0, b1):
     Parameters
     ----------
     geoms : array_like of shapely.Geometry (k,)
-    center, axis, a0, a1, b0, b1 : as :func:`frame_boxes` (k rows).
+    center, axis, a0, a1, b0, b1 : as :func:`frame_boxes` (k rows; scalars
+        broadcast).  A reversed interval (``a1 < a0``) is the one between its
+        ends, as in :func:`frame_boxes`; a rectangle of zero width gives an
+        empty polygon.
     """
     geoms = np.asarray(geoms, dtype=object).ravel()
     k = len(geoms)
     if k == 0:
         return np.empty(0, object)
-    center = np.asarray(center, np.float64).reshape(-1, 2)
-    axis = np.asarray(axis, np.float64).reshape(-1, 2)
-    a0, a1, b0, b1 = np.broadcast_arrays(*(np.asarray(x, np.float64) for x in (a0, a1, b0, b1)))
+    center = np.broadcast_to(np.asarray(center, np.float64).reshape(-1, 2), (k, 2))
+    axis = np.broadcast_to(np.asarray(axis, np.float64).reshape(-1, 2), (k, 2))
+    a0, a1, b0, b1 = (np.broadcast_to(np.asarray(x, np.float64), (k,)) for x in (a0, a1, b0, b1))
+    a0, a1 = np.minimum(a0, a1), np.maximum(a0, a1)
+    b0, b1 = np.minimum(b0, b1), np.maximum(b0, b1)
+    flat = (a1 == a0) | (b1 == b0)
+    if flat.any():  # the unit-square map needs a width: a flat rectangle clips to nothing
+        out = np.full(k, shapely.Polygon(), dtype=object)
+        keep = np.flatnonzero(~flat)
+        if len(keep):
+            out[keep] = clip_frame_boxes(geoms[keep], center[keep], axis[keep], a0[keep], a1[keep], b0[keep], b1[keep])
+        return out
     nrm = np.stack([-axis[:, 1], axis[:, 0]], axis=1)
-    sa = np.where(a1 > a0, a1 - a0, 1.0)
-    sb = np.where(b1 > b0, b1 - b0, 1.0)
+    sa, sb = a1 - a0, b1 - b0
     c, ci = shapely.get_coordinates(geoms, return_index=True)
     q = c - center[ci]
     uv = np.stack(
