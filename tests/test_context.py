@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 import sengine
 from sengine import Context, Layer
 from sengine.errors import ParameterError
-from sengine.nodes.buildings.context import neighbour_floors
+from sengine.nodes.buildings.context import neighbour_floors, open_land
 from sengine.registry import get
 
 Node = get("buildings.context")
@@ -41,7 +41,7 @@ def test_a_lot_takes_the_median_storeys_of_its_tagged_neighbours():
     out, report = run(lots, houses)
     assert out["floors"][0] == 2.0 and np.isnan(out["floors"][1])
     assert out["typology"].tolist() == ["I:3,L", ""]  # two storeys around: bars and L's, no towers
-    assert report == {"lots_fitted": 1, "low_rise_lots": 1, "rural_lots": 0, "town_lots": 0}
+    assert report == {"lots_fitted": 1, "low_rise_lots": 1, "rural_lots": 0, "town_lots": 0, "open_lots": 0}
 
 
 def test_untagged_buildings_and_too_few_neighbours_set_nothing():
@@ -133,7 +133,9 @@ def test_the_street_grain_sets_storeys_and_typologies_where_the_map_has_no_build
     assert np.isnan(out["floors"][0]) and out["typology"][0] == ""  # urban: left to the massing
     assert out["floors"][1:].tolist() == [2.0, 2.0]
     assert out["typology"][1:].tolist() == ["I:3,L", "house"]
-    assert report == {"lots_fitted": 0, "low_rise_lots": 0, "rural_lots": 1, "town_lots": 1}
+    # the country road lot is 5 km from the nearest street lived on: a field
+    assert out["open"].tolist() == [False, False, True]
+    assert report == {"lots_fitted": 0, "low_rise_lots": 0, "rural_lots": 1, "town_lots": 1, "open_lots": 1}
 
 
 def test_motorways_add_no_grain_and_map_buildings_win_over_it():
@@ -179,3 +181,50 @@ def test_a_village_from_its_streets_alone_gets_detached_houses():
     along = np.maximum.reduceat(t, np.r_[0, np.flatnonzero(np.diff(which)) + 1])
     along -= np.minimum.reduceat(t, np.r_[0, np.flatnonzero(np.diff(which)) + 1])
     assert (along <= 10.0 + 1e-6).all()
+
+
+def test_open_land_is_beyond_reach_of_every_street_lived_on():
+    streets = np.array([shapely.LineString([(0, 0), (100, 0)]), shapely.LineString([(500, 0), (500, 100)])])
+    sites = np.array([[50.0, 149.0], [50.0, 151.0], [-149.0, 0.0], [651.0, 50.0], [649.0, 50.0], [300.0, 0.0]])
+    # distances by hand: 149, 151, 149, 151, 149, 200 (to the nearer street)
+    assert open_land(sites, streets, 150.0).tolist() == [False, True, False, True, False, True]
+    assert open_land(sites, np.array([], dtype=object), 150.0).all()  # no street lived on: nothing reaches
+    assert open_land(np.zeros((0, 2)), streets, 150.0).shape == (0,)
+
+
+def _village_and_country_road():
+    """A village of residential streets 100 m apart (600 m square) and a 3 km unclassified road out of it."""
+    village, kinds = _street_grid(0.0, 0.0, 600.0, 100.0)
+    road = shapely.LineString([(600.0, 300.0), (3600.0, 300.0)])
+    roads = Layer.from_geoms(village + [road], **{"class": np.concatenate([kinds, ["unclassified"]])})
+    # lots along the country road, their sites 20 m off it, every 100 m from the village's edge
+    xs = np.arange(610.0, 3500.0, 100.0)
+    lots = Layer.from_geoms([shapely.box(x, 305, x + 15, 335) for x in xs], ids=np.arange(len(xs)))
+    return roads, lots, xs
+
+
+def test_country_road_lots_beyond_the_village_are_fields_and_stay_unbuilt():
+    roads, lots, xs = _village_and_country_road()
+    # a low rural grain everywhere along this road, so that only the distance decides
+    out, report = run(lots, roads=roads, rural_grain=30.0, urban_grain=30.0)
+    site_x = xs + 7.5
+    # the nearest street lived on is the village's east edge at x = 600, its site 20 m off the road:
+    expected = np.hypot(site_x - 600.0, 0.0) > 150.0
+    assert out["open"].tolist() == expected.tolist()
+    assert report["open_lots"] == int(expected.sum()) > 20 and report["rural_lots"] == len(xs)
+    built = get("buildings.massing")("generated", {}, Context(seed=1)).run(lots=out)
+    on = np.unique(np.asarray(built["buildings"]["lot"], np.int64))
+    assert set(on.tolist()) == set(np.flatnonzero(~expected).tolist())  # every near lot built, no field
+    assert built.report["open_land"] == int(expected.sum())
+
+
+def test_no_fields_without_streets_lived_on_or_with_reach_zero():
+    roads, lots, _ = _village_and_country_road()
+    out, report = run(lots, roads=roads, rural_grain=30.0, urban_grain=30.0, village_reach=0.0)
+    assert not np.asarray(out["open"]).any() and report["open_lots"] == 0
+    untagged = roads.with_columns(**{"class": np.full(len(roads), "unclassified", dtype=object)})
+    out, report = run(lots, roads=untagged, rural_grain=30.0, urban_grain=30.0)
+    assert not np.asarray(out["open"]).any() and report["open_lots"] == 0
+    # town and urban lots are never fields, however far the streets lived on
+    out, report = run(lots, roads=roads, rural_grain=0.0, urban_grain=0.0)
+    assert not np.asarray(out["open"]).any() and report["rural_lots"] == 0

@@ -450,6 +450,16 @@ CASES: list[Case] = [
         on_grain,
         base=(("rural_grain", 200.0), ("urban_grain", 200.0)),
     ),
+    Case(
+        "buildings.context",
+        "village_reach",
+        10.0,
+        2000.0,
+        _report("open_lots"),
+        -1,
+        on_grain,
+        base=(("rural_grain", 200.0), ("urban_grain", 200.0)),
+    ),
     # stats and filters
     Case("stats.planning", "m2_per_resident", 25.0, 100.0, lambda out: out.report["city"]["residents"], -1, on_stats),
     Case("stats.planning", "walls", False, True, lambda out: len(out.report), +1, on_stats),

@@ -92,7 +92,9 @@ _FREE = (TYPOLOGIES.index("tower"), TYPOLOGIES.index("house"))  # stand free wha
 
 class _Massing(SENode):
     inputs = {
-        "lots": Port("lots", "lots to build on (with 'block' and 'district'; optional rule columns)"),
+        "lots": Port(
+            "lots", "lots to build on (with 'block' and 'district'; optional rule columns; 'open' lots stay unbuilt)"
+        ),
         "blocks": Port("blocks", "the blocks of the lots: their edges are the street fronts", required=False),
         "zones": Port(
             "polygons",
@@ -249,12 +251,14 @@ class _Massing(SENode):
             open_court = np.asarray(lots["inner"], bool)
         if not p.courtyards and "kind" in lots.attrs:  # no street frontage at all: a yard, not a building plot
             open_court = open_court | (np.asarray(lots["kind"]) == "inner")
+        # open land (buildings.context: fields along a country road) is not built on
+        open_land = np.asarray(lots["open"], bool) if "open" in lots.attrs else np.zeros(n_all, bool)
         custom_lot = np.zeros(n_all, bool)
         if custom is not None and len(custom):
             if "lot" not in custom:
                 raise InputDataError("custom buildings carry no 'lot' column", where=self.where)
             custom_lot = np.isin(lots.ids, np.asarray(custom["lot"], np.int64))
-        work = np.flatnonzero(~open_court & ~custom_lot)
+        work = np.flatnonzero(~open_court & ~open_land & ~custom_lot)
         L = lots.take(work)
         n = len(L)
         ids = L.ids
@@ -354,6 +358,7 @@ class _Massing(SENode):
             "lots": n_all,
             "lots_built": distinct(out["lot"]),
             "courtyards": int(open_court.sum()),
+            "open_land": int((open_land & ~open_court).sum()),
             "custom": int(custom_lot.sum()),
             "not_built": n - distinct(row),
             **report,
