@@ -13,6 +13,7 @@ import sengine
 from sengine import Context, Layer
 from sengine.errors import ParameterError
 from sengine.nodes.buildings.context import neighbour_floors, open_land
+from sengine.random import uniform
 from sengine.registry import get
 
 Node = get("buildings.context")
@@ -41,7 +42,7 @@ def test_a_lot_takes_the_median_storeys_of_its_tagged_neighbours():
     out, report = run(lots, houses)
     assert out["floors"][0] == 2.0 and np.isnan(out["floors"][1])
     assert out["typology"].tolist() == ["I:3,L", ""]  # two storeys around: bars and L's, no towers
-    assert report == {"lots_fitted": 1, "low_rise_lots": 1, "rural_lots": 0, "town_lots": 0, "open_lots": 0}
+    assert report == {"lots_fitted": 1, "low_rise_lots": 1, "rural_lots": 0, "town_lots": 0, "town_houses": 0, "open_lots": 0}
 
 
 def test_untagged_buildings_and_too_few_neighbours_set_nothing():
@@ -132,10 +133,40 @@ def test_the_street_grain_sets_storeys_and_typologies_where_the_map_has_no_build
     assert grain[2] < 8.0  # one road serves a band of land, not the fields beyond it
     assert np.isnan(out["floors"][0]) and out["typology"][0] == ""  # urban: left to the massing
     assert out["floors"][1:].tolist() == [2.0, 2.0]
-    assert out["typology"][1:].tolist() == ["I:3,L", "house"]
+    # the town lot is a house with the chance (14 - grain) / (14 - 8), drawn from (seed 1, "context", lot 1)
+    house = uniform(1, "context/town-house", [1])[0] < (14.0 - grain[1]) / 6.0
+    assert out["typology"][1:].tolist() == ["house" if house else "I:3,L", "house"]
     # the country road lot is 5 km from the nearest street lived on: a field
     assert out["open"].tolist() == [False, False, True]
-    assert report == {"lots_fitted": 0, "low_rise_lots": 0, "rural_lots": 1, "town_lots": 1, "open_lots": 1}
+    assert report == {
+        "lots_fitted": 0,
+        "low_rise_lots": 0,
+        "rural_lots": 1,
+        "town_lots": 1,
+        "town_houses": int(house),
+        "open_lots": 1,
+    }
+
+
+@pytest.mark.parametrize("spacing", [150.0, 200.0, 250.0])
+def test_town_houses_give_way_to_rows_as_the_grain_rises(spacing):
+    """Detached houses in town with the chance (urban_grain - grain) / (urban_grain - rural_grain)."""
+    grid, kinds = _street_grid(0.0, 0.0, 3000.0, spacing)
+    roads = Layer.from_geoms(grid, **{"class": kinds})
+    xs = np.arange(1000.0, 2000.0, 2.0)
+    lots = Layer.from_geoms([shapely.box(x, 1510, x + 1, 1520) for x in xs], ids=np.arange(len(xs)))
+    out, report = run(lots, roads=roads)
+    grain = np.asarray(out["grain"])
+    assert ((grain > 8.0) & (grain < 14.0)).all()  # about 2 / spacing: all town
+    chance = (14.0 - grain) / 6.0
+    houses = np.asarray(out["typology"]) == "house"
+    assert report["town_houses"] == int(houses.sum()) and report["town_lots"] == len(xs)
+    # 500 independent draws: within four standard errors of the expected count
+    assert abs(houses.sum() - chance.sum()) <= 4.0 * np.sqrt((chance * (1 - chance)).sum())
+    assert (np.asarray(out["floors"]) == 2.0).all()
+    # the same seed gives the same houses
+    again, _ = run(lots, roads=roads)
+    assert (np.asarray(again["typology"]) == np.asarray(out["typology"])).all()
 
 
 def test_motorways_add_no_grain_and_map_buildings_win_over_it():
