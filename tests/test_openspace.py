@@ -116,6 +116,7 @@ def test_minimum_spacing_holds_and_points_stay_inside(polys, density, spacing):
         assert len(xy) >= 0.97 * wanted.sum()
 
 
+@pytest.mark.slow  # 10-97 s in session 14's runs
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(polygons, min_size=1, max_size=3), st.floats(0.5, 6.0), st.integers(0, 2**31))
 def test_points_keep_clear_of_fixed_points(polys, spacing, seed):
