@@ -49,10 +49,10 @@ perimeter blocks of Helsinki's centre have a median grain of 17 and Monaco
 16, whole Liège's lots a median of 8 (quartiles 5.7 and 11.4; villages of
 its villages about 4); so 14 and 8.  With them whole Liège's street network
 (no buildings) houses 1.44 million in the planning report instead of 5.3
-million (every lot built): still more than the 1.1 million of the whole
-province of Liège, whose arrondissement of Liège (628,381 inhabitants on
-796 km², Statbel, 1 January 2024) the extract's 1,700 km² take in; most of
-the surplus stands in the urban grain, at the massing's default storeys.
+million (every lot built), where its streets serve about 530 km², about
+the size of the arrondissement of Liège (628,381 inhabitants on 796 km²,
+Statbel, 1 January 2024): still some 2.3 times too many, most of them in the
+urban grain at the massing's default storeys.
 
 References
 ----------
