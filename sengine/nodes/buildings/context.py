@@ -51,7 +51,7 @@ its villages about 4); so 14 and 8.  With them whole Liège's street network
 (no buildings) houses 1.44 million in the planning report instead of 5.3
 million (every lot built), where its streets serve about 530 km², about
 the size of the arrondissement of Liège (628,381 inhabitants on 796 km²,
-Statbel, 1 January 2024): still some 2.3 times too many, most of them in the
+Statbel, 1 January 2024): still some 2.3 times too many, the largest share in the
 urban grain at the massing's default storeys.
 
 References
