@@ -42,7 +42,14 @@ def test_a_lot_takes_the_median_storeys_of_its_tagged_neighbours():
     out, report = run(lots, houses)
     assert out["floors"][0] == 2.0 and np.isnan(out["floors"][1])
     assert out["typology"].tolist() == ["I:3,L", ""]  # two storeys around: bars and L's, no towers
-    assert report == {"lots_fitted": 1, "low_rise_lots": 1, "rural_lots": 0, "town_lots": 0, "town_houses": 0, "open_lots": 0}
+    assert report == {
+        "lots_fitted": 1,
+        "low_rise_lots": 1,
+        "rural_lots": 0,
+        "town_lots": 0,
+        "town_houses": 0,
+        "open_lots": 0,
+    }
 
 
 def test_untagged_buildings_and_too_few_neighbours_set_nothing():

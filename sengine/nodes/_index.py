@@ -22,6 +22,7 @@ INDEX: dict[str, dict[str, list[str]]] = {
         "export.city": ["sengine.nodes.export.city"],
         "filter.area": ["sengine.nodes.filters"],
         "lots.district": ["sengine.nodes.lots.nodes"],
+        "lots.fields": ["sengine.nodes.lots.fields"],
         "lots.manhattan": ["sengine.nodes.lots.nodes"],
         "lots.paris": ["sengine.nodes.lots.nodes"],
         "lots.partition": ["sengine.nodes.lots.partition"],
