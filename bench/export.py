@@ -32,7 +32,7 @@ whole-city time when it was filed (21-27.5 s).  Writes
 ``bench/results/export_e2e.json``.
 
     python bench/export.py [--repeat 3] [--osm PATH.osm.pbf] [--city grid|liege|both|e2e]
-                           [--compare "PYTHON [PATH]"] [--workers N]
+                           [--formats geojson,gpkg,parquet] [--compare "PYTHON [PATH]"] [--workers N]
 """
 
 from __future__ import annotations
@@ -98,7 +98,7 @@ def liege_layers(path: Path) -> tuple[object, dict, dict]:
     return net.plan, layers, {"seconds_city": round(seconds, 3)}
 
 
-def time_formats(plan, layers: dict, repeat: int, tmp: Path) -> dict:
+def time_formats(plan, layers: dict, repeat: int, tmp: Path, formats=FORMATS) -> dict:
     from sengine.nodes.export.city import export_layers, layers_frame
 
     extent, lat_lon = layers_frame(layers)
@@ -107,7 +107,7 @@ def time_formats(plan, layers: dict, repeat: int, tmp: Path) -> dict:
     clean: float = float("inf")
     sizes: dict[str, int] = {}
     for k in range(repeat):
-        for fmt in FORMATS:
+        for fmt in formats:
             out = tmp / f"{fmt}-{k}"
             out.mkdir()
             rep = export_layers(out, layers, {fmt}, extent=extent, lat_lon=lat_lon)
@@ -123,10 +123,11 @@ def time_formats(plan, layers: dict, repeat: int, tmp: Path) -> dict:
         "seconds_clean": round(clean, 3),
         "seconds_per_format": {k: round(v, 3) for k, v in best.items()},
         "mb_per_format": mb,
-        "ratio_geojson_over_gpkg": round(best["geojson"] / best["gpkg"], 2),
-        "ratio_geojson_over_parquet": round(best["geojson"] / best["parquet"], 2),
-        "bbox_query_lots": bbox_query(tmp, repeat - 1, layers["lots"]),
     }
+    if {"geojson", "gpkg", "parquet"} <= set(formats):
+        result["ratio_geojson_over_gpkg"] = round(best["geojson"] / best["gpkg"], 2)
+        result["ratio_geojson_over_parquet"] = round(best["geojson"] / best["parquet"], 2)
+        result["bbox_query_lots"] = bbox_query(tmp, repeat - 1, layers["lots"])
     return result
 
 
@@ -242,7 +243,13 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=None, help="default: bench/results/export.json (export_e2e.json)")
     ap.add_argument("--compare", help='e2e: another checkout to interleave, "PYTHON [PATH]"')
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="e2e: --workers of each run")
+    ap.add_argument(
+        "--formats", default=",".join(FORMATS), help="formats to time, e.g. geojson,gpkg,parquet (default: all)"
+    )
     args = ap.parse_args()
+    formats = tuple(f for f in args.formats.split(",") if f)
+    if set(formats) - set(FORMATS):
+        sys.exit(f"bench/export.py: --formats: not among {', '.join(FORMATS)}")
     if args.city == "e2e":
         if not args.osm.exists():
             sys.exit(f"bench/export.py: {args.osm} not found (--osm PATH)")
@@ -252,23 +259,26 @@ def main() -> None:
         return
     args.out = args.out or HERE / "results" / "export.json"
     get("export.city")  # loads the built-in nodes (sengine.nodes)
-    results: dict = {"target_ratio": TARGET, "repeat": args.repeat}
+    results: dict = {"target_ratio": TARGET, "repeat": args.repeat, "formats": list(formats)}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         if args.city in ("grid", "both"):
             plan, layers, extra = grid_layers(tmp, args.repeat)
             (tmp / "grid").mkdir()
-            results["grid"] = {**extra, **time_formats(plan, layers, args.repeat, tmp / "grid")}
+            results["grid"] = {**extra, **time_formats(plan, layers, args.repeat, tmp / "grid", formats)}
         if args.city in ("liege", "both"):
             if not args.osm.exists():
                 sys.exit(f"bench/export.py: {args.osm} not found (--osm PATH)")
             plan, layers, extra = liege_layers(args.osm)
             (tmp / "liege").mkdir()
-            results["liege"] = {"osm": args.osm.name, **extra, **time_formats(plan, layers, args.repeat, tmp / "liege")}
+            results["liege"] = {
+                "osm": args.osm.name,
+                **extra,
+                **time_formats(plan, layers, args.repeat, tmp / "liege", formats),
+            }
             r = results["liege"]
-            results["liege"]["meets_target"] = (
-                min(r["ratio_geojson_over_gpkg"], r["ratio_geojson_over_parquet"]) >= TARGET
-            )
+            if "ratio_geojson_over_gpkg" in r:
+                r["meets_target"] = min(r["ratio_geojson_over_gpkg"], r["ratio_geojson_over_parquet"]) >= TARGET
     write(args.out, "export", results)
     print(json.dumps(results, indent=1, sort_keys=True))
 

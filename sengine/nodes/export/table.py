@@ -61,7 +61,9 @@ def _array(pa, col: np.ndarray):
     col = np.asarray(col)
     if col.dtype.kind in "fiub":
         return pa.array(col)
-    if col.dtype.kind in "US":
+    if col.dtype.kind == "U":  # straight from numpy's fixed-width text, no Python strings
+        return pa.array(col, type=pa.string())
+    if col.dtype.kind == "S":
         return pa.array(col.astype(object), type=pa.string())
     values = [v.item() if isinstance(v, np.generic) else v for v in col.tolist()]
     try:
@@ -208,6 +210,9 @@ def rebatch(batches: Iterable, schema, chunk: int = CHUNK) -> Iterator:
     rows = 0
     for batch in batches:
         if not batch.num_rows:
+            continue
+        if not rows and batch.num_rows == chunk and batch.schema == schema:
+            yield batch  # already cut as wanted (a layer's own batches): no copy
             continue
         pending.append(batch)
         rows += batch.num_rows
