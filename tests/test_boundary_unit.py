@@ -48,6 +48,10 @@ def test_polygon_parts_keeps_polygons_of_positive_area_with_their_owner():
     parts, own = polygon_parts(geoms, np.array([10, 11, 12, 13, 14, 15]))
     assert shapely.area(parts).tolist() == [1.0, 4.0, 6.0]
     assert own.tolist() == [10, 10, 14]
+    # get_parts opens one level: a collection inside a collection is no Polygon, though it has an area
+    nested = shapely.GeometryCollection([shapely.GeometryCollection([shapely.box(0, 0, 3, 3)]), TRIANGLE])
+    parts, own = polygon_parts([nested], [4])
+    assert shapely.area(parts).tolist() == [6.0] and own.tolist() == [4]
     gc = shapely.GeometryCollection([shapely.Point(0, 0), shapely.box(0, 0, 2, 1)])
     parts, own = polygon_parts(np.array([gc], dtype=object), [7])
     assert shapely.area(parts).tolist() == [2.0] and own.tolist() == [7]
@@ -130,6 +134,32 @@ def test_segments_on_boundary_by_hand():
     assert match.dtype == np.int64 and on.dtype == bool
     assert len(segments_on_boundary(lots, [0, 0, 1, 0], blocks)) == 5  # no match without return_match
     assert np.array_equal(segments_on_boundary(lots, [0, 0, 1, 0], blocks)[4], on)
+
+
+def test_segments_on_boundary_default_tolerance_and_short_owner_segments():
+    block = shapely.box(0, 0, 10, 10)
+    near = shapely.box(2, 1e-7, 4, 3)  # bottom 1e-7 m above the block's: on at the default 1e-6 m
+    far = shapely.box(2, 0.5, 4, 3)  # bottom 0.5 m above: off
+    on = segments_on_boundary([near, far], [0, 0], [block])[4]
+    assert on.tolist() == [False, False, False, True] + [False] * 4
+    # owner segments shorter than 1 m: the projection divides by the squared length, not by 1
+    small = shapely.box(0, 0, 0.5, 0.5)
+    lot = shapely.box(0.1, 0.1, 0.4, 0.3)  # right, left and bottom 0.1 from the block's, top 0.2
+    _, _, _, _, on, match = segments_on_boundary([lot], [0], [small], tol=0.15, return_match=True)
+    assert on.tolist() == [True, False, True, True] and match.tolist() == [0, -1, 2, 3]
+
+
+def test_segments_on_boundary_chunks_stop_at_their_geometry():
+    # with chunk=3 a box (4 segments) is queried as 3 + 1 segments: the second chunk must not run into the next lot,
+    # whose right side lies on block 0 but which block 1 owns
+    blocks = [shapely.box(0, 0, 10, 10), shapely.box(20, 0, 30, 10)]
+    lots = [shapely.box(0, 0, 5, 5), shapely.box(5, 0, 10, 5)]
+    for chunk in (1, 2, 3, 12):
+        _, _, _, _, on, match = segments_on_boundary(lots, [0, 1], blocks, chunk=chunk, return_match=True)
+        assert on.tolist() == [False, False, True, True] + [False] * 4, chunk
+        assert match.tolist() == [-1, -1, 2, 3] + [-1] * 4, chunk
+        on = segments_on_boundary(lots, [0, 0], blocks, chunk=chunk)[4]
+        assert on.tolist() == [False, False, True, True] + [True, False, False, True], chunk
 
 
 def test_segments_on_boundary_at_exactly_the_tolerance():
