@@ -129,6 +129,8 @@ def test_coerce_counts():
     assert size.coerce(" 800,260 ", "w", "size") == (800.0, 260.0)
     assert size.coerce("800 ,  260", "w", "size") == (800.0, 260.0)
     assert size.coerce([1, "2"], "w", "size") == (1.0, 2.0)
+    assert size.coerce(",800 260,", "w", "size") == (800.0, 260.0)  # the empty pieces round a leading comma
+    assert size.coerce(["1", "", "2"], "w", "size") == (1.0, 2.0)
     with pytest.raises(ParameterError) as e:
         size.coerce("800", "w", "size")
     assert _msg(e) == "w: size='800' must be 2 numbers"
@@ -185,6 +187,10 @@ def test_params_mapping():
         _ = p._values_x
     with pytest.raises(KeyError):
         p["nothing"]
+    hidden = Params({"_x": 1})  # names starting with _ are never looked up as parameters
+    assert hidden["_x"] == 1
+    with pytest.raises(AttributeError, match="^_x$"):
+        _ = hidden._x
     q = pickle.loads(pickle.dumps(p))
     assert dict(q) == dict(p) and isinstance(q, Params)
     assert not hasattr(p, "__deepcopy_x__")
@@ -406,6 +412,15 @@ def test_node_result_wrong_shapes():
         NodeResult.of(n, {"b": 1})
     assert _msg(e) == (
         "node 't1' (test.two): run() returned ports ['b'], declared ['a', 'b'] (missing 'a'; 'b' is a int, not a Layer)"
+    )
+    with pytest.raises(NodeError) as e:
+        NodeResult.of(n, {})
+    assert _msg(e) == "node 't1' (test.two): run() returned ports [], declared ['a', 'b'] (missing 'a', 'b')"
+    with pytest.raises(NodeError) as e:
+        NodeResult.of(n, {"a": 1, "b": "x"})
+    assert _msg(e) == (
+        "node 't1' (test.two): run() returned ports ['a', 'b'], declared ['a', 'b'] "
+        "('a' is a int, not a Layer, 'b' is a str, not a Layer)"
     )
     # a 3-tuple, or a pair whose first item is no mapping, is not a (layers, report) pair
     with pytest.raises(NodeError, match=re.escape("run() returned tuple")):
