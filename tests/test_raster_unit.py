@@ -438,3 +438,180 @@ def test_smooth_edges_by_hand():
     small = shapely.LineString([(2, 2), (3, 2), (3, 3), (2, 3), (2, 2)])  # 1 m ring: every corner cut
     xy = shapely.get_coordinates(_smooth_edges(np.array([small], dtype=object), extent, 1.5)[0]).tolist()
     assert xy == [[2.5, 2], [3, 2.5], [2.5, 3], [2, 2.5], [2.5, 2]]
+
+
+# ---------------------------------------------------------------------------------------------
+# second round: cases the first mutation run showed untested
+
+
+def test_fraction_off_the_origin_and_past_the_edges():
+    # GRID again, on (10, 20)-(14, 22): 2 m x 1 m pixels
+    m = _map(GRID, (10.0, 20.0, 14.0, 22.0), full_scale=1.0)
+    f = m.fraction([12.0, 11.0, 11.5, 11.0], [21.0, 21.5, 21.0, 19.0])
+    assert f.tolist() == [0.625, 0.0, 0.4375, 0.5]  # the last is south of the map: the bottom row's value
+    x, y = m.pixel_centre([1], [1])
+    assert x.tolist() == [13.0] and y.tolist() == [20.5]
+    half = _map(np.zeros((4, 2), np.uint8), (0.0, 0.0, 2.0, 2.0))  # pixels 1 m x 0.5 m
+    assert half.pixel_centre([0], [3])[1].tolist() == [0.25]
+    # a curved row of four: the last interval blends the last two pixels, not an extrapolation of earlier ones
+    row = _map(np.array([[0, 0, 100, 400]], np.uint16), (0.0, 0.0, 4.0, 1.0), full_scale=400.0)
+    assert row.fraction([3.5, 3.0, 2.9], [0.5, 0.5, 0.5]).tolist() == pytest.approx([1.0, 0.625, 0.55], abs=1e-12)
+    col = _map(np.array([[0], [0], [100], [400]], np.uint16), (0.0, 0.0, 1.0, 4.0), full_scale=400.0)
+    assert col.fraction([0.5, 0.5], [0.5, 1.0]).tolist() == [1.0, 0.625]
+
+
+def test_read_map_where_prefixes_and_pillow_state(tmp_path):
+    ext = (0.0, 0.0, 600.0, 400.0)
+    with pytest.raises(InputDataError) as e:
+        read_map(tmp_path, ext, where="c.xml:3")
+    assert str(e.value) == f"c.xml:3: map '{tmp_path}' is a folder, not an image file"
+    longname = tmp_path / ("n" * 300 + ".png")
+    with pytest.raises(InputDataError) as e:
+        read_map(longname, ext, where="c.xml:4")
+    assert str(e.value) == f"c.xml:4: map '{longname}': cannot read the file (File name too long)"
+    # a MapSpec without a line gives no prefix
+    with pytest.raises(InputDataError) as e:
+        read_map(MapSpec("landuse", tmp_path / "none.png", {}, ""), ext)
+    assert str(e.value) == f"map '{tmp_path / 'none.png'}': file not found"
+    # Pillow's own decompression-bomb limit is put back after reading
+    before = Image.MAX_IMAGE_PIXELS
+    path = _save(tmp_path, "ok.png", Image.new("L", (3, 2)))
+    read_map(path, (0.0, 0.0, 3.0, 2.0))
+    assert Image.MAX_IMAGE_PIXELS == before is not None
+    # a one-column image is not empty
+    one = read_map(_save(tmp_path, "one.png", Image.new("L", (1, 3))), (0.0, 0.0, 1.0, 3.0))
+    assert one.shape == (3, 1)
+
+
+def test_read_map_size_messages_round_as_written(tmp_path):
+    path = tmp_path / "huge.png"
+    path.write_bytes(_png_header(13100, 5000))  # 65.5 Mpx: rounds to 66 (half to even)
+    with pytest.raises(InputDataError) as e:
+        read_map(path, (0.0, 0.0, 13100.0, 5000.0))
+    assert "(66 Mpx, about 0.2 GB decoded); the limit is 64 Mpx" in str(e.value)
+    path.write_bytes(_png_header(15000, 10000))  # 150 Mpx, 0.45 GB: rounds up to 0.5
+    with pytest.raises(InputDataError) as e:
+        read_map(path, (0.0, 0.0, 15000.0, 10000.0))
+    assert "(150 Mpx, about 0.5 GB decoded)" in str(e.value)
+
+
+def test_read_map_aspect_message_off_the_origin_and_at_the_tolerance(tmp_path):
+    path = _save(tmp_path, "w.png", Image.new("L", (100, 50)))
+    with pytest.raises(InputDataError) as e:
+        read_map(path, (10.0, 20.0, 110.0, 120.0))
+    assert "but the city is 100x100 m (width/height 1.000)" in str(e.value)
+    read_map(path, (10.0, 20.0, 110.0, 120.0), aspect_tolerance=1.0)  # exactly 100 % off: allowed
+
+
+def test_read_map_logs_what_it_read(tmp_path, caplog):
+    path = _save(tmp_path, "g.png", Image.new("L", (3, 2)))
+    with caplog.at_level("DEBUG", logger="sengine.geom.raster"):
+        read_map(path, (0.0, 0.0, 3.0, 2.0))
+    assert [r.getMessage() for r in caplog.records] == [f"read {path}: 3x2 px, mode L, format PNG"]
+
+
+def test_read_map_sixteen_bit_big_endian_and_integers_as_colour(tmp_path):
+    ext = (0.0, 0.0, 3.0, 1.0)
+    big = Image.fromarray(np.array([[0, 30000, 65535]], ">u2"))
+    path = _save(tmp_path, "b.tif", big)
+    m = read_map(path, ext)
+    assert m.mode == "I;16B" and m.data.dtype == np.uint16 and m.data.tolist() == [[0, 30000, 65535]]
+    assert m.full_scale == 65535.0
+    c = read_map(path, ext, colour=True)
+    assert c.data.shape == (1, 3, 3) and c.data[:, :, 2].tolist() == [[0, 117, 255]]
+    # 32-bit integers as colour: scaled by 255 / 65535, rounded, clipped to 0..255
+    ints = np.array([[-300, 0, 65000, 70000]], np.int32)
+    i = read_map(_save(tmp_path, "i.tif", Image.fromarray(ints)), (0.0, 0.0, 4.0, 1.0), colour=True)
+    assert i.data.shape == (1, 4, 3) and i.data.dtype == np.uint8 and i.full_scale == 255.0
+    assert i.data[:, :, 0].tolist() == [[0, 0, 253, 255]]
+    f = np.array([[0.0, 0.5, 1.0]], np.float32)
+    fc = read_map(_save(tmp_path, "f.tif", Image.fromarray(f)), ext, colour=True)
+    assert fc.data[:, :, 1].tolist() == [[0, 128, 255]] and fc.data.shape == (1, 3, 3)
+    rgb = read_map(_save(tmp_path, "r.png", Image.new("RGB", (3, 1))), ext)
+    assert rgb.full_scale == 255.0 and rgb.data.dtype == np.uint8
+
+
+def _first_kept(ring_xy, corner):
+    """Whether _smooth_edges keeps a closed ring's start vertex (its output then starts there)."""
+    out = _smooth_edges(np.array([shapely.LineString(ring_xy)], dtype=object), (0.0, 0.0, 100.0, 100.0), corner)
+    return shapely.get_coordinates(out[0])[0].tolist() == list(map(float, ring_xy[0]))
+
+
+def test_smooth_edges_corner_rules():
+    ext = (0.0, 0.0, 10.0, 10.0)
+
+    def smooth(xy, corner=1.5):
+        out = _smooth_edges(np.array([shapely.LineString(xy)], dtype=object), ext, corner)
+        return shapely.get_coordinates(out[0]).tolist()
+
+    # a long side then a short one: the vertex between them is a pixel step, replaced
+    assert smooth([(2, 2), (6, 2), (6, 3)]) == [[2, 2], [4, 2], [6, 2.5], [6, 3]]
+    # a short step before two long sides: only the vertex between the long sides stays
+    assert smooth([(2, 2), (3, 2), (7, 2), (7, 6)]) == [[2, 2], [2.5, 2], [5, 2], [7, 2], [7, 4], [7, 6]]
+    # a side exactly as long as `corner` is not longer: either side alone makes the vertex a step
+    assert smooth([(2, 2), (6, 2), (6, 7)], 4.0) == [[2, 2], [4, 2], [6, 4.5], [6, 7]]
+    assert smooth([(2, 2), (7, 2), (7, 6)], 4.0) == [[2, 2], [4.5, 2], [7, 4], [7, 6]]
+    # vertices on each side of the frame stay
+    assert smooth([(9, 1), (10, 1), (10, 2)]) == [[9, 1], [9.5, 1], [10, 1], [10, 1.5], [10, 2]]
+    assert smooth([(1, 1), (1, 0), (2, 0)]) == [[1, 1], [1, 0.5], [1, 0], [1.5, 0], [2, 0]]
+    assert smooth([(1, 9), (1, 10), (2, 10)]) == [[1, 9], [1, 9.5], [1, 10], [1.5, 10], [2, 10]]
+    # a short edge before others does not end the loop
+    out = _smooth_edges(
+        np.array([shapely.LineString([(1, 1), (2, 2)]), shapely.LineString([(2, 2), (3, 2), (3, 3)])], dtype=object),
+        ext,
+        1.5,
+    )
+    assert len(out) == 2 and shapely.get_coordinates(out[1]).tolist() == [[2, 2], [2.5, 2], [3, 2.5], [3, 3]]
+
+
+def test_smooth_edges_start_of_a_closed_ring():
+    # on the frame: kept whatever its sides
+    out = _smooth_edges(
+        np.array([shapely.LineString([(0, 5), (1, 5), (1, 6), (0, 5)])], dtype=object), (0, 0, 10, 10), 1.5
+    )
+    assert shapely.get_coordinates(out[0])[0].tolist() == [0.0, 5.0]
+    # short side before, long after: a step
+    assert not _first_kept([(2, 2), (3, 2), (3, 6), (2, 2)], 1.5)
+    # long after and long two sides on, short before: a step
+    assert not _first_kept([(2, 2), (6, 2), (6, 6), (2.5, 2.5), (2, 2)], 1.5)
+    # sides 5, 4, 5, 4 with corner 4: the start has a side of exactly 4 before it, then one after it
+    assert not _first_kept([(2, 2), (7, 2), (7, 6), (2, 6), (2, 2)], 4.0)
+    assert not _first_kept([(7, 2), (7, 6), (2, 6), (2, 2), (7, 2)], 4.0)
+    assert _first_kept([(7, 2), (7, 6), (2, 6), (2, 2), (7, 2)], 3.9)
+
+
+def test_classify_lossy_patch_is_a_full_square_and_worst_is_most_frequent():
+    # a plus of stray pixels in a lossy map: no 3 x 3 square of them, so no error
+    data = np.zeros((7, 7, 3), np.uint8)
+    data[:] = WHITE
+    data[2:5, 3] = data[3, 2:5] = (0, 200, 0)
+    labels = classify(_map(data, (0.0, 0.0, 7.0, 7.0), format="JPEG"), [WHITE, RED])
+    assert labels.shape == (7, 7)
+    # the stray colour named is the most frequent, not the first in key order
+    two = np.array([[(9, 9, 9), (9, 9, 9), (9, 9, 9), (1, 2, 3)]], np.uint8)
+    with pytest.raises(InputDataError, match=r"colour #090909 at pixel \(x=0, y=0\) .*\(4 pixels match"):
+        classify(_map(two, (0.0, 0.0, 4.0, 1.0)), [WHITE])
+
+
+def test_vectorize_defaults_corner_pixel_and_log(caplog):
+    # one pixel in the corner of a 3 x 3 map on 2 m pixels: its border (frame - corner - frame) is smoothed
+    lab = np.zeros((3, 3), int)
+    lab[0, 0] = 1
+    m = _map(np.zeros((3, 3), np.uint8), (0.0, 0.0, 6.0, 6.0))
+    sharp = vectorize(m, lab, simplify=0.0)
+    assert sharp[1].area == 4.0
+    with caplog.at_level("DEBUG", logger="sengine.geom.raster"):
+        soft = vectorize(m, lab)
+    assert soft[1].area < 4.0 and soft[0].area + soft[1].area == pytest.approx(36.0, rel=1e-12)
+    assert [r.getMessage() for r in caplog.records] == ["vectorized m.png: 2 faces into 2 regions"]
+    explicit = vectorize(m, lab, simplify=1.0, grid_size=0.0)
+    assert all(soft[k].equals_exact(explicit[k], 0.0) for k in (0, 1))
+    # the smoothing scales with the pixel size: the same map on 0.5 m pixels gives the same shape, scaled
+    small = vectorize(_map(np.zeros((3, 3), np.uint8), (0.0, 0.0, 1.5, 1.5)), lab)
+    assert small[1].area == pytest.approx(soft[1].area / 16.0, rel=1e-9)
+    # a staircase on 0.3 m pixels: the defaults are simplify 1 pixel and no grid
+    n = 8
+    stair = (np.add.outer(np.arange(n), -np.arange(n)) > 0).astype(int)
+    fine = _map(np.zeros((n, n), np.uint8), (0.0, 0.0, 0.3 * n, 0.3 * n))
+    d, e = vectorize(fine, stair), vectorize(fine, stair, simplify=1.0, grid_size=0.0)
+    assert all(d[k].equals_exact(e[k], 0.0) for k in (0, 1))
