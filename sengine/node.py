@@ -129,10 +129,10 @@ class Param:
                 value = str(value)
             else:
                 value = _TYPES[self.type](value)
+        except SEngineError as exc:  # first: InputDataError is a ValueError too (parse_colour's own message)
+            raise ParameterError(f"{name}: {exc.message}", where=where) from None
         except (TypeError, ValueError):
             raise ParameterError(f"{name}={value!r} is not a valid {self.type}", where=where) from None
-        except SEngineError as exc:
-            raise ParameterError(f"{name}: {exc.message}", where=where) from None
         if self.type in ("float", "int"):
             if not math.isfinite(value):
                 raise ParameterError(f"{name}={value} is not a finite number", where=where)
