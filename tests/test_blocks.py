@@ -301,3 +301,37 @@ def test_clean_hands_no_faces_on_when_nodes_would_merge():
     assert B.traced_faces(graph, len(cleaned), decimals=6) is None
     out = get("blocks.circuits")("b", {"node": "false", "min_area": "1"}, Context()).run(roads=cleaned, graph=graph)
     assert len(out["faces"]) == 2  # the diagonal closes, as the lines entry merges the two ends
+
+
+@SETTINGS
+@given(st.lists(st.floats(0.0, 1e6), max_size=60), st.integers(1, 12))
+def test_cost_chunks_deal_every_item_once_heaviest_first(cost, parts):
+    chunks = B.cost_chunks(cost, parts)
+    got = np.concatenate(chunks) if chunks else np.zeros(0, np.int64)
+    assert np.array_equal(np.sort(got), np.arange(len(cost)))  # every index once
+    assert all(len(c) for c in chunks) and len(chunks) <= max(parts, 1)
+    if cost:
+        c = np.asarray(cost)
+        assert c[chunks[0][0]] == c.max()  # the costliest item starts the first chunk
+        share = c.sum() / parts
+        big = np.flatnonzero(c > share)
+        for i in big:  # an item above one share is a chunk of its own
+            assert [len(k) for k in chunks if i in k] == [1]
+
+
+def test_shrink_faces_in_chunks_equals_one_vectorized_call():
+    lines = read_highways(MONACO)
+    faces = B.find_blocks(lines, decimals=None).faces
+    # enough faces for the threaded path (translated copies), some inset with round joins
+    faces = np.concatenate([shapely.transform(faces, lambda xy, k=k: xy + 5000.0 * k) for k in range(3)])
+    assert len(faces) >= B.PARALLEL_MIN
+    hw = 3.0 + (np.arange(len(faces)) % 5)
+    rounded = np.arange(len(faces)) % 3 == 0
+    street, walk, block = B.shrink_faces(faces, hw, 3.0, rounded=rounded)
+    ref = B._shrink_some(faces, faces, hw, rounded, 3.0, threads=1)
+    for got, want in zip((street, walk, block), ref, strict=True):
+        assert shapely.to_wkb(got).tolist() == shapely.to_wkb(want).tolist()  # same bytes, same order
+    live = ~shapely.is_empty(block)
+    assert 0 < live.sum() < len(faces)
+    total = shapely.area(street) + shapely.area(walk) + shapely.area(block)
+    np.testing.assert_allclose(total, shapely.area(faces), rtol=1e-6)  # the three partition each face
