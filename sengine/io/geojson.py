@@ -227,9 +227,7 @@ def feature_collection_chunks(
         geo_texts = [("null" if t is None else t) for t in shapely.to_geojson(geoms[part]).tolist()]
         texts = [_column_texts(cols[k][part]) for k in keys]
         id_texts = _column_texts(ids[part])
-        yield ("," if lo else "") + ",".join(
-            [feature % row for row in zip(geo_texts, id_texts, *texts, strict=False)]
-        )
+        yield ("," if lo else "") + ",".join([feature % row for row in zip(geo_texts, id_texts, *texts, strict=False)])
         advance(len(geo_texts))  # written: counted for the run's progress (sengine.progress)
     yield "]" + (',"name":' + _dumps(name) if name else "") + ',"type":"FeatureCollection"}'
 
