@@ -454,7 +454,10 @@ class Network:
         workers : int
             Worker processes: nodes that map features one by one get their
             first input cut into chunks, exporters write their files side by
-            side.  The result is the same for any number of workers.
+            side, and a node's early job (:meth:`SENode.early`: the
+            exporter's roofs) starts in another process as soon as the
+            layers it needs are made.  The result is the same for any
+            number of workers.
         options : mapping, optional
             Output options for exporter nodes (``crs``, ``origin``).
 

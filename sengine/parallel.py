@@ -13,6 +13,10 @@ workers' results travel back, pickled.  Elsewhere, with one worker, inside a
 job of another ``run_jobs`` call or inside a Dask task, the jobs run here in
 turn.  Either way the results, and the files the jobs write, are the same.
 
+:class:`Background` runs one job in a forked process while this one goes
+on (a node's early job, :meth:`sengine.node.SENode.early`: the exporter's
+roofs, made while the nodes between the buildings and the export run).
+
 Worker processes ignore SIGINT and die with this process: whoever runs the
 pool decides when it stops (an interrupt here kills the workers, and a
 killed parent takes its workers with it on Linux), so no process is left
