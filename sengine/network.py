@@ -40,7 +40,7 @@ from . import progress as _progress
 from .errors import NetworkError, NodeError, OutputError, Problems, SEngineError
 from .layer import Layer
 from .node import Context, NodeResult, SENode
-from .parallel import run_jobs
+from .parallel import Background, run_jobs
 from .plan import CityPlan
 
 if TYPE_CHECKING:
@@ -454,7 +454,10 @@ class Network:
         workers : int
             Worker processes: nodes that map features one by one get their
             first input cut into chunks, exporters write their files side by
-            side.  The result is the same for any number of workers.
+            side, and a node's early job (:meth:`SENode.early`: the
+            exporter's roofs) starts in another process as soon as the
+            layers it needs are made.  The result is the same for any
+            number of workers.
         options : mapping, optional
             Output options for exporter nodes (``crs``, ``origin``).
 
@@ -505,31 +508,38 @@ class Network:
         areas: dict[str, float] = {}
         report: dict[str, Any] = {}
         n = len(bound.order)
-        for i, node_id in enumerate(bound.order, 1):
-            node = bound.nodes[node_id]
-            kwargs = {p: None for p in node.inputs}
-            for s, sp, dp in incoming[node_id]:
-                kwargs[dp] = layers[s][sp]
-            t0 = time.perf_counter()
-            with _progress.step(events, i, n, node_id, node.name):
-                result = _run_node(node, kwargs, workers)
-            dt = time.perf_counter() - t0
-            if check_kinds:
-                for port_name, lay in result.layers.items():
-                    registry.check_kind(lay, node.outputs[port_name].kind, where=f"{node.where} output {port_name!r}")
-            layers[node_id] = dict(result.layers)
-            count = node.counted(layers[node_id])
-            if node.outputs and not node.source_for:  # sinks (exporters) and the plan's inputs count no features
-                counts[node_id] = count
-            seconds[node_id] = round(dt, 4)
-            area = layer_area(layers[node_id], count)
-            if area > 0:
-                areas[node_id] = round(area, 1)
-            if result.report:
-                report[node_id] = result.report
-            log.info("%s (%s): %d features in %.3f s", node_id, node.name, count, dt)
-            if events is not None:
-                events.finish(i, n, node_id, node.name, count, dt)
+        early = _EarlyJobs(bound, incoming, workers)  # nodes' work started ahead in other processes
+        try:
+            for i, node_id in enumerate(bound.order, 1):
+                node = bound.nodes[node_id]
+                kwargs = {p: None for p in node.inputs}
+                for s, sp, dp in incoming[node_id]:
+                    kwargs[dp] = layers[s][sp]
+                t0 = time.perf_counter()
+                with _progress.step(events, i, n, node_id, node.name):
+                    result = _run_node(node, kwargs, workers)
+                dt = time.perf_counter() - t0
+                if check_kinds:
+                    for port_name, lay in result.layers.items():
+                        registry.check_kind(
+                            lay, node.outputs[port_name].kind, where=f"{node.where} output {port_name!r}"
+                        )
+                layers[node_id] = dict(result.layers)
+                count = node.counted(layers[node_id])
+                if node.outputs and not node.source_for:  # sinks (exporters) and the plan's inputs count no features
+                    counts[node_id] = count
+                seconds[node_id] = round(dt, 4)
+                area = layer_area(layers[node_id], count)
+                if area > 0:
+                    areas[node_id] = round(area, 1)
+                if result.report:
+                    report[node_id] = result.report
+                log.info("%s (%s): %d features in %.3f s", node_id, node.name, count, dt)
+                if events is not None:
+                    events.finish(i, n, node_id, node.name, count, dt)
+                early.start(layers)
+        finally:
+            early.close()
         seconds["total"] = round(time.perf_counter() - t_start, 4)
         stats = {
             "sengine": __version__,
@@ -715,3 +725,42 @@ def _move_into(tmp: Path, out_dir: Path) -> None:
         if target.is_dir() and not target.is_symlink():
             shutil.rmtree(target)
         os.replace(tmp / name, target)
+
+
+class _EarlyJobs:
+    """The nodes' early jobs (:meth:`SENode.early`) of a run with workers, each started once its inputs are made."""
+
+    def __init__(self, bound, incoming: dict, workers: int):
+        self.bound, self.incoming = bound, incoming
+        self.waiting: dict[str, set[str]] = {}  # node id -> the nodes whose layers its early inputs wait for
+        self.started: list[SENode] = []
+        if not Background.startable(workers):
+            return
+        for node_id, node in bound.nodes.items():
+            ports = type(node).early_inputs
+            sources = {s for s, _, dp in incoming[node_id] if dp in ports}
+            if ports and sources:
+                self.waiting[node_id] = sources
+
+    def start(self, layers: dict) -> None:
+        """Start the early job of every node whose early inputs are now made and that has not run yet."""
+        for node_id in [k for k, w in self.waiting.items() if w <= layers.keys()]:
+            del self.waiting[node_id]
+            if node_id in layers:
+                continue
+            node = self.bound.nodes[node_id]
+            inputs = dict.fromkeys(type(node).early_inputs)
+            for s, sp, dp in self.incoming[node_id]:
+                if dp in inputs:
+                    inputs[dp] = layers[s][sp]
+            job = node.early(**inputs)
+            if job is not None:
+                node._early_job = Background(job)
+                self.started.append(node)
+
+    def close(self) -> None:
+        """Stop the early jobs no node asked for (the run failed, or a node did the work itself)."""
+        for node in self.started:
+            job = node.__dict__.pop("_early_job", None)
+            if job is not None:
+                job.close()

@@ -345,6 +345,9 @@ class SENode:
     #: the features whose inner point lies in one of its enclosures, the remainder those outside
     #: every enclosure, so each feature comes out of one shard (:mod:`sengine.shard`).
     shard_streams: ClassVar[tuple[str, ...]] = ()
+    #: Input ports :meth:`early` reads: once the layers reaching them are made, a run with workers
+    #: starts the node's early job in another process while the nodes in between run here.
+    early_inputs: ClassVar[tuple[str, ...]] = ()
 
     def __init__(
         self,
@@ -422,6 +425,25 @@ class SENode:
             alone: a dict of one Layer per declared output port.
         """
         raise NotImplementedError
+
+    def early(self, **inputs: Layer | None) -> Any:
+        """A job (a callable without arguments) to start before the node's other inputs are made, or ``None``.
+
+        ``inputs`` are the layers reaching :attr:`early_inputs` (``None`` for
+        an unconnected port).  The job runs in a forked process; :meth:`run`
+        gets its result from :meth:`early_result` and must write the same
+        output as without it (a run with one worker starts no early job).
+        """
+        return None
+
+    def early_started(self) -> bool:
+        """Whether this run started the node's early job (its result not yet taken)."""
+        return "_early_job" in self.__dict__
+
+    def early_result(self) -> Any:
+        """The result of this run's early job (:meth:`early`), or ``None`` when none ran: :meth:`run` does the work."""
+        job = self.__dict__.pop("_early_job", None)
+        return None if job is None else job.result()
 
     def counted(self, layers: Mapping[str, Layer]) -> int:
         """How many features this node made, for the run's counts line and ``stats.json``.

@@ -13,6 +13,10 @@ workers' results travel back, pickled.  Elsewhere, with one worker, inside a
 job of another ``run_jobs`` call or inside a Dask task, the jobs run here in
 turn.  Either way the results, and the files the jobs write, are the same.
 
+:class:`Background` runs one job in a forked process while this one goes
+on (a node's early job, :meth:`sengine.node.SENode.early`: the exporter's
+roofs, made while the nodes between the buildings and the export run).
+
 Worker processes ignore SIGINT and die with this process: whoever runs the
 pool decides when it stops (an interrupt here kills the workers, and a
 killed parent takes its workers with it on Linux), so no process is left
@@ -35,6 +39,7 @@ from typing import Any
 
 __all__ = [
     "available_cores",
+    "Background",
     "can_fork",
     "in_worker",
     "in_dask_task",
@@ -47,6 +52,7 @@ __all__ = [
 _in_worker = False  # set in the processes run_jobs (or a batch's local scheduler) starts
 _running = False  # set while this process runs jobs of a run_jobs call: jobs within jobs run in turn
 _jobs: Sequence[Callable[[], Any]] = ()  # the jobs of the running run_jobs call, inherited by its forked workers
+_early: dict[int, Callable[[], Any]] = {}  # a Background's job while its process is forked (inherited by it)
 
 
 def available_cores() -> int:
@@ -254,3 +260,63 @@ def _wait(futures: list) -> set:
 def _run_job(i: int) -> Any:
     """Job ``i`` of the run_jobs call this worker was forked from."""
     return _jobs[i]()
+
+
+class Background:
+    """One job in a forked process while this process goes on; :meth:`result` waits for it.
+
+    The job (a callable without arguments, a closure holding large layers)
+    is inherited by the process forked for it, as :func:`run_jobs`'s are;
+    only its result travels back, pickled.  :meth:`startable` says whether a
+    job can go to the background here: with more than one worker, where
+    forking is safe, outside a worker or a Dask task.
+
+    Parameters
+    ----------
+    job : callable
+        The job.
+    """
+
+    def __init__(self, job: Callable[[], Any]):
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        key = id(job)
+        _early[key] = job
+        try:
+            self._pool = ProcessPoolExecutor(
+                1,
+                mp_context=multiprocessing.get_context("fork"),
+                initializer=worker_setup,
+                initargs=(os.getpid(),),
+            )
+            self._future = self._pool.submit(_run_early, key)  # forks here, with the job in _early
+        finally:
+            _early.pop(key, None)
+
+    @staticmethod
+    def startable(workers: int) -> bool:
+        """Whether a run of ``workers`` processes may put a job in the background here."""
+        return int(workers) > 1 and can_fork() and not _running and not in_worker()
+
+    def result(self) -> Any:
+        """The job's result (its exception raised here); ``None`` when its process died (the caller does the work)."""
+        from concurrent.futures.process import BrokenProcessPool
+
+        try:
+            return self._future.result()
+        except BrokenProcessPool:
+            return None
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Stop the process (now, when the job is still running) and wait for it."""
+        if not self._future.done():
+            kill_workers(self._pool)
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _run_early(key: int) -> Any:
+    """The job of the :class:`Background` this process was forked for."""
+    return _early[key]()

@@ -80,8 +80,15 @@ def to_wgs84(geoms: np.ndarray, to_lonlat: Callable[[np.ndarray], np.ndarray], *
         ll = f(coords)
         out[poly] = shapely.set_coordinates(p, _orient_closed(ll, counts, ring_poly))
     if (~poly).any():
-        out[~poly] = shapely.orient_polygons(shapely.transform(geoms[~poly], f), exterior_cw=False)
+        other = shapely.transform(geoms[~poly], f)
+        if np.isin(shapely.get_type_id(other), _POLYGONAL).any():  # points and lines have nothing to orient
+            other = shapely.orient_polygons(other, exterior_cw=False)
+        out[~poly] = other
     return out
+
+
+#: Type ids that hold polygons: MultiPolygon, GeometryCollection (a Polygon goes the numpy way).
+_POLYGONAL = (6, 7)
 
 
 def output_geometries(
@@ -206,7 +213,7 @@ def feature_collection_chunks(
         counts.update(features=int(keep.sum()), collapsed=int((~keep).sum()))
     keys = sorted(cols)
     props = "{" + ",".join(_dumps(k).replace("%", "%%") + ":%s" for k in keys) + "}"
-    feature = '{"geometry":%s,"id":%s,"properties":%s,"type":"Feature"}'
+    feature = '{"geometry":%s,"id":%s,"properties":' + props + ',"type":"Feature"}'  # one template a feature
     head = "{"
     if attribution:
         head += '"attribution":' + _dumps(attribution) + ","
@@ -219,11 +226,8 @@ def feature_collection_chunks(
         part = slice(lo, lo + max(int(chunk), 1))
         geo_texts = [("null" if t is None else t) for t in shapely.to_geojson(geoms[part]).tolist()]
         texts = [_column_texts(cols[k][part]) for k in keys]
-        prop_texts = [props % row for row in zip(*texts, strict=False)]
         id_texts = _column_texts(ids[part])
-        yield ("," if lo else "") + ",".join(
-            [feature % row for row in zip(geo_texts, id_texts, prop_texts, strict=False)]
-        )
+        yield ("," if lo else "") + ",".join([feature % row for row in zip(geo_texts, id_texts, *texts, strict=False)])
         advance(len(geo_texts))  # written: counted for the run's progress (sengine.progress)
     yield "]" + (',"name":' + _dumps(name) if name else "") + ',"type":"FeatureCollection"}'
 

@@ -344,6 +344,24 @@ class StatsPlanning(SENode):
         parks: Layer | None = None,
         vegetation: Layer | None = None,
     ) -> tuple[dict[str, Layer], dict]:
+        from functools import partial
+
+        from sengine.parallel import run_jobs
+
+        # the wall shares are only reported: with workers, a second process measures them meanwhile
+        jobs = [partial(self._planning, lots, buildings, blocks, parks, vegetation)]
+        if self.p.walls:
+            jobs.append(partial(wall_shares, lots, buildings, blocks))
+        done = run_jobs(jobs, int(getattr(self.context, "workers", 1) or 1))
+        layers, report = done[0]
+        if self.p.walls:
+            report["walls"] = done[1]
+        return NodeResult(layers, report)
+
+    def _planning(
+        self, lots: Layer, buildings: Layer, blocks: Layer | None, parks: Layer | None, vegetation: Layer | None
+    ) -> tuple[dict[str, Layer], dict]:
+        """The planning columns and the report (``walls`` left as ``None``, in its place)."""
         per_resident = self.p.m2_per_resident
         lot_area = shapely.area(lots.geometry) if len(lots) else np.zeros(0)
         shares = building_shares(lots, buildings)
@@ -386,7 +404,7 @@ class StatsPlanning(SENode):
                 for u in np.unique(uses)
             }
         if self.p.walls:
-            report["walls"] = wall_shares(lots, buildings, blocks)
+            report["walls"] = None  # measured beside (run)
         if "source" in buildings and len(buildings):  # e.g. the map's buildings beside the generated ones
             src = np.asarray(buildings["source"]).astype(str)
             bi, _, part = shares
@@ -418,4 +436,4 @@ class StatsPlanning(SENode):
             c["floor_area_m2"],
             c["site_area_m2"],
         )
-        return NodeResult({"lots": out_lots, "blocks": out_blocks}, report)
+        return {"lots": out_lots, "blocks": out_blocks}, report

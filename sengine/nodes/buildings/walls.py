@@ -38,10 +38,17 @@ def shared_length(p0, p1, q0, q1, pairs_i, pairs_j, *, tol: float = 1e-6) -> np.
     return np.where(on & (ln > 0), np.maximum(hi - lo, 0.0), 0.0)
 
 
+def _boxes(lo: np.ndarray, hi: np.ndarray):
+    """Geometries whose envelopes are the boxes ``lo``-``hi``: the boxes' diagonals.
+
+    An STRtree indexes and queries envelopes only, and a two-point line is
+    made about 3x faster than a five-point box polygon.
+    """
+    return shapely.linestrings(np.stack([lo, hi], axis=1))
+
+
 def _segment_tree(p0, p1, tol):
-    lo = np.minimum(p0, p1) - tol
-    hi = np.maximum(p0, p1) + tol
-    return shapely.STRtree(shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]))
+    return shapely.STRtree(_boxes(np.minimum(p0, p1) - tol, np.maximum(p0, p1) + tol))
 
 
 def party_walls(geoms, *, tol: float = 1e-3) -> np.ndarray:
@@ -63,9 +70,7 @@ def party_walls(geoms, *, tol: float = 1e-3) -> np.ndarray:
     if len(idx) == 0:
         return out
     tree = _segment_tree(p0, p1, tol)
-    lo = np.minimum(p0, p1)
-    hi = np.maximum(p0, p1)
-    i, j = tree.query(shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]))
+    i, j = tree.query(_boxes(np.minimum(p0, p1), np.maximum(p0, p1)))
     other = idx[i] != idx[j]
     i, j = i[other], j[other]
     shared = shared_length(p0, p1, p0, p1, i, j, tol=tol)
@@ -93,9 +98,7 @@ def street_walls(buildings, lot_of, fronts, *, tol: float = 1e-3) -> np.ndarray:
         return out
     p0, p1, idx, _ = ring_segments(buildings)
     tree = _segment_tree(f0, f1, tol)
-    lo = np.minimum(p0, p1)
-    hi = np.maximum(p0, p1)
-    i, j = tree.query(shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]))
+    i, j = tree.query(_boxes(np.minimum(p0, p1), np.maximum(p0, p1)))
     mine = np.asarray(lot_of, np.int64)[idx[i]] == flot[j]
     i, j = i[mine], j[mine]
     shared = shared_length(p0, p1, f0, f1, i, j, tol=tol)

@@ -86,6 +86,8 @@ __all__ = [
     "north_angle",
     "city_origin",
     "export_layers",
+    "export_formats",
+    "early_solids",
     "ExportCity",
 ]
 
@@ -164,6 +166,7 @@ def export_layers(
     attribution: str | None = None,
     lod: int = 2,
     city_name: str = "",
+    early_solids: Callable[[], tuple | None] | None = None,
 ) -> dict:
     """Write ``layers`` into folder ``out`` in each of ``formats``.
 
@@ -201,6 +204,11 @@ def export_layers(
     city_name : str
         The city's name (``<city name>``; a file name loses its extensions):
         the title of ``preview.png`` and of the html page.
+    early_solids : callable, optional
+        Returns ``(key, solids)`` of the buildings made ahead (:func:`early_solids`,
+        in another process) or ``None``; asked once the files without
+        buildings are written.  Solids whose key is not this export's
+        buildings' (:func:`~sengine.nodes.export.roofs.solids_key`) are made here.
 
     Returns
     -------
@@ -216,8 +224,7 @@ def export_layers(
         return importlib.import_module(f"{__package__}.{module}")
 
     out = Path(out)
-    asked = {str(f).strip().lower() for f in formats or ()} - {""}
-    formats = (asked & set(FORMATS)) if asked else set(DEFAULT_FORMATS)  # others are other exporters'
+    formats = export_formats(formats)  # the others are other exporters'
     if origin not in ORIGINS:
         raise ParameterError(f"origin {origin!r} is not one of {', '.join(ORIGINS)}", where="--origin")
     layers = {k: v for k, v in layers.items() if v is not None}
@@ -400,11 +407,13 @@ def export_layers(
     asked = {fmt for fmt, _, _ in jobs}
     share = lod >= 2 and len(_SOLID & asked) >= 2 and b is not None and len(b) and "height" in b.attrs
     surfaces = {"glb", "html"} <= asked
+    solid_asked = bool(lod >= 2 and _SOLID & asked and b is not None and len(b) and "height" in b.attrs)
+    early = early_solids if solid_asked else None  # the roofs, made ahead: asked for after the flat files
     # progress: every job counts the features it writes, the chunked writers chunk by chunk
     weights = [_weight(layers, fmt, name) for fmt, name, _ in jobs]
     timed = [partial(_timed, write, 0 if fmt in _CHUNKED else w) for (fmt, _, write), w in zip(jobs, weights)]
     progress.expect(sum(weights) + (len(b) if share else 0), "features")
-    if not (share or surfaces):
+    if not (share or surfaces or early):
         done = run_jobs(timed, workers)
     else:
         solid = [fmt in _SOLID for fmt, _, _ in jobs]
@@ -414,10 +423,14 @@ def export_layers(
                 stack.enter_context(writer("roofs").shared_solids(b, lod))
                 progress.advance(len(b))
 
-            first = [make_roofs] if share else []
+            first = [make_roofs] if share and early is None else []
             if surfaces:
                 first.append(partial(writer("gltf").make_surfaces, layers, line_width=line_width))
             made = run_jobs(first + [j for j, s in zip(timed, solid) if not s], workers)
+            if early is not None:  # made in another process meanwhile (or here now, when it failed)
+                stack.enter_context(writer("roofs").shared_solids(b, lod, made=early()))
+                if share:
+                    progress.advance(len(b))
             if surfaces:
                 stack.enter_context(writer("gltf").shared_surfaces(layers, made[len(first) - 1], line_width=line_width))
             flat = made[len(first) :]
@@ -445,6 +458,27 @@ def export_layers(
     seconds["clean"] = t_clean
     report["seconds"] = seconds
     return report
+
+
+def export_formats(formats) -> set[str]:
+    """The formats of :data:`FORMATS` that ``formats`` (``--format``) asks this exporter for; none: the defaults."""
+    asked = {str(f).strip().lower() for f in formats or ()} - {""}
+    return (asked & set(FORMATS)) if asked else set(DEFAULT_FORMATS)
+
+
+def early_solids(buildings: Layer, lod: int) -> tuple[str, Any]:
+    """The buildings' solids as the export will draw them, with their key: a job for another process.
+
+    The buildings go through :func:`~.prepare.prepare_layers` as in
+    :func:`export_layers` (the geometry and the roof columns do not depend
+    on the rules), then :func:`~.roofs.layer_solids`.  The export takes them
+    when the key (:func:`~.roofs.solids_key`) is its own buildings'.
+    """
+    from . import roofs
+
+    _, lat_lon = layers_frame({"buildings": buildings})
+    prepared = prepare_layers({"buildings": buildings}, None, origin=lat_lon)[0]["buildings"]
+    return roofs.solids_key(prepared, lod), roofs.layer_solids(prepared, lod)
 
 
 def _from_osm(layers: dict[str, Layer]) -> bool:
@@ -546,6 +580,17 @@ class ExportCity(SENode):
         ),
     }
 
+    early_inputs = ("buildings",)
+
+    def early(self, *, buildings: Layer | None = None) -> Callable[[], Any] | None:
+        """The buildings' roofs, made in another process while the nodes up to this one run (:func:`early_solids`)."""
+        b = buildings
+        if self.context.out is None or b is None or not len(b) or "height" not in b.attrs or self.p.lod < 2:
+            return None
+        if not _SOLID & export_formats(self.context.formats):
+            return None
+        return partial(early_solids, b, self.p.lod)
+
     def run(
         self,
         *,
@@ -596,6 +641,7 @@ class ExportCity(SENode):
             origin=options.get("origin") or "local",
             lod=self.p.lod,
             city_name=getattr(self.context, "name", ""),
+            early_solids=self.early_result if self.early_started() else None,
         )
         report.pop("seconds", None)  # timings would make stats.json differ between runs
         return NodeResult({}, _flat_counts(report))

@@ -76,6 +76,7 @@ __all__ = [
     "box_solids",
     "layer_solids",
     "shared_solids",
+    "solids_key",
 ]
 
 #: Roof kinds of the buildings layer's ``roof`` column.
@@ -616,18 +617,44 @@ def _prism_kinds_open(m: int, n_faces: int) -> np.ndarray:
 _SHARED: dict[tuple[int, int], tuple[object, Solids]] = {}  # (id(layer), lod) -> (layer, its solids)
 
 
+#: The columns :func:`layer_solids` reads besides the geometry.
+SOLID_COLUMNS = ("height", "base", "roof", "roof_height", "roof_direction")
+
+
+def solids_key(layer, lod: int = 2) -> str:
+    """A digest of what :func:`layer_solids` reads of ``layer`` at ``lod``: equal keys, equal solids."""
+    import hashlib
+
+    h = hashlib.sha256(f"{int(lod)}:{len(layer)}".encode())
+    h.update(b"".join(w or b"" for w in shapely.to_wkb(layer.geometry).tolist()))
+    for name in SOLID_COLUMNS:
+        col = layer.get(name)
+        if col is None:
+            h.update(b"-")
+            continue
+        col = np.asarray(col)
+        h.update(f"{name}:{col.dtype.str}:".encode())
+        h.update(repr(col.tolist()).encode() if col.dtype.kind == "O" else np.ascontiguousarray(col).tobytes())
+    return h.hexdigest()
+
+
 @contextmanager
-def shared_solids(layer, lod: int = 2) -> Iterator[Solids]:
+def shared_solids(layer, lod: int = 2, made: tuple[str, Solids] | None = None) -> Iterator[Solids]:
     """Make the solids of ``layer`` at ``lod`` once, here, for every writer that asks within the block.
 
     The exporters of one run (glb, OBJ, CityJSON, the html page) each ask
     :func:`layer_solids` for the same buildings; their roofs (the straight
     skeletons above all) are the costly part.  Made before the writers'
     processes are forked, they are inherited by them.  Writers must not
-    change the arrays.
+    change the arrays.  ``made``: ``(solids_key, solids)`` made elsewhere
+    (in another process, ahead of the export), taken when the key is this
+    layer's.
     """
     key = (id(layer), int(lod))
-    solids = layer_solids(layer, lod)
+    if made is not None and made[0] == solids_key(layer, lod):
+        solids = made[1]
+    else:
+        solids = layer_solids(layer, lod)
     _SHARED[key] = (layer, solids)
     try:
         yield solids
