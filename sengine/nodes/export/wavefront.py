@@ -85,6 +85,7 @@ def _wavefront(qk, kstart, poly_ring, todo):
     D = d / np.where(dl > 0, dl, 1.0)[:, None]
     N = np.column_stack([-D[:, 1], D[:, 0]])
     C = (N * xy).sum(axis=1)
+    Nx, Ny, Dx, Dy = N[:, 0].copy(), N[:, 1].copy(), D[:, 0].copy(), D[:, 1].copy()
     # the wavefront: a pool of vertices, the first nv the outline's
     cap = 8 * nv + 16
     P0 = np.zeros((cap, 2))
@@ -182,16 +183,19 @@ def _wavefront(qk, kstart, poly_ring, todo):
         tnow = np.zeros(len(todo))
         np.maximum.at(tnow, POLY[free], T0[free])
         v, w = free, NX[free]
-        dv = D[ER[v]]
-        A = (dv * (P0[w] - V[w] * T0[w][:, None])).sum(1) - (dv * (P0[v] - V[v] * T0[v][:, None])).sum(1)
-        B = (dv * (V[w] - V[v])).sum(1)
-        tn = tnow[POLY[v]]
+        ev_e = ER[v]
+        dx, dy = Dx[ev_e], Dy[ev_e]
+        T0v, T0w = T0[v], T0[w]
+        A = (dx * (P0[w, 0] - V[w, 0] * T0w) + dy * (P0[w, 1] - V[w, 1] * T0w)) - (
+            dx * (P0[v, 0] - V[v, 0] * T0v) + dy * (P0[v, 1] - V[v, 1] * T0v)
+        )
+        B = dx * (V[w, 0] - V[v, 0]) + dy * (V[w, 1] - V[v, 1])
+        tn = tv = tnow[POLY[v]]
         # when and where the edge's line and its neighbours' meet: three lines, no drift
-        Xe, t3 = _concurrent(EL[v], ER[v], ER[w], N, C)
+        xe, ye, t3 = _concurrent(EL[v], ev_e, ER[w], Nx, Ny, C)
         te = np.where((B < -1e-12) & np.isfinite(t3), t3, np.inf)
-        gone = A + B * tn <= TOL  # an edge already gone: now, where its vertices are
+        gone = A + B * tn <= TOL  # an edge already gone: now, where its vertices are (set below)
         te = np.where(gone, tn, te)
-        Xe = np.where(gone[:, None], (pos(v, tn) + pos(w, tn)) / 2.0, Xe)
         te = np.maximum(te, tn)
         # split events: reflex vertices against the other edges of their polygon
         reflex = free[(D[EL[free]][:, 0] * D[ER[free]][:, 1] - D[EL[free]][:, 1] * D[ER[free]][:, 0]) < 0]
@@ -208,21 +212,27 @@ def _wavefront(qk, kstart, poly_ring, todo):
             rv = np.repeat(reflex, kr)
             j = np.arange(kr.sum()) - np.repeat(np.cumsum(kr) - kr, kr)
             rw = fs[np.repeat(start[POLY[reflex]], kr) + j]
-            # the tests in stages, the cheap ones first, each on the pairs the one before kept
+            # the tests in stages, the cheap ones first, each on the pairs the one before kept; on the
+            # components, not (n, 2) rows (one gather each, no row sums: the same sums in the same order)
             e = ER[rw]
-            keep = (rw != rv) & (NX[rw] != rv) & ((N[e] * V[rv]).sum(1) - 1.0 < -1e-12)  # it gains on the edge
+            gain = Nx[e] * V[rv, 0] + Ny[e] * V[rv, 1]
+            keep = (rw != rv) & (NX[rw] != rv) & (gain - 1.0 < -1e-12)  # it gains on the edge
             rv, rw, e = rv[keep], rw[keep], e[keep]
-            X, t = _concurrent(EL[rv], ER[rv], e, N, C)
+            x, y, t = _concurrent(EL[rv], ER[rv], e, Nx, Ny, C)
             tn = tnow[POLY[rv]]
+            # a split no earlier than the polygon's edge event is never taken (it must come strictly
+            # earlier, by TOL): such pairs skip the extent test
             keep = (t >= tn - TOL) & np.isfinite(t)
-            rv, rw, e, X, t, tn = rv[keep], rw[keep], e[keep], X[keep], t[keep], tn[keep]
             t = np.maximum(t, tn)
-            de = D[e]
-            s = (de * X).sum(1)
-            s0 = (de * pos(rw, t)).sum(1)
-            s1 = (de * pos(NX[rw], t)).sum(1)
+            keep &= t < best_t[POLY[rv]] - TOL
+            rv, rw, e, x, y, t = rv[keep], rw[keep], e[keep], x[keep], y[keep], t[keep]
+            dx, dy = Dx[e], Dy[e]
+            s = dx * x + dy * y
+            w2 = NX[rw]
+            s0 = dx * (P0[rw, 0] + V[rw, 0] * (t - T0[rw])) + dy * (P0[rw, 1] + V[rw, 1] * (t - T0[rw]))
+            s1 = dx * (P0[w2, 0] + V[w2, 0] * (t - T0[w2])) + dy * (P0[w2, 1] + V[w2, 1] * (t - T0[w2]))
             ok = (s >= s0 - TOL) & (s <= s1 + TOL)
-            ts_v, ts_w, ts, tsx = rv[ok], rw[ok], t[ok], X[ok]
+            ts_v, ts_w, ts, tsx = rv[ok], rw[ok], t[ok], np.column_stack([x[ok], y[ok]])
             split_best = np.full(len(todo), np.inf)
             np.minimum.at(split_best, POLY[ts_v], ts)
         else:
@@ -231,7 +241,11 @@ def _wavefront(qk, kstart, poly_ring, todo):
         use_split = split_best < best_t - TOL
         ev = np.flatnonzero((te <= best_t[POLY[v]]) & ~use_split[POLY[v]])
         ev = ev[~_dup(POLY[v[ev]])]
-        ev_x, ev = Xe[ev], v[ev]
+        ev_x = np.column_stack([xe[ev], ye[ev]])
+        g = ev[gone[ev]]
+        if g.size:
+            ev_x[gone[ev]] = (pos(v[g], tv[g]) + pos(w[g], tv[g])) / 2.0
+        ev = v[ev]
         pick = (ts <= split_best[POLY[ts_v]]) & use_split[POLY[ts_v]]
         sv_, sw_, st_, sx_ = ts_v[pick], ts_w[pick], ts[pick], tsx[pick]
         first_s = ~_dup(POLY[sv_])
@@ -285,19 +299,24 @@ def _wavefront(qk, kstart, poly_ring, todo):
     return nxy[order], local_id[order], local_id[edges[eo]], types[eo], cnt, ecnt, todo[failed]
 
 
-def _concurrent(l1, l2, l3, N, C):
-    """The point and time at which the moving lines ``l1``, ``l2``, ``l3`` pass through one point (inf: never)."""
-    n1, n2, n3 = N[l1], N[l2], N[l3]
-    a1, b1 = n1[:, 0] - n2[:, 0], n1[:, 1] - n2[:, 1]
-    a2, b2 = n1[:, 0] - n3[:, 0], n1[:, 1] - n3[:, 1]
-    r1, r2 = C[l1] - C[l2], C[l1] - C[l3]
+def _concurrent(l1, l2, l3, Nx, Ny, C):
+    """The point ``(x, y)`` and time ``t`` at which the moving lines ``l1``, ``l2``, ``l3`` meet (t inf: never).
+
+    ``Nx``, ``Ny`` are the lines' unit normals by component, ``C`` their offsets
+    (``N . p = C + t`` at time ``t``).
+    """
+    n1x, n1y = Nx[l1], Ny[l1]
+    a1, b1 = n1x - Nx[l2], n1y - Ny[l2]
+    a2, b2 = n1x - Nx[l3], n1y - Ny[l3]
+    c1 = C[l1]
+    r1, r2 = c1 - C[l2], c1 - C[l3]
     det = a1 * b2 - a2 * b1
     ok = np.abs(det) > 1e-9
     det = np.where(ok, det, 1.0)
     x = (r1 * b2 - r2 * b1) / det
     y = (a1 * r2 - a2 * r1) / det
-    t = np.where(ok, n1[:, 0] * x + n1[:, 1] * y - C[l1], np.inf)
-    return np.column_stack([x, y]), t
+    t = np.where(ok, n1x * x + n1y * y - c1, np.inf)
+    return x, y, t
 
 
 def _meet(n1, n2, c1, c2, p):
