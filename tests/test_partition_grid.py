@@ -166,3 +166,20 @@ def test_strips_from_fewer_vertices_are_the_same_pieces(polys, ncol, bands, alig
     got = _clip_strips(geoms, which, center, axis, a0, a1, b0, b1)
     ref = clip_frame_boxes(geoms[which], center[which], axis[which], a0, a1, b0, b1)
     assert shapely.to_wkb(got).tolist() == shapely.to_wkb(ref).tolist()
+
+
+def test_strips_keep_the_vertices_where_geos_orients_a_ring():
+    """GEOS orients a ring by the turn at its highest vertex: here (3, 8), its first, then (0, 2).
+
+    (0, 2) lies inside a run of vertices left of the column: left out, the turn at (3, 8) would go on to
+    (2, 2), clockwise, and GEOS would give the column's complement (three pieces) instead of its two.
+    """
+    from sengine.geom.grid import _clip_strips
+
+    poly = shapely.Polygon([(3, 8), (0, 2), (2, 2), (6, 3), (6, 4), (4, 3), (8, 8), (2, 3), (3, 8)])
+    geoms, c, ax = np.array([poly], object), np.zeros((1, 2)), np.array([[1.0, 0.0]])
+    lims = (np.array([4.5]), np.array([5.5]), np.array([-20.0]), np.array([30.0]))
+    got = _clip_strips(geoms, np.array([0]), c, ax, *lims)[0]
+    ref = clip_frame_boxes(geoms, c, ax, *lims)[0]
+    assert shapely.to_wkb(got) == shapely.to_wkb(ref)
+    assert abs(got.area - shapely.clip_by_rect(poly, 4.5, -20, 5.5, 30).area) < 1e-9
