@@ -208,7 +208,8 @@ def _candidates(rs, C, min_frontage) -> _Candidates:
 def _overlapping_windows(C, cand: _Candidates) -> np.ndarray:
     """Candidates of a window of three consecutive ones whose union is not simple (two of them overlap).
 
-    Tested only where the inner line folds or bunches up: elsewhere neighbours cannot meet.
+    Tested only where the inner line folds or bunches up (elsewhere neighbours cannot meet), and
+    only windows with a candidate still good and on the street (the others' flags change nothing).
     """
     cp, ci, ja, nseg = cand.poly, cand.index, cand.start, C.nseg
     w = np.minimum(3, nseg - 1)[cp]
@@ -217,9 +218,14 @@ def _overlapping_windows(C, cand: _Candidates) -> np.ndarray:
     fold = np.einsum("ij,ij->i", di, dp) < RISK * np.einsum("ij,ij->i", dp, dp)
     risky = np.bincount((cstart_of(C)[C.sp] + C.sj // 3)[fold], minlength=len(cp)) > 0
     near = risky.copy()
+    # a window whose candidates are all bad or join the core already decides nothing: untested
+    settled = cand.bad | cand.core_part
+    open_ = ~settled
     for k in (1, 2):  # a window starting at i covers i .. i + 2
-        near |= risky[cstart_of(C)[cp] + np.mod(ci + k, nseg[cp])]
-    wsel = np.flatnonzero(near)
+        at = cstart_of(C)[cp] + np.mod(ci + k, nseg[cp])
+        near |= risky[at]
+        open_ |= (k < w) & ~settled[at]
+    wsel = np.flatnonzero(near & open_)
     bad_win = np.zeros(len(cp), bool)
     if len(wsel):
         one = np.ones(len(wsel), np.int64)
