@@ -436,3 +436,24 @@ def test_paris_courtyards_of_random_blocks_are_inner(polys, seed):
     ext = shapely.buffer(shapely.get_exterior_ring(blocks.geometry), 1e-6)[lots["block"]]
     on_exterior = shapely.length(shapely.intersection(shapely.boundary(lots.geometry[inner]), ext[inner]))
     assert (on_exterior < 0.01).all(), on_exterior
+
+
+def test_inscribed_radius_per_polygon_enough():
+    """inscribed_radius with one ``enough`` per polygon: GEOS's radius below it, at least it above it."""
+    rng = np.random.default_rng(5)
+    polys = []
+    for k in range(40):
+        ang = np.sort(rng.uniform(0, 2 * np.pi, 9))
+        r = rng.uniform(10.0, 120.0, 9)
+        p = shapely.make_valid(shapely.Polygon(np.c_[r * np.cos(ang), r * np.sin(ang)] + 1000.0 * k))
+        polys.append(max(shapely.get_parts(p), key=lambda g: g.area))
+    polys = np.array(polys, dtype=object)
+    exact = inscribed_radius(polys)
+    enough = rng.uniform(5.0, 60.0, len(polys))
+    got = inscribed_radius(polys, enough=enough)
+    searched = got != exact
+    assert (got[searched] >= enough[searched]).all()  # skipped: a lower bound past ``enough``
+    assert (exact[searched] >= 0.99 * enough[searched]).all()
+    assert (got[exact < enough] == exact[exact < enough]).all()
+    assert 0 < searched.sum() < len(polys)  # both kinds occur
+    assert (inscribed_radius(polys, enough=np.full(len(polys), np.inf)) == exact).all()

@@ -348,3 +348,26 @@ def test_empty_and_degenerate_blocks():
     lay = get("lots.skeleton")("lots", {}, Context()).run(blocks=blocks)["lots"]
     assert shapely.is_valid(lay.geometry).all()
     assert get("lots.skeleton")("lots", {}, Context()).run(blocks=Layer.from_geoms([]))["lots"].attrs["kind"].size == 0
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.sampled_from([0.0, -0.0, 1.0, 2.5, 3.0]), st.sampled_from([-1.0, 0.0, -0.0, 1e-9, 7.0])),
+        min_size=0,
+        max_size=40,
+    ),
+    st.integers(1, 3),
+)
+def test_unique_rows_gives_numpys_numbers(rows, ncol):
+    """faces.unique_rows: the first index and group of every row, as np.unique(axis=0) gives them."""
+    from sengine.nodes.lots.faces import unique_rows
+
+    key = np.array(rows, np.float64).reshape(-1, 2)
+    key = np.c_[key, key[:, :1] * 2][:, :ncol] if ncol != 2 else key
+    first, inv = unique_rows(key)
+    if len(key) == 0:
+        assert len(first) == len(inv) == 0
+        return
+    _, ref_first, ref_inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    assert np.array_equal(first, ref_first) and np.array_equal(inv, ref_inv.ravel())

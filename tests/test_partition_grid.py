@@ -130,3 +130,56 @@ def test_the_numpy_classification_gives_what_geos_gives(polys, cell, aligned, cl
     # and the cells partition the blocks
     for b, g in enumerate(geoms):
         assert abs(shapely.area(got[0][got[1] == b]).sum() - g.area) <= 1e-6 * g.area
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(block(), min_size=1, max_size=4),
+    st.integers(1, 12),
+    st.floats(0.0, 1.0),
+    st.booleans(),
+    st.integers(0, 2**31),
+)
+def test_strips_from_fewer_vertices_are_the_same_pieces(polys, ncol, bands, aligned, seed):
+    """_clip_strips leaves out vertices beyond a side of each rectangle: GEOS's pieces stay the same bytes.
+
+    Rectangles: columns across each block's frame, some also cut short across (so that runs of
+    vertices beyond their top and bottom are left out too), and a rectangle wholly off a block.
+    """
+    from sengine.geom.grid import _clip_strips
+
+    geoms = np.array(polys + [shapely.MultiPolygon([polys[0], shapely.box(1e6, 1e6, 1e6 + 5, 1e6 + 5)])], object)
+    center, axis, L, W = obb_frame(geoms)
+    if not aligned:
+        t = np.radians(11.0)
+        axis = np.c_[axis[:, 0] * np.cos(t) - axis[:, 1] * np.sin(t), axis[:, 0] * np.sin(t) + axis[:, 1] * np.cos(t)]
+    rng = np.random.default_rng(seed)
+    which = np.repeat(np.arange(len(geoms)), ncol + 1)
+    edges = np.linspace(-0.6, 0.6, ncol + 1)
+    j = np.tile(np.arange(ncol + 1), len(geoms))
+    span = np.maximum(L, W)[which]
+    a0 = np.where(j < ncol, edges[np.minimum(j, ncol - 1)], 2.0) * span
+    a1 = np.where(j < ncol, edges[np.minimum(j + 1, ncol)], 3.0) * span  # the last: off the block
+    short = rng.random(len(which)) < bands
+    b0 = np.where(short, rng.uniform(-0.4, 0.1, len(which)), -1.0) * span
+    b1 = np.where(short, rng.uniform(-0.1, 0.4, len(which)), 1.0) * span
+    got = _clip_strips(geoms, which, center, axis, a0, a1, b0, b1)
+    ref = clip_frame_boxes(geoms[which], center[which], axis[which], a0, a1, b0, b1)
+    assert shapely.to_wkb(got).tolist() == shapely.to_wkb(ref).tolist()
+
+
+def test_strips_keep_the_vertices_where_geos_orients_a_ring():
+    """GEOS orients a ring by the turn at its highest vertex: here (3, 8), its first, then (0, 2).
+
+    (0, 2) lies inside a run of vertices left of the column: left out, the turn at (3, 8) would go on to
+    (2, 2), clockwise, and GEOS would give the column's complement (three pieces) instead of its two.
+    """
+    from sengine.geom.grid import _clip_strips
+
+    poly = shapely.Polygon([(3, 8), (0, 2), (2, 2), (6, 3), (6, 4), (4, 3), (8, 8), (2, 3), (3, 8)])
+    geoms, c, ax = np.array([poly], object), np.zeros((1, 2)), np.array([[1.0, 0.0]])
+    lims = (np.array([4.5]), np.array([5.5]), np.array([-20.0]), np.array([30.0]))
+    got = _clip_strips(geoms, np.array([0]), c, ax, *lims)[0]
+    ref = clip_frame_boxes(geoms, c, ax, *lims)[0]
+    assert shapely.to_wkb(got) == shapely.to_wkb(ref)
+    assert abs(got.area - shapely.clip_by_rect(poly, 4.5, -20, 5.5, 30).area) < 1e-9

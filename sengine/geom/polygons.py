@@ -253,15 +253,43 @@ def clip_frame_boxes(geoms, center, axis, a0, a1, b0, b1):
         if len(keep):
             out[keep] = clip_frame_boxes(geoms[keep], center[keep], axis[keep], a0[keep], a1[keep], b0[keep], b1[keep])
         return out
-    nrm = np.stack([-axis[:, 1], axis[:, 0]], axis=1)
-    sa, sb = a1 - a0, b1 - b0
     c, ci = shapely.get_coordinates(geoms, return_index=True)
+    local = shapely.set_coordinates(geoms.copy(), frame_unit_coordinates(c, ci, center, axis, a0, a1, b0, b1))
+    return clip_unit_local(geoms, local, center, axis, a0, a1, b0, b1)
+
+
+def _frame_args(center, axis, a0, a1, b0, b1):
+    center = np.asarray(center, np.float64).reshape(-1, 2)
+    axis = np.asarray(axis, np.float64).reshape(-1, 2)
+    a0, a1, b0, b1 = np.broadcast_arrays(*(np.asarray(x, np.float64) for x in (a0, a1, b0, b1)))
+    return center, axis, a0, a1, b0, b1
+
+
+def frame_unit_coordinates(c, ci, center, axis, a0, a1, b0, b1) -> np.ndarray:
+    """World points ``c`` (m) of rectangle ``ci`` mapped affinely onto its unit square (as :func:`clip_frame_boxes`)."""
+    nrm = np.stack([-axis[:, 1], axis[:, 0]], axis=1)
+    sa = np.where(a1 > a0, a1 - a0, 1.0)
+    sb = np.where(b1 > b0, b1 - b0, 1.0)
     q = c - center[ci]
-    uv = np.stack(
+    return np.stack(
         [(np.einsum("ij,ij->i", q, axis[ci]) - a0[ci]) / sa[ci], (np.einsum("ij,ij->i", q, nrm[ci]) - b0[ci]) / sb[ci]],
         axis=1,
     )
-    local = shapely.set_coordinates(geoms.copy(), uv)
+
+
+def clip_unit_local(geoms, local, center, axis, a0, a1, b0, b1) -> np.ndarray:
+    """The second half of :func:`clip_frame_boxes`: geometries in their rectangles' unit squares, clipped.
+
+    ``local`` (each geometry, or one with vertices far outside its rectangle
+    left out, mapped onto its rectangle's unit square by
+    :func:`frame_unit_coordinates`) is clipped to the unit square and mapped
+    back to the world; pieces the clipper returns invalid are redone from
+    ``geoms`` by ``shapely.intersection``.
+    """
+    center, axis, a0, a1, b0, b1 = _frame_args(center, axis, a0, a1, b0, b1)
+    nrm = np.stack([-axis[:, 1], axis[:, 0]], axis=1)
+    sa = np.where(a1 > a0, a1 - a0, 1.0)
+    sb = np.where(b1 > b0, b1 - b0, 1.0)
     pieces = shapely.clip_by_rect(local, 0.0, 0.0, 1.0, 1.0)
     c2, ci2 = shapely.get_coordinates(pieces, return_index=True)
     x = a0[ci2] + c2[:, 0] * sa[ci2]

@@ -44,6 +44,25 @@ def _node(lines):
         return out
 
 
+def unique_rows(key):
+    """``np.unique(key, axis=0, return_index=True, return_inverse=True)[1:]``: the same numbers, faster.
+
+    Rows sorted by a stable ``lexsort`` (first column first): each distinct
+    row's first index, in the order of the sorted rows, and each row's group.
+    NumPy sorts rows through a structured view, about 2.5 times slower.
+    """
+    key = np.asarray(key)
+    n = len(key)
+    if n == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    o = np.lexsort(key.T[::-1])
+    k = key[o]
+    new = np.r_[True, (k[1:] != k[:-1]).any(axis=1)]
+    inv = np.empty(n, np.int64)
+    inv[o] = np.cumsum(new) - 1
+    return o[new], inv
+
+
 def _chain(item_seg, item_par, item_node, seg_end, nseg):
     """Edges along segments cut at points: for each segment, its start, the points in order, its end.
 
@@ -92,8 +111,7 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part, f
     ev_is_end = np.r_[np.zeros(int((start_node < 0).sum()), bool), np.ones(int((end_node < 0).sum()), bool)]
     # one node per distinct point of a segment (to a nanometre)
     key = np.c_[ev_seg.astype(np.float64), np.round(ev_par * slen[ev_seg], 9)]
-    uniq, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    inv = inv.ravel()
+    first, inv = unique_rows(key)
     ev_node = N + NI + inv
     start_node[ev_ray[~ev_is_end]] = ev_node[~ev_is_end]
     end_node[ev_ray[ev_is_end]] = ev_node[ev_is_end]
@@ -120,8 +138,8 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part, f
     cxy = a0[i] + ta[:, None] * r[cross]
     # crossings at one point (several rays through it) are one node
     ckey = np.c_[ray_part[i].astype(np.float64), np.round(cxy, 9)]
-    _, cfirst, cinv = np.unique(ckey, axis=0, return_index=True, return_inverse=True)
-    cnode = len(xy) + cinv.ravel()
+    cfirst, cinv = unique_rows(ckey)
+    cnode = len(xy) + cinv
     xy = np.r_[xy, cxy[cfirst]]
     # edges: segments cut at the ray ends, rays cut at their crossings
     su, sv_, sg = _chain(
@@ -438,7 +456,7 @@ def _merge_interior(faces, fpart, inner, spacing, report):
     mids, fidx, owner = mids[keep], fidx[keep], owner[keep]
     # one sample per point of a face (Voronoi cells merge equal points)
     key = np.c_[fidx.astype(np.float64), mids]
-    _, first = np.unique(key, axis=0, return_index=True)
+    first = unique_rows(key)[0]
     first = np.sort(first)
     mids, fidx, owner = mids[first], fidx[first], owner[first]
     nf = np.bincount(fidx, minlength=len(ii))

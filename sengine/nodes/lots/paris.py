@@ -104,6 +104,8 @@ def inscribed_radius(polys, enough=np.inf) -> np.ndarray:
     whose interior point (``point_on_surface``) lies farther than ``enough``
     from its boundary, by more than the tolerance, gets that distance (a lower
     bound, at least ``enough``, as GEOS's circle would be) without the search.
+    ``enough`` is one radius for all polygons or one each (m; ``inf``: always
+    search).
     """
     polys = np.asarray(polys, dtype=object)
     out = np.zeros(len(polys))
@@ -112,7 +114,8 @@ def inscribed_radius(polys, enough=np.inf) -> np.ndarray:
         b = shapely.bounds(polys[ok])
         tol = 0.01 * np.maximum(np.minimum(b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]), 1e-6)
         search = np.ones(len(ok), bool)
-        if np.isfinite(enough):
+        enough = np.broadcast_to(np.asarray(enough, np.float64), polys.shape)[ok]
+        if np.isfinite(enough).any():
             low = shapely.distance(shapely.point_on_surface(polys[ok]), shapely.boundary(polys[ok]))
             search = ~(low >= enough + tol)
             out[ok[~search]] = low[~search]
@@ -205,7 +208,8 @@ def _candidates(rs, C, min_frontage) -> _Candidates:
 def _overlapping_windows(C, cand: _Candidates) -> np.ndarray:
     """Candidates of a window of three consecutive ones whose union is not simple (two of them overlap).
 
-    Tested only where the inner line folds or bunches up: elsewhere neighbours cannot meet.
+    Tested only where the inner line folds or bunches up (elsewhere neighbours cannot meet), and
+    only windows with a candidate still good and on the street (the others' flags change nothing).
     """
     cp, ci, ja, nseg = cand.poly, cand.index, cand.start, C.nseg
     w = np.minimum(3, nseg - 1)[cp]
@@ -214,9 +218,14 @@ def _overlapping_windows(C, cand: _Candidates) -> np.ndarray:
     fold = np.einsum("ij,ij->i", di, dp) < RISK * np.einsum("ij,ij->i", dp, dp)
     risky = np.bincount((cstart_of(C)[C.sp] + C.sj // 3)[fold], minlength=len(cp)) > 0
     near = risky.copy()
+    # a window whose candidates are all bad or join the core already decides nothing: untested
+    settled = cand.bad | cand.core_part
+    open_ = ~settled
     for k in (1, 2):  # a window starting at i covers i .. i + 2
-        near |= risky[cstart_of(C)[cp] + np.mod(ci + k, nseg[cp])]
-    wsel = np.flatnonzero(near)
+        at = cstart_of(C)[cp] + np.mod(ci + k, nseg[cp])
+        near |= risky[at]
+        open_ |= (k < w) & ~settled[at]
+    wsel = np.flatnonzero(near & open_)
     bad_win = np.zeros(len(cp), bool)
     if len(wsel):
         one = np.ones(len(wsel), np.int64)
@@ -494,10 +503,14 @@ def paris_lots(
         if rs.n == 0:
             break
         C = Contour(rs, segment)
-        cap = REACH * inscribed_radius(rs.polygons(), enough=3.0 * depth / REACH * (1 + 1e-9))  # d <= 3 depth
         with np.errstate(over="ignore"):
             z = _normal(seeds[own][C.sp], key[C.sp] * np.uint64(1_000_003) + C.sj.astype(np.uint64))
         d = np.clip(depth + deviation * z, 0.2 * depth, 3.0 * depth)
+        # the cap binds only under the piece's deepest displacement (or the depth, for the smoothing):
+        # a piece whose inscribed circle is surely wider than that needs no circle search
+        need = np.full(rs.n, depth)
+        np.maximum.at(need, C.sp, d)
+        cap = REACH * inscribed_radius(rs.polygons(), enough=need / REACH * (1 + 1e-9))
         d = np.minimum(d, cap[C.sp])
         C.smooth(np.minimum(2.0 * np.minimum(depth, cap), C.perim / 8.0))
         C.inner = C.pts + d[:, None] * C.nrm
