@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -34,6 +35,16 @@ def root() -> Path:
 @pytest.fixture(scope="session")
 def fixtures() -> Path:
     return FIXTURES
+
+
+def interruptible() -> None:
+    """``preexec_fn`` of a child a test interrupts: SIGINT at its default, whoever started the tests.
+
+    A shell starts a background job (``.ci/run &``) with SIGINT ignored, every
+    process below it inherits that, and Python then installs no
+    KeyboardInterrupt handler: the child would never see the test's Ctrl-C.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def run_cli(*args: str, cwd: Path | None = None, env: dict | None = None) -> subprocess.CompletedProcess:

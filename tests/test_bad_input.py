@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import CONFIGS, DATA
+from conftest import CONFIGS, DATA, interruptible
 from PIL import Image
 
 from sengine.cli import main
@@ -782,6 +782,7 @@ def test_a_signal_ends_every_process_of_the_run(sig, tmp_path):
         [sys.executable, "-m", "sengine", "run", str(cfg), "-o", str(out), "--workers", "3", "-q"],
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=interruptible,
     )
     kids: set[int] = set()
     deadline = time.time() + 60

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 import shapely
 from _browser import browser, open_page
-from conftest import DATA, ROOT, run_cli
+from conftest import DATA, ROOT, interruptible, run_cli
 from PIL import Image
 
 from sengine import Layer
@@ -425,6 +425,7 @@ def test_view_serve_on_localhost(monaco):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=interruptible,
     )
     try:
         line = proc.stdout.readline()
