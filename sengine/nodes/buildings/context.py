@@ -46,7 +46,7 @@ link settlements [3]_.  So under ``rural_grain`` a lot farther than
 such street (untagged or generated roads) builds every lot, as before.
 The defaults were read off the shipped extracts: the six- to eight-storey
 perimeter blocks of Helsinki's centre have a median grain of 17 and Monaco
-16, whole Liège's lots a median of 8 (quartiles 5.7 and 11.4; villages of
+16, whole Liège's lots a median of 8 (quartiles 5.7 and 11.4;
 its villages about 4); so 14 and 8.  With them whole Liège's street network
 (no buildings) houses 1.44 million in the planning report instead of 5.3
 million (every lot built), where its streets serve about 530 km², about
