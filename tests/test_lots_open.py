@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import shapely
 from _lotcases import landuse_blocks
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from test_lots_rows import obb_sides
 
@@ -133,8 +133,26 @@ def _open_blocks(draw):
     return poly, front, sum(street)
 
 
+# An L whose inner side lies on the line through its long side's midpoint (cx = w / 2): the first
+# cut runs along that side, and its spike made the next cut's piece touch itself (found by a random run).
+_L_CUT_ALONG_ITS_SIDE = shapely.from_wkt(
+    "POLYGON ((0 0, 14.413166369137127 116.07711489625018, -41.78739969343846 123.0554767328929, "
+    "-48.03864132123077 72.71080755407516, -104.23920738380635 79.68916939071786, "
+    "-112.40113212515116 13.95672367328543, 0 0))"
+)
+
+
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(case=_open_blocks())
+@example(
+    case=(
+        _L_CUT_ALONG_ITS_SIDE,
+        shapely.MultiLineString(
+            [_L_CUT_ALONG_ITS_SIDE.exterior.coords[0:2], _L_CUT_ALONG_ITS_SIDE.exterior.coords[2:4]]
+        ),
+        2,
+    )
+)
 def test_random_blocks_lots_face_only_their_street_sides(case):
     """Every method on a block whose street is only some of its sides: no lot without frontage that is
     not inner, the block partitioned within 0.1 %, valid lots, and a street lot on the street."""

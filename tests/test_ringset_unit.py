@@ -89,6 +89,29 @@ def test_cleaned_when_nothing_to_drop_is_the_same_object():
     assert empty.cleaned() is empty and empty.n == 1
 
 
+def test_spike_tips_are_vertices_where_the_ring_turns_straight_back():
+    # (4, 0) -> (4, 6) -> (4, 3): the ring runs up past (4, 3) and straight back, (4, 6) is a tip;
+    # a spike 1e-12 m wide is one too, one 1e-6 m wide is not (tol 1e-9 m); nor are straight-through
+    # vertices, corners, or a repeated vertex (an edge shorter than tol).
+    xy = np.array([(0, 0), (4, 0), (4, 6), (4, 3), (2, 3), (0, 3)], float)
+    rs = RingSet(xy, np.zeros(6, np.int64), np.zeros(6, bool), np.array([0]), 1)
+    assert rs.spike_tips(1e-9).tolist() == [False, False, True, False, False, False]
+    for width, tip in ((1e-12, True), (1e-6, False)):
+        thin = RingSet(xy + [[0, 0], [0, 0], [width, 0], [0, 0], [0, 0], [0, 0]], rs.ring, rs.flag, rs.poly, 1)
+        assert thin.spike_tips(1e-9)[2] == tip
+    # the tip as the ring's first vertex (its edge in is the ring's last), and a repeated vertex
+    assert RingSet(np.roll(xy, -2, axis=0), rs.ring, rs.flag, rs.poly, 1).spike_tips(1e-9).tolist()[0]
+    rep = RingSet(
+        np.array([(0, 0), (5, 0), (5, 1e-12), (5, 5)], float),
+        np.zeros(4, np.int64),
+        np.zeros(4, bool),
+        np.array([0]),
+        1,
+    )
+    assert not rep.spike_tips(1e-9).any()
+    assert not RingSet.from_polygons([SQUARE_WITH_HOLE, TRIANGLE]).spike_tips(1e-9).any()
+
+
 def test_polygons_round_trip():
     polys = [SQUARE_WITH_HOLE, shapely.Polygon(), TRIANGLE]
     out = RingSet.from_polygons(polys).polygons()

@@ -111,6 +111,69 @@ def test_split_matches_geos_and_keeps_marks(case):
     assert failed.sum() <= len(polys)
 
 
+def _spike_tips(poly) -> int:
+    """Vertices of ``poly``'s rings where the boundary turns straight back (within 1e-9 m), edges
+    shorter than that (repeated vertices) aside."""
+    n = 0
+    for ring in [poly.exterior, *poly.interiors]:
+        xy = np.asarray(ring.coords)[:-1]
+        a, b = xy - np.roll(xy, 1, axis=0), np.roll(xy, -1, axis=0) - xy
+        cross = np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+        la, lb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
+        back = (np.einsum("ij,ij->i", a, b) < 0) & (cross <= 1e-9 * np.maximum(la, lb))
+        n += int(np.count_nonzero(back & (np.minimum(la, lb) > 1e-9)))  # not a repeated vertex
+    return n
+
+
+@SETTINGS
+@given(polygon(), st.integers(0, 10**6), st.floats(0.0, 180.0))
+def test_a_cut_along_an_edge_leaves_pieces_without_spikes(p, k, angle):
+    """Cut a polygon, turned by any angle (so its vertices sit 1e-15 m off the line), along the line
+    of one of its own edges: refused, or pieces that partition it, are valid and have no zero-width
+    spike; cut again across that edge they are still valid (a spike there made a piece touch itself)."""
+    p = shapely.affinity.rotate(p, angle, origin="centroid")
+    if not p.is_valid:
+        return
+    ring = np.asarray(p.exterior.coords)
+    a, b = ring[k % (len(ring) - 1)], ring[k % (len(ring) - 1) + 1]
+    pieces, parent, side, failed = split(RingSet.from_polygons([p]), [a], [b - a])
+    if failed[0]:
+        assert pieces.n == 0
+        return  # refused, not guessed
+    out = pieces.polygons()
+    assert shapely.is_valid(out).all()
+    assert abs(shapely.area(out).sum() - p.area) <= 1e-9 * p.area
+    assert sum(_spike_tips(g) for g in out) == 0
+    mid, normal = 0.5 * (a + b), np.array([b[1] - a[1], a[0] - b[0]])
+    again, _, _, _ = split(pieces, np.repeat([mid], pieces.n, 0), np.repeat([normal], pieces.n, 0))
+    assert shapely.is_valid(again.polygons()).all()
+
+
+def test_a_cut_along_an_l_s_inner_side_is_refused():
+    """The L lots.recursive met: the cut through its long side's midpoint runs along its inner side,
+    whose ends are 3.6e-15 and 1.8e-15 m off the line. The left piece would be the L's arm with a spike
+    out and back along that side (valid to GEOS, self-touching after the next cut): refused, as the
+    same cut is when exact arithmetic puts the side on the line (a spike GEOS calls invalid)."""
+    ell = shapely.Polygon(
+        [
+            (0, 0),
+            (14.413166369137127, 116.07711489625018),
+            (-41.78739969343846, 123.0554767328929),
+            (-48.03864132123077, 72.71080755407516),
+            (-104.23920738380635, 79.68916939071786),
+            (-112.40113212515116, 13.95672367328543),
+        ]
+    )
+    point, direction = [(-56.20056606257558, 6.978361836642715)], [(0.12322260456285708, 0.9923790554645668)]
+    pieces, parent, side, failed = split(RingSet.from_polygons([ell]), point, direction)
+    assert failed.tolist() == [True] and pieces.n == 0
+    exact = shapely.Polygon([(0, 0), (2, 0), (2, 4), (1, 4), (1, 2), (-1, 2), (-1, 0)])  # x = 1 holds the inner side
+    assert split(RingSet.from_polygons([exact]), [(1, 0)], [(0, 1)])[3].tolist() == [True]
+    # a cut that only touches the reflex corner is fine
+    pieces, parent, side, failed = split(RingSet.from_polygons([exact]), [(1, 2)], [(1, -1)])
+    assert not failed[0] and shapely.is_valid(pieces.polygons()).all() and len(parent) == 2
+
+
 def test_cut_through_a_concave_polygon_and_a_hole():
     u = shapely.Polygon([(0, 0), (10, 0), (10, 10), (7, 10), (7, 3), (3, 3), (3, 10), (0, 10)])
     holed = shapely.box(0, 0, 10, 10).difference(shapely.box(4, 4, 6, 6))

@@ -92,6 +92,25 @@ class RingSet:
         rmap = np.cumsum(live) - 1
         return RingSet(self.xy[keep], rmap[self.ring[keep]], self.flag[keep], self.poly[live], self.n)
 
+    def spike_tips(self, tol: float) -> np.ndarray:
+        """Vertices where a ring turns straight back on itself (N,) bool.
+
+        A vertex is a spike's tip when its two edges point opposite ways and
+        the shorter one, longer than ``tol`` (m), ends within ``tol`` of the
+        longer one's line (a shorter one is a repeated vertex).  A cut running
+        along an edge of its polygon leaves such a zero-width spike; GEOS
+        calls it valid when rounding leaves it 1e-15 m wide, but the next cut
+        through its base makes a piece that touches itself.
+        """
+        nx = self.next_vertex()
+        pv = np.empty_like(nx)
+        pv[nx] = np.arange(len(nx))
+        a, b = self.xy - self.xy[pv], self.xy[nx] - self.xy
+        cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+        la, lb = np.hypot(a[:, 0], a[:, 1]), np.hypot(b[:, 0], b[:, 1])
+        back = np.einsum("ij,ij->i", a, b) < 0.0
+        return back & (np.abs(cross) <= tol * np.maximum(la, lb)) & (np.minimum(la, lb) > tol)
+
     def polygons(self) -> np.ndarray:
         """The polygons as a shapely array (n,).
 

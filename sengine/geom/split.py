@@ -115,7 +115,8 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
         1 left of the directed line, 0 right of it.
     failed : ndarray of bool (n,)
         Polygons whose crossings could not be paired (nearly tangent cuts)
-        or whose pieces would touch themselves; they give no pieces.  A polygon
+        or whose pieces would touch themselves or have a spike along the
+        line (a cut along an edge); they give no pieces.  A polygon
         the line misses gives itself as its only piece.
     """
     n = rs.n
@@ -191,12 +192,15 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
     for o in out:
         bad |= o[2]
     # A cut through vertices or along edges may leave pieces that touch
-    # themselves on the line (zero-width bridges), and cutting open a hole
-    # that touches its shell leaves a ring through that point twice:
-    # validate the pieces of those few polygons (``general``).
+    # themselves on the line (zero-width bridges) or run out and back along
+    # it (spikes GEOS calls valid when rounding leaves them 1e-15 m wide),
+    # and cutting open a hole that touches its shell leaves a ring through
+    # that point twice: check the pieces of those few polygons (``general``).
     check = np.flatnonzero(general[parent])
     if len(check):
-        bad[parent[check[~shapely.is_valid(pieces.take(check).polygons())]]] = True
+        sub = pieces.take(check)
+        spiked = np.bincount(sub.vertex_poly(), weights=sub.spike_tips(touch_tol), minlength=sub.n) > 0
+        bad[parent[check[spiked | ~shapely.is_valid(sub.polygons())]]] = True
     if bad.any():
         keep = ~bad[parent]
         pieces = pieces.take(keep)
