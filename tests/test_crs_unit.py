@@ -43,6 +43,7 @@ def test_utm_zones_by_hand():
     assert utm_crs(-33.9, 18.4) == "EPSG:32734"  # Cape Town: zone 34 south
     assert utm_crs(40.7, -74.0) == "EPSG:32618"  # New York: floor(106 / 6) = 17, zone 18
     assert utm_crs(0.0, 0.0) == "EPSG:32631"  # the equator is north
+    assert utm_crs("-33.9", "18.4") == "EPSG:32734"  # strings as a config gives them: both converted
     assert utm_crs(-1e-9, 0.0) == "EPSG:32731"
     assert utm_crs(10.0, 6.0) == "EPSG:32632"  # a zone's west edge belongs to it
     assert utm_crs(10.0, 5.999) == "EPSG:32631"

@@ -58,7 +58,7 @@ def local_crs(origin: tuple[float, float]) -> str:
 def utm_crs(lat: float, lon: float) -> str:
     """The WGS84 UTM zone holding ``(lat, lon)`` as ``"EPSG:326zz"`` / ``"EPSG:327zz"``."""
     zone = int((float(lon) + 180.0) // 6.0) % 60 + 1
-    return f"EPSG:{32600 + zone if lat >= 0 else 32700 + zone}"
+    return f"EPSG:{32600 + zone if float(lat) >= 0 else 32700 + zone}"
 
 
 @lru_cache(maxsize=32)
