@@ -739,13 +739,13 @@ def test_write_index_and_load_all(tmp_path, monkeypatch):
     files["broken"] = "raise ValueError('bad module')\n"
     pkg = _package(tmp_path, monkeypatch, files)
     (tmp_path / pkg / "broken.py").unlink()  # survey imports every module: broken only for load_all
-    old = '"""Kept docstring."""\n\nimport os  # kept\n\nINDEX = {}\nINDEX_NOTE = 1\n'
+    old = '"""Kept docstring."""\n\nimport os  # kept X\n\nINDEX = {}\nINDEX_NOTE = 1\n'
     (tmp_path / pkg / "_index.py").write_text(old)
     path = registry.write_index(pkg)
     assert path == tmp_path / pkg / "_index.py"
     text = path.read_text()
     # the text before the first INDEX kept, everything from it on replaced
-    head = '"""Kept docstring."""\n\nimport os  # kept\n\nINDEX: dict[str, dict[str, list[str]]] = {\n'
+    head = '"""Kept docstring."""\n\nimport os  # kept X\n\nINDEX: dict[str, dict[str, list[str]]] = {\n'
     assert text.startswith(head)
     assert "INDEX_NOTE" not in text and text.endswith("}\n")
     # formatted by ruff (pprint writes single quotes), categories in their own order
