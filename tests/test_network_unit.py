@@ -10,8 +10,13 @@ docs/mutation.md.  Nodes are registered under ``nu.*`` for this module.
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
+import re
 import time
+from functools import partial
+from types import SimpleNamespace
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -71,7 +76,7 @@ class Grow(SENode):
     maps_features = True
 
     def run(self, *, polys):
-        if self.context.options.get("slow") and len(polys) and polys.ids[0] == 0:
+        if self.context.options.get("slow") and len(polys) == MIN_CHUNK:
             time.sleep(0.3)  # the first chunk: the executor then sends the rest to the workers
         g = shapely.buffer(polys.geometry, self.p.d, join_style="mitre")
         out = Layer.from_geoms(g, ids=polys.ids, parent=polys.ids)
@@ -87,6 +92,53 @@ class Renumber(Grow):
         res = super().run(polys=polys)
         out = res.layers["out"]
         return {"out": Layer.from_geoms(out.geometry, parent=out.parent)}
+
+
+class Whole(Grow):
+    """Grow that does not map features one by one: never cut into chunks."""
+
+    name = "nu.whole"
+    maps_features = False
+
+
+class Two(SENode):
+    name = "nu.two"
+    outputs = {"a": Port("polygons"), "b": Port("lines")}
+
+    def run(self):
+        return {"a": _boxes(1), "b": Lines("l").run()["lines"]}
+
+
+class TakesRaster(SENode):
+    name = "nu.takesraster"
+    inputs = {"r": Port("nuraster")}
+
+    def run(self, *, r):
+        return None
+
+
+def _area_or_none(polys):
+    return None if polys is None else float(polys.area())
+
+
+class Early(SENode):
+    """A node whose job on its ``polys`` input starts in another process as soon as that input is made."""
+
+    name = "nu.early"
+    inputs = {"polys": Port("polygons", required=False), "other": Port("polygons", required=False)}
+    outputs = {"out": Port("polygons")}
+    params = {"take": Param("bool", default=True)}
+    early_inputs = ("polys",)
+    SEEN: ClassVar[list] = []
+
+    def early(self, *, polys):
+        return partial(_area_or_none, polys)
+
+    def run(self, *, polys, other):
+        Early.SEEN.append(self)
+        started = self.early_started()
+        value = self.early_result() if self.p.take else None
+        return NodeResult({"out": _boxes(0)}, {"started": started, "value": -1.0 if value is None else value})
 
 
 class Pair(SENode):
@@ -151,10 +203,26 @@ class Raster(SENode):
         spec = plan.maps.get(key)
         return None if spec is None else ({"kind": key}, spec.where)
 
+    def check(self):
+        if self.p.kind == "nocheck":
+            raise ParameterError("a source that ran is not checked again")
+
     def run(self):
         if self.p.kind == "broken":
             raise ParameterError("map 'broken' cannot be read", where="plan.xml:4")
         return {"raster": Layer.from_geoms([shapely.box(0, 0, 1, 1)], kind=np.array([self.p.kind]))}
+
+
+class RasterIn(SENode):
+    """A plan source with an input: ``check`` does not run it."""
+
+    name = "nu.rasterin"
+    inputs = {"polys": Port("polygons", required=False)}
+    outputs = {"raster": Port("nuother")}
+    source_for = "nuother"
+
+    def run(self, *, polys):
+        raise AssertionError("not run by check")
 
 
 class UsesMap(SENode):
@@ -165,14 +233,15 @@ class UsesMap(SENode):
         "zone_map": Port("nuraster", required=False),
         "other_thing": Port("polygons", required=False),
         "nokey": Port("nuraster", required=False),
+        "big_zone_map": Port("nuraster", required=False),
     }
     outputs = {"out": Port("polygons")}
 
-    def check(self, *, polys, nuheight_map, zone_map, other_thing, nokey):
+    def check(self, *, polys, nuheight_map, zone_map, other_thing, nokey, big_zone_map):
         if nuheight_map is not None and nuheight_map.attrs["kind"][0] == "height":
             raise ParameterError(f"checked {len(nuheight_map)} map, polys {polys}, zone {zone_map}", where="check")
 
-    def run(self, *, polys, nuheight_map, zone_map, other_thing, nokey):
+    def run(self, *, polys, nuheight_map, zone_map, other_thing, nokey, big_zone_map):
         return {"out": polys}
 
 
@@ -188,7 +257,8 @@ class NotMine(SENode):
 
 NotMine.__module__ = "sengine.nodes.fake"
 
-NODES = (Src, Lines, Grow, Renumber, Pair, Sink, Any_, NoIO, Fails, Raster, UsesMap, NotMine)
+NODES = (Src, Lines, Grow, Renumber, Whole, Two, TakesRaster, Early, Pair, Sink, Any_, NoIO, Fails, Raster, RasterIn)
+NODES += (UsesMap, NotMine)
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -199,6 +269,7 @@ def nodes():
     for cls in NODES:
         registry.register(cls, replace=True)
     registry.declare_map_kind("nuheight", "nuraster")
+    registry.declare_map_kind("nulone", "nuraster")
     yield
     registry.REGISTRY.clear()
     registry.REGISTRY.update(saved)
@@ -271,6 +342,7 @@ def test_add_replace_set_param_connect_disconnect():
     net = Network(seed=7, base_dir="here", source="s.xml")
     assert (net.seed, net.base_dir, net.source) == (7, __import__("pathlib").Path("here"), "s.xml")
     assert isinstance(net.plan, CityPlan) and Network().base_dir is None
+    assert (Network().seed, Network().source) == (0, "")
     spec = net.add("a", "nu.src", {"n": 3}, where="s.xml:2")
     assert spec == NodeSpec("a", "nu.src", {"n": 3}, "s.xml:2", {"n": "s.xml:2"})
     with pytest.raises(NetworkError) as e:
@@ -286,6 +358,15 @@ def test_add_replace_set_param_connect_disconnect():
     assert (net.specs["a"].type, net.specs["a"].where) == ("nu.src", "s.xml:5")
     net.set_param("b", "d", 2.5, where="s.xml:6")
     assert net.specs["b"].params == {"d": 2.5} and net.specs["b"].param_where == {"d": "s.xml:6"}
+    net.set_param("b", "e", 1)
+    assert net.specs["b"].param_where == {"d": "s.xml:6", "e": ""}
+    del net.specs["b"].params["e"], net.specs["b"].param_where["e"]
+    with pytest.raises(NetworkError) as e:
+        net._spec("zz")
+    assert e.value.where is None
+    with pytest.raises(NetworkError) as e:
+        net.replace("zz", "t", where="s.xml:8")
+    assert e.value.where == "s.xml:8"
     with pytest.raises(NetworkError) as e:
         net.set_param("zz", "d", 1, where="s.xml:7")
     assert str(e.value) == "s.xml:7: no node with id 'zz' in the network (nodes: a, b)"
@@ -324,7 +405,7 @@ def test_merge():
     b.set_param("g", "d", 3.0, where="b.xml:5")
     b.connect("s", "g", where="b.xml:2")
     a.merge(b)
-    assert list(a.specs) == ["s", "g"] and a.specs["g"].params == {"d": 3.0}
+    assert list(a.specs) == ["s", "g"] and a.specs["g"].params == {"d": 3.0} and a.specs["g"].type == "nu.grow"
     assert a.specs["g"].param_where == {"d": "b.xml:5"} and a.specs["g"].where == "b.xml:1"
     assert a.connections == [Connection("s", None, "g", None, "b.xml:2")]
     c = Network()
@@ -410,12 +491,17 @@ def test_resolve_messages():
     net.add("g", "nu.grow")
     net.add("p", "nu.pair")
     net.add("k", "nu.sink")
+    net.add("t", "nu.two")
+    net.add("r", "nu.takesraster")
     cases = [
         ("s.x", "g", "w:1", "w:1: node 's' (nu.src) has no output 'x' (outputs: polys)"),
         ("n.x", "g", "", "node 'n' (nu.noio) has no output 'x' (outputs: none)"),
         ("s", "n.x", "", "node 'n' (nu.noio) has no input 'x' (inputs: none)"),
-        ("k", "g", "", "node 'k' (nu.sink) has no outputs to connect"),
-        ("s", "n", "", "node 'n' (nu.noio) has no inputs to connect"),
+        ("k", "g", "w:2", "w:2: node 'k' (nu.sink) has no outputs to connect"),
+        ("s", "n", "w:3", "w:3: node 'n' (nu.noio) has no inputs to connect"),
+        ("t.x", "g", "", "node 't' (nu.two) has no output 'x' (outputs: a, b)"),
+        ("t.b", "g", "", "port kind mismatch: 't' gives b:lines but 'g' takes polys:polygons"),
+        ("t", "r", "", "port kind mismatch: 't' gives a:polygons, b:lines but 'r' takes r:nuraster"),
         ("l", "g", "", "port kind mismatch: 'l' gives lines:lines but 'g' takes polys:polygons"),
         ("l.lines", "p.a", "", "port kind mismatch: 'l' gives lines:lines but 'p' takes a:polygons"),
         ("l", "p", "", "port kind mismatch: 'l' gives lines:lines but 'p' takes a:polygons, b:polygons"),
@@ -426,6 +512,31 @@ def test_resolve_messages():
             net.validate()
         assert str(e.value.problems[0]) == msg, (src, dst)
         assert e.value.problems[0].where == (where or None)
+
+
+def test_resolve_of_an_empty_network_and_the_first_port_that_takes_the_kind():
+    net = Network()
+    net.connect("a", "b", where="e.xml:1")
+    with pytest.raises(NetworkError) as e:
+        net.validate()
+    assert str(e.value) == "e.xml:1: connection names unknown node 'a' (nodes: none)"
+    net = Network()
+    net.add("l", "nu.lines")
+    net.add("k", "nu.sink")
+    net.add("t", "nu.two")
+    net.add("p", "nu.pair")
+    net.add("s", "nu.src")
+    net.connect("l", "k")  # the first free port (polys) does not take lines: the next one does
+    net.connect("s", "k")
+    net.connect("t", "p")  # the first output (a) fits the first free input
+    net.connect("t", "p")  # then the second free input
+    edges = net.validate().edges
+    assert edges == [
+        ("l", "lines", "k", "lines"),
+        ("s", "polys", "k", "polys"),
+        ("t", "a", "p", "a"),
+        ("t", "a", "p", "b"),
+    ]
 
 
 def test_resolve_fills_free_ports_in_order_and_refuses_a_second_connection():
@@ -440,6 +551,7 @@ def test_resolve_fills_free_ports_in_order_and_refuses_a_second_connection():
     net.connect("p", "k")
     net.connect("l", "k")  # lines go to the lines port, whatever its place
     bound = net.validate()
+    assert [n.id for n in bound.nodes.values()] == ["s", "t", "p", "l", "k"]
     assert bound.edges == [
         ("s", "polys", "p", "a"),
         ("t", "polys", "p", "b"),
@@ -496,7 +608,8 @@ def _planned(**maps) -> Network:
 def test_wire_plan_adds_and_connects_source_nodes():
     # nuheight: a declared map kind, made whatever takes it; zone: not a declared map kind,
     # made because a port asks for it; nothing declares "lone" nor asks for it
-    net = _planned(nuheight="plan.xml:3", zone="plan.xml:4", lone="plan.xml:5")
+    net = _planned(nuheight="plan.xml:3", zone="plan.xml:4", lone="plan.xml:5", nulone="plan.xml:2")
+    net.plan.maps["big_zone"] = MapSpec("big_zone", "b.png", where="plan.xml:6")
     net.add("v", "nu.usesmap")
     net.add("x", "nu.unknown")  # left for validate
     net.add("r", "nu.raster")  # a source takes no plan input itself
@@ -505,23 +618,28 @@ def test_wire_plan_adds_and_connects_source_nodes():
     net.connect("s", "w")
     net.add("wm", "nu.raster", {"kind": "other"})
     net.connect("wm", "w.nuheight_map")  # a named connection: left alone
-    assert net.wire_plan() == ["nuheightMap", "zoneMap"]
+    assert net.wire_plan() == ["nuheightMap", "nuloneMap", "zoneMap", "big_zoneMap"]
     assert net.specs["nuheightMap"] == NodeSpec(
         "nuheightMap", "nu.raster", {"kind": "nuheight"}, "plan.xml:3", {"kind": "plan.xml:3"}
     )
     assert net.specs["zoneMap"].params == {"kind": "zone"} and net.specs["zoneMap"].where == "plan.xml:4"
+    assert net.specs["nuloneMap"].params == {"kind": "nulone"}
+    assert net.specs["big_zoneMap"].params == {"kind": "big_zone"}
     assert net.connections[4:] == [
         Connection("nuheightMap", None, "u", "nuheight_map", "plan.xml:3"),
         Connection("zoneMap", None, "u", "zone_map", "plan.xml:4"),
+        Connection("big_zoneMap", None, "u", "big_zone_map", "plan.xml:6"),
         Connection("nuheightMap", None, "v", "nuheight_map", "plan.xml:3"),
         Connection("zoneMap", None, "v", "zone_map", "plan.xml:4"),
+        Connection("big_zoneMap", None, "v", "big_zone_map", "plan.xml:6"),
         Connection("zoneMap", None, "w", "zone_map", "plan.xml:4"),
+        Connection("big_zoneMap", None, "w", "big_zone_map", "plan.xml:6"),
     ]
     n = len(net.connections)
     assert net.wire_plan() == [] and len(net.connections) == n  # idempotent: every port is named now
     del net.specs["x"]
     bound = net.validate()
-    assert bound.order[:4] == ["r", "wm", "nuheightMap", "zoneMap"]
+    assert bound.order[:6] == ["r", "wm", "nuheightMap", "nuloneMap", "zoneMap", "big_zoneMap"]
 
 
 def test_wire_plan_leaves_ports_the_plan_has_nothing_for():
@@ -560,12 +678,23 @@ def test_check_runs_sources_then_node_checks():
     assert e.value.where == "plan.xml"
 
 
+def test_check_skips_sources_with_inputs_and_does_not_check_a_source_again():
+    net = Network()
+    net.add("ri", "nu.rasterin")  # a source with an input is not run by check
+    net.add("hm", "nu.raster", {"kind": "broken"})
+    with pytest.raises(ParameterError, match="map 'broken' cannot be read"):
+        net.check()
+    net.specs["hm"].params["kind"] = "nocheck"
+    assert list(net.check().layers) == ["hm"]
+
+
 # -- running ---------------------------------------------------------------------------------
 
 
 class Events(Progress):
     def __init__(self):
         self.seen = []
+        self.seconds = []
 
     def start(self, i, n, node_id, type_):
         self.seen.append(("start", i, n, node_id, type_))
@@ -575,12 +704,13 @@ class Events(Progress):
 
     def finish(self, i, n, node_id, type_, count, seconds):
         self.seen.append(("finish", i, n, node_id, type_, count))
+        self.seconds.append(seconds)
 
     def close(self):
         self.seen.append(("close",))
 
 
-def test_run_returns_layers_and_stats(tmp_path):
+def test_run_returns_layers_and_stats(tmp_path, caplog):
     net = _chain(3, d=0.5)
     net.add("k", "nu.sink")
     net.add("e", "nu.noio")
@@ -588,7 +718,18 @@ def test_run_returns_layers_and_stats(tmp_path):
     net.connect("g", "k")
     events = Events()
     out = tmp_path / "out"
-    result = net.run(seed=5, out=out, progress=events, formats=["TXT"])
+    t0 = time.perf_counter()
+    with caplog.at_level("INFO", logger="sengine.network"):
+        result = net.run(seed=5, out=out, progress=events, formats=["TXT"])
+    wall = time.perf_counter() - t0
+    lines = [r.getMessage() for r in caplog.records if r.name == "sengine.network"]
+    assert [re.sub(r"in \d+\.\d{3} s$", "in T s", m) for m in lines] == [
+        "hm (nu.raster): 1 features in T s",
+        "s (nu.src): 3 features in T s",
+        "g (nu.grow): 3 features in T s",
+        "k (nu.sink): 0 features in T s",
+        "e (nu.noio): 0 features in T s",
+    ]
     layers, stats = result
     assert list(layers) == ["hm", "s", "g", "k", "e"]
     assert layers["k"] == {} and layers["e"] == {}
@@ -602,8 +743,11 @@ def test_run_returns_layers_and_stats(tmp_path):
         "report": {"s": {"made": 3}, "g": {"features": 3, "max_len": 3}},
     }
     assert list(stats["seconds"]) == ["hm", "s", "g", "k", "e", "total"]
-    assert all(v >= 0 for v in stats["seconds"].values())
+    assert all(isinstance(v, float) and v >= 0 and round(v, 4) == v for v in stats["seconds"].values())
     assert stats["seconds"]["total"] >= max(v for k, v in stats["seconds"].items() if k != "total")
+    assert stats["seconds"]["total"] <= wall + 1e-4
+    net.specs["s"].params["size"] = 1.23  # 3 boxes of 1.5129 m2: 4.5 to 0.1 m2
+    assert net.run().stats["areas"]["s"] == 4.5
     assert sorted(os.listdir(out)) == ["count.txt", "stats.json"]
     assert (out / "count.txt").read_text() == "3\n"
     assert json.loads((out / "stats.json").read_text()) == stats
@@ -658,6 +802,8 @@ def test_run_passes_the_context():
         assert Network(plan=CityPlan(name="")).run().stats["counts"] == {}
         ctx = net._context(9)
         assert (ctx.seed, ctx.out, ctx.workers, ctx.name) == (9, None, 1, "Gir")
+        assert Network(plan=CityPlan(name=""))._context(0).name == ""
+        assert Network(plan=SimpleNamespace(maps={}))._context(0).name == ""  # a plan without a name
     finally:
         del registry.REGISTRY["nu.look"]
 
@@ -744,15 +890,17 @@ def test_call_run_clears_an_old_report():
 
 
 def test_run_node_in_chunks_gives_the_single_process_result():
-    polys = _boxes(4 * MIN_CHUNK + 37)  # 1061 features
+    polys = _boxes(10 * MIN_CHUNK + 10)  # 2570 features
+    polys = Layer.from_geoms(polys.geometry, ids=polys.ids + 1000)  # ids not 0..n-1: kept, not renumbered
     node = Grow("g", {"d": 0.25}, Context(options={"slow": True}))
     whole = _run_node(node, {"polys": polys}, 1)
     assert whole.report == {"features": len(polys), "max_len": len(polys)}
     # workers: a first chunk of MIN_CHUNK runs here and takes 0.3 s, so the rest goes to the workers
     assert 0.3 * (len(polys) - MIN_CHUNK) / MIN_CHUNK > FORK_AFTER
     parts = _run_node(node, {"polys": polys}, 2)
-    # min(2 workers * 4, 805 // 256) = 3 chunks of the 805 after the first: 268, 268, 269
-    assert parts.report == {"features": len(polys), "max_len": 269}
+    # min(2 workers * 4, 2314 // 256) = 8 chunks of the 2314 after the first: 289 or 290
+    assert parts.report == {"features": len(polys), "max_len": 290}
+    assert list(parts.layers["out"].ids) == list(range(1000, 1000 + len(polys)))
     for a, b in ((whole.layers["out"], parts.layers["out"]),):
         assert np.array_equal(a.ids, b.ids) and np.array_equal(a.parent, b.parent)
         assert shapely.equals_exact(a.geometry, b.geometry, 0).all()
@@ -761,6 +909,9 @@ def test_run_node_in_chunks_gives_the_single_process_result():
     res = _run_node(quick, {"polys": polys}, 2)
     assert res.report == {"features": len(polys), "max_len": len(polys) - MIN_CHUNK}
     assert np.array_equal(res.layers["out"].ids, whole.layers["out"].ids)
+    # 300 after the first chunk: one chunk of them
+    res = _run_node(node, {"polys": polys.take(np.arange(MIN_CHUNK + 300))}, 2)
+    assert res.report == {"features": MIN_CHUNK + 300, "max_len": 300}
 
 
 def test_run_node_renumbers_chunks_that_number_their_own_features():
@@ -770,6 +921,7 @@ def test_run_node_renumbers_chunks_that_number_their_own_features():
     parts = _run_node(node, {"polys": polys}, 2).layers["out"]
     assert list(whole.ids) == list(range(len(polys))) and list(parts.ids) == list(range(len(polys)))
     assert np.array_equal(parts.parent, polys.ids)
+    assert _run_node(node, {"polys": polys}, 2).report is None  # no chunk reported anything
 
 
 def test_run_node_runs_small_or_unmapped_inputs_whole():
@@ -779,8 +931,9 @@ def test_run_node_runs_small_or_unmapped_inputs_whole():
     assert _run_node(Grow("g"), {"polys": big}, 4).report["max_len"] == MIN_CHUNK
     assert _run_node(Grow("g"), {"polys": big}, 1).report["max_len"] == len(big)
     pair = Pair("p")
-    res = _run_node(pair, {"a": big, "b": None}, 4)  # does not map features
+    res = _run_node(pair, {"a": big, "b": None}, 4)
     assert len(res.layers["merged"]) == len(big)
+    assert _run_node(Whole("w"), {"polys": big}, 4).report["max_len"] == len(big)  # does not map features
     assert _run_node(Src("s"), {}, 4).report == {"made": 2}  # no input at all
 
 
@@ -795,6 +948,42 @@ def test_run_with_workers_counts_progress_of_every_chunk():
     assert adv[0] == ("advance", 0, 2 * MIN_CHUNK + 10, "polys")
     assert adv[-1] == ("advance", 2 * MIN_CHUNK + 10, 2 * MIN_CHUNK + 10, "polys")
     assert res.stats["report"]["g"]["features"] == 2 * MIN_CHUNK + 10
+    # the chunks of the workers count too
+    events = Events()
+    n = 10 * MIN_CHUNK + 10
+    net.specs["s"].params["n"] = n
+    res = net.run(workers=2, progress=events, options={"slow": True})
+    adv = [e for e in events.seen if e[0] == "advance"]
+    assert adv[0] == ("advance", 0, n, "polys") and adv[-1] == ("advance", n, n, "polys")
+    assert all(0 <= e[1] <= n for e in adv) and res.stats["report"]["g"]["max_len"] == 290
+    assert len(events.seconds) == 2 and all(isinstance(t, float) and t >= 0 for t in events.seconds)
+
+
+def test_early_jobs_start_when_their_inputs_are_made():
+    def report(workers=None, take=True, connect=("s",), chain=False):
+        net = Network()
+        net.add("s", "nu.src", {"n": 3, "size": 2.0})
+        if chain:
+            net.add("g", "nu.grow")
+            net.connect("s", "g")
+        net.add("e", "nu.early", {"take": take})
+        for src in connect:
+            net.connect(src, "e.polys")
+        if chain:
+            net.connect("g", "e.other")
+        Early.SEEN.clear()
+        res = net.run(workers=workers) if workers is not None else net.run()
+        return res.stats["report"]["e"]
+
+    assert report(2) == {"started": True, "value": 12.0}  # e runs right after s
+    assert report(2, chain=True) == {"started": True, "value": 12.0}
+    assert report(1) == {"started": False, "value": -1.0}  # one process: run does the work
+    assert report() == {"started": False, "value": -1.0}  # one worker by default
+    assert report(2, connect=()) == {"started": False, "value": -1.0}  # nothing reaches its early input
+    # a job no node took is stopped when the run ends
+    assert report(2, take=False) == {"started": True, "value": -1.0}
+    assert [n.early_started() for n in Early.SEEN] == [False]
+    assert multiprocessing.active_children() == []
 
 
 # -- the output folder ---------------------------------------------------------------------------
@@ -812,8 +1001,9 @@ def test_output_folder_checks(tmp_path):
     with pytest.raises(OutputError) as e:
         check_output_folder(tmp_path / ("n" * 300))
     assert str(e.value) == f"cannot write the output folder {str(tmp_path / ('n' * 300))!r}: File name too long"
-    check_output_folder(tmp_path / "new" / "deeper")
-    assert os.listdir(tmp_path) == ["file", "new"] and os.listdir(tmp_path / "new") == []
+    check_output_folder(tmp_path / "new" / "deeper" / "deepest")
+    assert sorted(os.listdir(tmp_path)) == ["file", "new"] and os.listdir(tmp_path / "new") == ["deeper"]
+    assert os.listdir(tmp_path / "new" / "deeper") == []
     tmp = _output_folder(tmp_path / "o")
     assert tmp.parent == tmp_path and tmp.name.startswith(".o.") and tmp.name.endswith(".tmp") and tmp.is_dir()
     if os.geteuid() != 0:  # root writes anywhere
@@ -845,6 +1035,12 @@ def test_move_into_puts_stats_last_and_replaces_folders(tmp_path):
     with pytest.raises(OSError):
         _move_into(src, out)
     assert not (out / "stats.json").exists()
+    fresh = tmp_path / "x" / "y"
+    src = tmp_path / "src2"
+    src.mkdir()
+    src.joinpath("f").write_text("f")
+    _move_into(src, fresh)
+    assert os.listdir(fresh) == ["f"]
     _write_json(tmp_path / "s.json", {"b": 1, "a": [1, 2]})
     assert (tmp_path / "s.json").read_text() == '{\n  "b": 1,\n  "a": [\n    1,\n    2\n  ]\n}\n'
 
