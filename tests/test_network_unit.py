@@ -13,6 +13,8 @@ import json
 import multiprocessing
 import os
 import re
+import shutil
+import subprocess
 import time
 from functools import partial
 from types import SimpleNamespace
@@ -1006,11 +1008,30 @@ def test_output_folder_checks(tmp_path):
     assert os.listdir(tmp_path / "new" / "deeper") == []
     tmp = _output_folder(tmp_path / "o")
     assert tmp.parent == tmp_path and tmp.name.startswith(".o.") and tmp.name.endswith(".tmp") and tmp.is_dir()
-    if os.geteuid() != 0:  # root writes anywhere
-        ro = tmp_path / "ro"
-        ro.mkdir(mode=0o500)
-        with pytest.raises(OutputError, match="Permission denied"):
+
+
+def test_output_folder_that_cannot_be_written(tmp_path):
+    """A folder the run may not write: refused before any work, the temporary folder beside it removed."""
+    parent = tmp_path / "p"
+    ro = parent / "ro"
+    ro.mkdir(parents=True)
+    if os.geteuid() != 0:
+        ro.chmod(0o500)
+    else:  # root writes anywhere but into an immutable folder
+        done = subprocess.run(["chattr", "+i", str(ro)], capture_output=True) if shutil.which("chattr") else None
+        if done is None or done.returncode != 0:
+            pytest.skip("running as root without chattr +i: every folder is writable")
+    try:
+        assert not os.access(ro, os.W_OK)
+        with pytest.raises(OutputError) as e:
             _output_folder(ro)
+        assert str(e.value) == f"cannot write the output folder {str(ro)!r}: Permission denied"
+        assert os.listdir(parent) == ["ro"]
+    finally:
+        if os.geteuid() == 0:
+            subprocess.run(["chattr", "-i", str(ro)], check=True)
+        else:
+            ro.chmod(0o700)
 
 
 def test_move_into_puts_stats_last_and_replaces_folders(tmp_path):
