@@ -192,3 +192,36 @@ def test_startable_is_false_in_a_worker_and_while_jobs_run():
         assert Background.startable(4) is False
     finally:
         parallel._running = False
+
+
+# -- run_jobs: what happens while and after jobs fail --------------------------------------
+
+
+def _sleep_then(seconds, value=None, fail=False, mark=None):
+    def run():
+        time.sleep(seconds)
+        if mark is not None:
+            mark.joinpath(f"{os.getpid()}-{time.monotonic_ns()}").write_text("")
+        if fail:
+            raise InputDataError("job failed", where="w")
+        return value
+
+    return run
+
+
+def test_jobs_this_process_took_do_not_break_the_wait_for_a_long_worker_job():
+    """The pool's futures of jobs run here are cancelled: waiting for a long worker job must skip them."""
+    jobs = [_sleep_then(0.05, 0), _sleep_then(0.6, 1)] + [_sleep_then(0.0, i) for i in range(2, 6)]
+    assert parallel.run_jobs(jobs, 2) == [0, 1, 2, 3, 4, 5]
+    assert multiprocessing.active_children() == []  # the workers are gone when run_jobs returns
+
+
+def test_a_worker_failure_stops_the_jobs_not_yet_taken(tmp_path):
+    """Job 1 fails in the worker at once; this process, busy with job 0, then cancels the rest."""
+    jobs = [_sleep_then(0.6, 0), _sleep_then(0.0, 1, fail=True)]
+    jobs += [_sleep_then(0.25, i, mark=tmp_path) for i in range(2, 12)]
+    with pytest.raises(InputDataError, match="^w: job failed$"):
+        parallel.run_jobs(jobs, 2)
+    # the worker ran some jobs while job 0 ran here (0.6 s / 0.25 s, plus those already queued), not all
+    assert len(os.listdir(tmp_path)) < 10
+    assert multiprocessing.active_children() == []
