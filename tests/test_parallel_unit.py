@@ -121,6 +121,7 @@ def test_worker_signals_only_in_the_main_thread():
 
 def test_kill_workers_stops_the_pool_processes_at_once():
     pool = ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("fork"))
+    procs = []
     try:
         futures = [pool.submit(time.sleep, 60) for _ in range(2)]
         while len(pool._processes) < 2:
@@ -132,6 +133,8 @@ def test_kill_workers_stops_the_pool_processes_at_once():
         assert all(not p.is_alive() for p in procs) and all(p.exitcode == -signal.SIGKILL for p in procs)
         assert all(f.exception() is not None for f in futures)
     finally:
+        for p in procs:  # whatever kill_workers did: no sleeping worker is left behind
+            p.kill()
         pool.shutdown(wait=True, cancel_futures=True)
     kill_workers(SimpleNamespace())  # a pool without processes: nothing to do
     kill_workers(SimpleNamespace(_processes=None))
