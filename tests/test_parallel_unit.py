@@ -228,3 +228,14 @@ def test_a_worker_failure_stops_the_jobs_not_yet_taken(tmp_path):
     # the worker ran some jobs while job 0 ran here (0.6 s / 0.25 s, plus those already queued), not all
     assert len(os.listdir(tmp_path)) < 10
     assert multiprocessing.active_children() == []
+
+
+def test_in_a_dask_task_jobs_run_in_turn():
+    distributed = pytest.importorskip("distributed")
+    assert parallel.in_dask_task() is False  # imported, but not in a task
+    with distributed.Client(processes=False, n_workers=1, threads_per_worker=1, dashboard_address=None) as client:
+        assert client.submit(parallel.in_dask_task, pure=False).result() is True
+        assert client.submit(parallel.in_worker, pure=False).result() is True
+        pids = client.submit(lambda: parallel.run_jobs([os.getpid] * 3, 2), pure=False).result()
+        assert pids == [os.getpid()] * 3  # threads of this process: no fork within a Dask task
+    assert parallel.in_dask_task() is False
