@@ -266,17 +266,15 @@ NODES += (UsesMap, NotMine)
 @pytest.fixture(autouse=True, scope="module")
 def nodes():
     registry.load_entry_points()
-    saved = dict(registry.REGISTRY)
-    saved_maps = dict(registry.MAP_KINDS)
     for cls in NODES:
         registry.register(cls, replace=True)
     registry.declare_map_kind("nuheight", "nuraster")
     registry.declare_map_kind("nulone", "nuraster")
     yield
-    registry.REGISTRY.clear()
-    registry.REGISTRY.update(saved)
-    registry.MAP_KINDS.clear()
-    registry.MAP_KINDS.update(saved_maps)
+    # only what this module added goes: the library's modules imported meanwhile stay registered
+    for cls in NODES:
+        del registry.REGISTRY[cls.name]
+    del registry.MAP_KINDS["nuheight"], registry.MAP_KINDS["nulone"]
 
 
 def _chain(n: int = 2, **grow) -> Network:
