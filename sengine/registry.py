@@ -101,10 +101,10 @@ def register(cls: N | None = None, *, name: str | None = None, replace: bool = F
     """
 
     def deco(c: N) -> N:
-        if name:
-            c.name = name
         if not isinstance(c, type) or not issubclass(c, SENode):
             raise TypeError(f"{c!r} is not an SENode subclass")
+        if name:
+            c.name = name
         if not c.name or not NAME_RE.match(c.name):
             raise RegistryError(f"{c.__qualname__}: node name {c.name!r} must be dotted identifiers like 'lots.paris'")
         c.check_declaration()
