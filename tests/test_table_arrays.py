@@ -1,7 +1,7 @@
 """Attribute columns to Arrow (sengine.nodes.export.table._array): text in object columns without a Python loop.
 
 The fast path (Arrow converts an object column itself) is taken only when
-it gives text; anything else goes the element-by-element way.  Both must give
+it gives text or nulls; anything else goes the element-by-element way.  Both must give
 the same array as that way always did, whatever the column holds.
 """
 
@@ -46,6 +46,13 @@ def test_object_columns_convert_as_element_by_element(values, text_only):
     got, want = _array(pa, col), _by_element(col)
     assert got.type == want.type, (values, got.type, want.type)
     assert got.equals(want), values
+
+
+def test_a_column_of_nothing_but_none_is_null():
+    for n in (0, 1, 66_361):
+        col = np.full(n, None, dtype=object)
+        arr = _array(pa, col)
+        assert pa.types.is_null(arr.type) and len(arr) == n and arr.equals(_by_element(col))
 
 
 def test_a_text_column_of_a_real_size_is_text_with_its_nulls():
