@@ -65,6 +65,13 @@ def _array(pa, col: np.ndarray):
         return pa.array(col, type=pa.string())
     if col.dtype.kind == "S":
         return pa.array(col.astype(object), type=pa.string())
+    if col.dtype.kind == "O":  # text and None (the usual object column, or nothing but None): Arrow's own loop
+        try:
+            arr = pa.array(col)
+        except (pa.ArrowInvalid, pa.ArrowTypeError):
+            arr = None
+        if arr is not None and (pa.types.is_string(arr.type) or pa.types.is_null(arr.type)):
+            return arr
     values = [v.item() if isinstance(v, np.generic) else v for v in col.tolist()]
     try:
         return pa.array(values)
