@@ -382,7 +382,7 @@ def _lost_faces(
         adj.setdefault(b, []).append(a)
     if any(len(v) != 2 for v in adj.values()):
         return None  # cracks touching at a vertex: no unambiguous outline
-    out, seen = [], set()
+    out, seen, cut = [], set(), False
     for start in sorted(adj):
         if start in seen:
             continue
@@ -407,9 +407,11 @@ def _lost_faces(
         if split is None:
             return None
         out += split
-    used = {v for f in faces + out for v in f}
-    if any(v not in used for v in range(n, len(flat2))):
-        return None  # a skeleton node inside the crack that no rebuilt face reaches
+        cut = True
+    if cut:
+        used = {v for f in faces + out for v in f}
+        if any(v not in used for v in range(n, len(flat2))):
+            return None  # a skeleton node inside the crack that no rebuilt face reaches
     return out
 
 
@@ -494,18 +496,31 @@ def _faces_by_plane(loop, eaves, n, nxt, flat2, plane_xy, time) -> list[list[int
             faces = None
             break
         faces.append(face)
-    whole = abs(_ring_area(flat2[ids]))
-    if faces is not None:
-        parts = sum(abs(_ring_area(flat2[np.asarray(f)])) for f in faces)
-        if abs(parts - whole) <= 1e-6 * whole + 1e-9:
-            return faces
+    if faces is not None and _tiles(loop, faces, flat2):
+        return faces
     faces = _cut_at_corners(loop, n, nxt, flat2, plane_xy, time)
-    if faces is None:
-        return None
+    return faces if faces is not None and _tiles(loop, faces, flat2) else None
+
+
+def _tiles(loop: list[int], faces: list[list[int]], flat2: np.ndarray) -> bool:
+    """Whether ``faces`` tile the polygon ``loop`` in plan.
+
+    Each edge of the loop is an edge of one face, each other edge of two
+    (one each way round), and their areas add up to the loop's (no fold).
+    """
+    count: dict[tuple[int, int], int] = {}
+    for f in faces:
+        if len(set(f)) != len(f):
+            return False
+        for a, b in zip(f, f[1:] + f[:1]):
+            key = (a, b) if a < b else (b, a)
+            count[key] = count.get(key, 0) + 1
+    rim = {(a, b) if a < b else (b, a) for a, b in zip(loop, loop[1:] + loop[:1])}
+    if any(c != (1 if e in rim else 2) for e, c in count.items()) or not rim <= count.keys():
+        return False
+    whole = abs(_ring_area(flat2[np.asarray(loop)]))
     parts = sum(abs(_ring_area(flat2[np.asarray(f)])) for f in faces)
-    if not abs(parts - whole) <= 1e-6 * whole + 1e-9:
-        return None  # overlapping or leaving a gap: not the skeleton's faces
-    return faces
+    return abs(parts - whole) <= 1e-6 * whole + 1e-9
 
 
 def _plane_offset(loop, run, nxt, plane_xy, time) -> np.ndarray:
