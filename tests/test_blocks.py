@@ -335,3 +335,45 @@ def test_shrink_faces_in_chunks_equals_one_vectorized_call():
     assert 0 < live.sum() < len(faces)
     total = shapely.area(street) + shapely.area(walk) + shapely.area(block)
     np.testing.assert_allclose(total, shapely.area(faces), rtol=1e-6)  # the three partition each face
+
+
+@st.composite
+def lobed_faces(draw):
+    """Concave faces of a few overlapping boxes, some with holes, far from the origin (UTM-like)."""
+    n = draw(st.integers(1, 12))
+    faces = []
+    for _ in range(n):
+        boxes = draw(st.lists(st.tuples(*[st.floats(0, 120)] * 2, *[st.floats(4, 60)] * 2), min_size=1, max_size=5))
+        face = shapely.union_all([shapely.box(x, y, x + w, y + h) for x, y, w, h in boxes])
+        holes = draw(st.lists(st.tuples(st.floats(0, 150), st.floats(0, 150), st.floats(0.5, 6)), max_size=3))
+        for x, y, r in holes:
+            face = face.difference(shapely.Point(x, y).buffer(r, quad_segs=2))
+        faces.extend(p for p in shapely.get_parts(face) if p.area > 1.0)
+    # dumbbells: two squares joined by a corridor thinner than any inset, so that their insets come in pieces
+    for s1, s2, gap, y in draw(
+        st.lists(st.tuples(*[st.floats(10, 60)] * 2, st.floats(1, 20), st.floats(0, 9)), max_size=3)
+    ):
+        bell = shapely.union_all([shapely.box(0, 0, s1, s1), shapely.box(s1, y, s1 + gap, y + 0.5)])
+        bell = bell.union(shapely.box(s1 + gap, 0, s1 + gap + s2, s2))
+        faces.append(bell.difference(shapely.Point(s1 + gap + s2 / 2, s2 / 2).buffer(2.0, quad_segs=2)))
+    return np.array([shapely.transform(f, lambda xy: xy + (6.5e5, 5.6e6)) for f in faces] or [shapely.Polygon()])
+
+
+@SETTINGS
+@given(lobed_faces(), st.floats(0.3, 4.0), st.floats(0.3, 4.0))
+def test_ring_between_is_the_difference(faces, d1, d2):
+    # the street edge and the block of each face, as shrink_faces makes them: often MultiPolygons, with holes
+    edge = B.inset(faces, d1)
+    block = B.inset(faces, d1 + d2)
+    gap = np.ones(len(faces), bool)
+    for outer, inner in ((faces, edge), (edge, block)):
+        got = B._ring_between(outer, inner, gap=gap)
+        want = shapely.difference(outer, inner)
+        assert shapely.is_valid(got).all()
+        np.testing.assert_allclose(shapely.area(got), shapely.area(want), rtol=1e-9, atol=1e-6)
+        assert shapely.equals(got, want).all()
+        assert (shapely.get_num_geometries(got) == shapely.get_num_geometries(want)).all()
+    multi = shapely.get_type_id(edge) == 6
+    if multi.any():  # an edge in pieces: each piece around the block parts inside it
+        ring = B._ring_between(edge[multi], block[multi], gap=gap[multi])
+        assert (shapely.get_type_id(ring) == 6).all()

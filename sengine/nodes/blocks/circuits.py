@@ -586,19 +586,20 @@ def _ring_between(outer, inner, gap=None, *, threads: int | None = None):
 
     Where ``gap`` is set (``inner`` an inset of ``outer`` by a positive
     distance, so no ring of one touches a ring of the other), an ``outer``
-    Polygon and an ``inner`` Polygon or MultiPolygon without holes give the
-    result directly: ``outer``'s rings with ``inner``'s shells as more
-    holes; an empty ``inner`` gives ``outer``.  The rest goes through
-    ``shapely.difference``.
+    Polygon or MultiPolygon and an ``inner`` Polygon or MultiPolygon
+    without holes give the result directly: each part of ``outer`` with its
+    rings and, as more holes, the shells of the parts of ``inner`` inside it
+    (:func:`_host_parts`); an empty ``inner`` gives ``outer``.  The rest
+    goes through ``shapely.difference``.
     """
     out = np.empty(len(outer), dtype=object)
     if len(outer) == 0:
         return out
     gap = np.ones(len(outer), bool) if gap is None else np.asarray(gap, bool)
     empty = shapely.is_empty(inner)
-    tin = shapely.get_type_id(inner)
+    tin, tout = shapely.get_type_id(inner), shapely.get_type_id(outer)
     simple_in = ((tin == 3) & (shapely.get_num_interior_rings(inner) == 0)) | (tin == 6)
-    direct = gap & (shapely.get_type_id(outer) == 3) & ~empty & simple_in
+    direct = gap & ((tout == 3) | (tout == 6)) & ~empty & simple_in
     if np.any(direct & (tin == 6)):  # a MultiPolygon qualifies only when no part has holes
         m = np.flatnonzero(direct & (tin == 6))
         parts, pidx = shapely.get_parts(inner[m], return_index=True)
@@ -609,17 +610,66 @@ def _ring_between(outer, inner, gap=None, *, threads: int | None = None):
     out[same] = outer[same]
     idx = np.flatnonzero(direct)
     if len(idx):
-        orings, oi = shapely.get_rings(outer[idx], return_index=True)
+        oparts, oi = shapely.get_parts(outer[idx], return_index=True)
         parts, pi = shapely.get_parts(inner[idx], return_index=True)
-        rings = np.concatenate([orings, shapely.get_exterior_ring(parts)])
-        owner = np.concatenate([oi, pi])
-        # per result: outer shell, outer holes, then inner shells (get_rings lists the shell first)
-        o = np.argsort(owner, kind="stable")
-        out[idx] = shapely.polygons(rings[o], indices=owner[o])
+        host = _host_parts(oparts, oi, parts, pi)
+        lost = np.zeros(len(idx), bool)
+        lost[pi[host < 0]] = True  # an inner part in no outer part: not nested, left to GEOS
+        if lost.any():
+            direct[idx[lost]] = False
+            keep_o, keep_i = ~lost[oi], ~lost[pi]
+            oparts, oi, parts, host = oparts[keep_o], oi[keep_o], parts[keep_i], host[keep_i]
+            host = np.cumsum(keep_o)[host] - 1  # renumbered among the outer parts kept
+            idx = idx[~lost]
+            oi = np.cumsum(~lost)[oi] - 1
+        if len(idx):
+            orings, ori = shapely.get_rings(oparts, return_index=True)
+            rings = np.concatenate([orings, shapely.get_exterior_ring(parts)])
+            owner = np.concatenate([ori, host])
+            # per outer part: its shell, its holes, then the inner shells in it (get_rings lists the shell first)
+            o = np.argsort(owner, kind="stable")
+            polys = shapely.polygons(rings[o], indices=owner[o])
+            single = np.bincount(oi, minlength=len(idx)) == 1
+            first = np.cumsum(np.bincount(oi, minlength=len(idx))) - np.bincount(oi, minlength=len(idx))
+            out[idx[single]] = polys[first[single]]
+            if (~single).any():
+                multi = ~single[oi]
+                out[idx[~single]] = shapely.multipolygons(polys[multi], indices=np.cumsum(~single)[oi[multi]] - 1)
     rest = ~direct & ~same
     if rest.any():
         out[rest] = threaded(shapely.difference, outer[rest], inner[rest], min_size=64, threads=threads)  # holed
     return out
+
+
+def _host_parts(outer_parts, outer_row, inner_parts, inner_row) -> np.ndarray:
+    """For each inner part, the outer part of its row holding it (index into ``outer_parts``), -1 for none.
+
+    A row with one outer part hosts all its inner parts there; otherwise the
+    part holding the inner part's first vertex is looked up among its row's
+    (bounding boxes first).  Both arrays come sorted by row
+    (``shapely.get_parts``).
+    """
+    n_rows = int(max(outer_row.max(initial=-1), inner_row.max(initial=-1))) + 1
+    count = np.bincount(outer_row, minlength=n_rows)
+    start = np.cumsum(count) - count
+    host = np.where(count[inner_row] == 1, start[inner_row], -1)
+    ask = np.flatnonzero(count[inner_row] > 1)
+    if not len(ask):
+        return host
+    xy = shapely.get_coordinates(shapely.get_point(shapely.get_exterior_ring(inner_parts[ask]), 0))
+    k = count[inner_row[ask]]
+    pair = np.repeat(np.arange(len(ask)), k)
+    cand = np.repeat(start[inner_row[ask]] - (np.cumsum(k) - k), k) + np.arange(int(k.sum()))
+    box = shapely.bounds(outer_parts[cand])
+    x, y = xy[pair, 0], xy[pair, 1]
+    near = (box[:, 0] <= x) & (x <= box[:, 2]) & (box[:, 1] <= y) & (y <= box[:, 3])
+    pair, cand, x, y = pair[near], cand[near], x[near], y[near]
+    inside = shapely.contains_xy(outer_parts[cand], x, y)
+    hits = np.bincount(pair[inside], minlength=len(ask))
+    found = np.full(len(ask), -1, np.int64)
+    found[pair[inside]] = cand[inside]
+    host[ask] = np.where(hits == 1, found, -1)
+    return host
 
 
 def clip_to_box(geoms, box) -> np.ndarray:
