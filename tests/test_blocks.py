@@ -356,6 +356,11 @@ def lobed_faces(draw):
         bell = shapely.union_all([shapely.box(0, 0, s1, s1), shapely.box(s1, y, s1 + gap, y + 0.5)])
         bell = bell.union(shapely.box(s1 + gap, 0, s1 + gap + s2, s2))
         faces.append(bell.difference(shapely.Point(s1 + gap + s2 / 2, s2 / 2).buffer(2.0, quad_segs=2)))
+    # a hole closing round a pocket of the face but for a narrow gap: its inset is a part inside the inset's hole
+    for g, x in draw(st.lists(st.tuples(st.floats(0.2, 1.0), st.floats(-20, 20)), max_size=2)):
+        cup = shapely.box(30, 30, 70, 72).difference(shapely.box(40, 40, 60, 70))
+        cup = cup.difference(shapely.box(50 - g, 69, 50 + g, 73))
+        faces.append(shapely.box(0, 0, 100 + x, 100).difference(cup))
     return np.array([shapely.transform(f, lambda xy: xy + (6.5e5, 5.6e6)) for f in faces] or [shapely.Polygon()])
 
 
