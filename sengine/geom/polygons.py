@@ -225,7 +225,7 @@ def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = No
 
 
 #: :func:`buffer_local` moves polygons of at least this many coordinates to a local origin first.
-LOCAL_MIN = 1000
+LOCAL_MIN = 10_000
 
 
 def buffer_local(geoms, distance, **kwargs):
@@ -242,8 +242,12 @@ def buffer_local(geoms, distance, **kwargs):
     offset curves are computed with the bits the large coordinates spent
     on their magnitude, the first noding holds (4.5 times faster on that
     face) and the result is moved back.  Smaller geometries are buffered
-    where they are (their results unchanged to the byte): the retry costs
-    little on them.
+    where they are, their results unchanged to the byte: moved, they come
+    out different in the last bits only, which lots split from them pass
+    on, and no retry was seen on them (Helsinki's and Monaco's land faces
+    and street edges, 1,177 to 5,335 coordinates, buffer in 1 to 3 ms
+    either way; Liège's other faces are no faster moved).  The threshold
+    is a measured heuristic, not a bound: GEOS gives no sign of a retry.
 
     Parameters
     ----------
