@@ -12,8 +12,11 @@ import pytest
 import shapely
 import shapely.affinity
 
+import sengine.geom.polygons as P
 from sengine.geom.polygons import (
+    LOCAL_MIN,
     PARALLEL_MIN,
+    buffer_local,
     clip_frame_boxes,
     containing,
     frame_boxes,
@@ -110,6 +113,54 @@ def test_strtree_query_threads_give_the_one_call_output():
     for threads in (None, 1, 2, 3):
         got = strtree_query(tree, geoms, threads=threads)
         assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+
+
+def comb(teeth: int, x0: float, y0: float) -> shapely.Polygon:
+    """A 2 km square with a hole whose ring runs out and back along ``teeth`` dead ends (zero-width spurs)."""
+    k = np.arange(teeth)
+    base = np.column_stack([2000.0 * (k + 0.5) / teeth, np.zeros(teeth)])  # along the hole's bottom side
+    tip = base + np.column_stack([3.0 * np.sin(k), 20.0 + 30.0 * (k % 7) / 7])  # into the hole, slanted
+    ring = np.concatenate([np.stack([base, tip, base], axis=1).reshape(-1, 2), [(2000.0, 2000.0), (0.0, 2000.0)]])
+    shell = [(-500.0, -500.0), (2500.0, -500.0), (2500.0, 2500.0), (-500.0, 2500.0)]
+    return shapely.Polygon(np.add(shell, (x0, y0)), [ring[::-1] + (x0, y0)])
+
+
+def test_buffer_local_moves_long_rings_only_and_gives_the_buffer_in_place():
+    far = (653390.554747, 5603108.119533)  # UTM metres, as Liège's land face
+    small = shapely.Polygon(shapely.box(0, 0, 30, 20).exterior.coords[:-1][::-1]).buffer(0)
+    polys = np.array([comb(LOCAL_MIN // 3 + 1, *far), shapely.transform(small, lambda xy: xy + far), small])
+    assert shapely.get_num_coordinates(polys).tolist()[0] >= LOCAL_MIN > shapely.get_num_coordinates(polys[1])
+    d = np.array([-7.3, -2.0, 1.5])
+    got = buffer_local(polys, d, quad_segs=2)
+    want = shapely.buffer(polys, d, quad_segs=2)
+    assert shapely.to_wkb(got[1:]).tolist() == shapely.to_wkb(want[1:]).tolist()  # short rings: same bytes
+    # the long ring: the buffer of the same polygon at the origin, moved back to the float
+    at_origin = shapely.buffer(comb(LOCAL_MIN // 3 + 1, 0.0, 0.0), -7.3, quad_segs=2)
+    assert shapely.is_valid(got[0]) and got[0].area > 0.9 * polys[0].area
+    assert shapely.hausdorff_distance(got[0], shapely.transform(at_origin, lambda xy: xy + far)) < 1e-6
+    assert got[0].area == pytest.approx(want[0].area, rel=1e-9)
+    # every spur kept clear by the distance: no vertex of the hole's ring (the tips among them) nearer
+    # than 7.3 m, less the sag of round joins of 2 chords a quarter circle (under 8 %)
+    ring = shapely.points(shapely.get_coordinates(polys[0].interiors[0]))
+    assert shapely.distance(ring, got[0]).min() > 7.3 * 0.92
+    # scalar distance, other keywords, and inset's mitred and rounded paths go through it
+    assert shapely.equals_exact(buffer_local(polys[:1], -7.3, quad_segs=2), got[:1], 0).all()
+    assert shapely.equals_exact(inset(polys[:1], 7.3, rounded=[True]), got[:1], 0).all()
+    mitred = inset(polys[:2], [7.3, 2.0])
+    assert shapely.is_valid(mitred).all() and mitred[1].equals(shapely.buffer(polys[1], -2.0, join_style="mitre"))
+
+
+def test_buffer_local_of_any_polygon_is_its_buffer(monkeypatch):
+    monkeypatch.setattr(P, "LOCAL_MIN", 4)  # every polygon moved
+    rng = np.random.default_rng(5)
+    c = rng.uniform(-200, 200, (40, 2)) + (5.2e5, 4.9e6)
+    polys = shapely.buffer(shapely.points(c), rng.uniform(5, 40, 40), quad_segs=3)
+    polys = shapely.difference(polys, shapely.buffer(shapely.points(c + 1.0), 2.0))  # with holes
+    d = rng.uniform(-6, 3, 40)
+    got, want = buffer_local(polys, d, join_style="mitre"), shapely.buffer(polys, d, join_style="mitre")
+    assert shapely.is_valid(got).all()
+    np.testing.assert_allclose(shapely.area(got), shapely.area(want), rtol=1e-9)
+    assert max(shapely.hausdorff_distance(got, want)) < 1e-6
 
 
 def test_inset_square_and_per_polygon_distances():

@@ -12,6 +12,8 @@ Public API
     :func:`clip_frame_boxes` -- geometries clipped to such rectangles, fast.
     :func:`inset` -- inward offset (negative mitred buffer) by per-polygon
     distances.
+    :func:`buffer_local` -- ``shapely.buffer`` of long rings about a local origin (no
+    snap-rounding retry).
     :func:`threaded` / :func:`strtree_query` -- element-wise shapely work
     spread over threads (GEOS runs without Python's lock).
     :func:`containing` -- the polygon each point lies in.
@@ -34,6 +36,7 @@ __all__ = [
     "frame_boxes",
     "clip_frame_boxes",
     "inset",
+    "buffer_local",
     "threaded",
     "strtree_query",
     "containing",
@@ -194,7 +197,9 @@ def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = No
     GEOS buffers without holding Python's lock, so an array of at least
     :data:`PARALLEL_MIN` polygons is dealt out over ``threads`` threads
     (default: the CPUs this process may use, at most 4; one in a worker
-    process); each polygon's result is the same as on one thread.
+    process); each polygon's result is the same as on one thread.  A
+    polygon of at least :data:`LOCAL_MIN` coordinates is buffered about a
+    local origin (:func:`buffer_local`).
     """
     polys = np.asarray(polys, dtype=object)
     dist = -np.broadcast_to(np.asarray(distance, np.float64), polys.shape)
@@ -202,21 +207,73 @@ def inset(polys, distance, *, mitre_limit: float = 3.0, threads: int | None = No
         rounded = np.asarray(rounded, bool)
         out = np.empty(len(polys), dtype=object)
         out[~rounded] = inset(polys[~rounded], -dist[~rounded], mitre_limit=mitre_limit, threads=threads)
-        out[rounded] = threaded(shapely.buffer, polys[rounded], dist[rounded], threads=threads, quad_segs=2)
+        out[rounded] = threaded(buffer_local, polys[rounded], dist[rounded], threads=threads, quad_segs=2)
         return out
+    kw = {"join_style": "mitre", "mitre_limit": mitre_limit}
     n = min(_cpus(), 4) if threads is None else int(threads)
     if n <= 1 or polys.ndim != 1 or len(polys) < PARALLEL_MIN:
-        return shapely.buffer(polys, dist, join_style="mitre", mitre_limit=mitre_limit)
+        return buffer_local(polys, dist, **kw)
     from concurrent.futures import ThreadPoolExecutor
 
     out = np.empty(len(polys), dtype=object)
     # dealt out round-robin: neighbouring polygons are alike, so every thread gets a fair share of work
     with ThreadPoolExecutor(n) as pool:
-        done = pool.map(
-            lambda k: shapely.buffer(polys[k::n], dist[k::n], join_style="mitre", mitre_limit=mitre_limit), range(n)
-        )
+        done = pool.map(lambda k: buffer_local(polys[k::n], dist[k::n], **kw), range(n))
         for k, part in enumerate(done):
             out[k::n] = part
+    return out
+
+
+#: :func:`buffer_local` moves polygons of at least this many coordinates to a local origin first.
+LOCAL_MIN = 10_000
+
+
+def buffer_local(geoms, distance, **kwargs):
+    """``shapely.buffer``, the geometries of at least :data:`LOCAL_MIN` coordinates about a local origin.
+
+    GEOS nodes a buffer's offset curves in floating point; on a long ring
+    far from the origin (projected coordinates of 10^5 to 10^6 m, rings of
+    thousands of vertices with zero-width spurs, such as the land round a
+    city with its dead ends) that noding can fail, and GEOS then buffers
+    again with snap-rounding at falling precisions: several times the work,
+    and a result moved by the snapping (2 m² on Liège's 1,446 km² land
+    face).  Moved so that its bounding box starts at the origin (by whole
+    metres: for a box away from the origin the subtraction is exact), the
+    offset curves are computed with the bits the large coordinates spent
+    on their magnitude, the first noding holds (4.5 times faster on that
+    face) and the result is moved back.  Smaller geometries are buffered
+    where they are, their results unchanged to the byte: moved, they come
+    out different in the last bits only, which lots split from them pass
+    on, and no retry was seen on them (Helsinki's and Monaco's land faces
+    and street edges, 1,177 to 5,335 coordinates, buffer in 1 to 3 ms
+    either way; Liège's other faces are no faster moved).  The threshold
+    is a measured heuristic, not a bound: GEOS gives no sign of a retry.
+
+    Parameters
+    ----------
+    geoms : array_like of shapely.Geometry
+    distance : float or array_like of float
+        Buffer distance (m), negative inwards.
+    **kwargs
+        As ``shapely.buffer`` takes them.
+
+    Returns
+    -------
+    ndarray of shapely.Geometry
+    """
+    geoms = np.asarray(geoms, dtype=object)
+    dist = np.broadcast_to(np.asarray(distance, np.float64), geoms.shape)
+    big = shapely.get_num_coordinates(geoms) >= LOCAL_MIN
+    if not big.any():
+        return shapely.buffer(geoms, dist, **kwargs)
+    out = np.empty(geoms.shape, dtype=object)
+    out[~big] = shapely.buffer(geoms[~big], dist[~big], **kwargs)
+    some = geoms[big]
+    origin = np.floor(shapely.bounds(some)[:, :2])
+    xy, at = shapely.get_coordinates(some, return_index=True)
+    moved = shapely.buffer(shapely.set_coordinates(some, xy - origin[at]), dist[big], **kwargs)  # some: a copy
+    xy, at = shapely.get_coordinates(moved, return_index=True)
+    out[big] = shapely.set_coordinates(moved, xy + origin[at])
     return out
 
 

@@ -586,40 +586,107 @@ def _ring_between(outer, inner, gap=None, *, threads: int | None = None):
 
     Where ``gap`` is set (``inner`` an inset of ``outer`` by a positive
     distance, so no ring of one touches a ring of the other), an ``outer``
-    Polygon and an ``inner`` Polygon or MultiPolygon without holes give the
-    result directly: ``outer``'s rings with ``inner``'s shells as more
-    holes; an empty ``inner`` gives ``outer``.  The rest goes through
-    ``shapely.difference``.
+    and an ``inner`` Polygon or MultiPolygon give the result directly from
+    their rings (:func:`_nested_rings`); an empty ``inner`` gives ``outer``.
+    The rest goes through ``shapely.difference``.
     """
     out = np.empty(len(outer), dtype=object)
     if len(outer) == 0:
         return out
     gap = np.ones(len(outer), bool) if gap is None else np.asarray(gap, bool)
     empty = shapely.is_empty(inner)
-    tin = shapely.get_type_id(inner)
-    simple_in = ((tin == 3) & (shapely.get_num_interior_rings(inner) == 0)) | (tin == 6)
-    direct = gap & (shapely.get_type_id(outer) == 3) & ~empty & simple_in
-    if np.any(direct & (tin == 6)):  # a MultiPolygon qualifies only when no part has holes
-        m = np.flatnonzero(direct & (tin == 6))
-        parts, pidx = shapely.get_parts(inner[m], return_index=True)
-        holed = np.zeros(len(m), bool)
-        holed[pidx[shapely.get_num_interior_rings(parts) > 0]] = True
-        direct[m[holed]] = False
+    tin, tout = shapely.get_type_id(inner), shapely.get_type_id(outer)
+    direct = gap & ((tout == 3) | (tout == 6)) & ~empty & ((tin == 3) | (tin == 6))
     same = gap & empty
     out[same] = outer[same]
     idx = np.flatnonzero(direct)
     if len(idx):
-        orings, oi = shapely.get_rings(outer[idx], return_index=True)
-        parts, pi = shapely.get_parts(inner[idx], return_index=True)
-        rings = np.concatenate([orings, shapely.get_exterior_ring(parts)])
-        owner = np.concatenate([oi, pi])
-        # per result: outer shell, outer holes, then inner shells (get_rings lists the shell first)
-        o = np.argsort(owner, kind="stable")
-        out[idx] = shapely.polygons(rings[o], indices=owner[o])
+        got = _nested_rings(outer[idx], inner[idx])
+        done = np.not_equal(got, None)
+        out[idx[done]] = got[done]
+        direct[idx[~done]] = False
     rest = ~direct & ~same
     if rest.any():
-        out[rest] = threaded(shapely.difference, outer[rest], inner[rest], min_size=64, threads=threads)  # holed
+        out[rest] = threaded(shapely.difference, outer[rest], inner[rest], min_size=64, threads=threads)
     return out
+
+
+def _nested_rings(outer, inner) -> np.ndarray:
+    """``outer - inner`` from their rings, for (Multi)Polygons whose rings do not touch, ``inner`` inside ``outer``.
+
+    The shells of the result are those of ``outer``'s parts and the holes
+    of ``inner``'s; its holes are those of ``outer``'s parts and the shells
+    of ``inner``'s, each in the smallest of its row's shells holding its
+    first vertex (:func:`_smallest_shell`).  A row with a hole in no shell
+    (not nested so) is left None, for ``shapely.difference``.
+    """
+    out = np.full(len(outer), None, dtype=object)
+    oparts, oi = shapely.get_parts(outer, return_index=True)
+    iparts, ii = shapely.get_parts(inner, return_index=True)
+    orings, opi = shapely.get_rings(oparts, return_index=True)
+    irings, ipi = shapely.get_rings(iparts, return_index=True)
+    oshell = np.r_[True, opi[1:] != opi[:-1]] if len(opi) else np.zeros(0, bool)  # get_rings: shell first
+    ishell = np.r_[True, ipi[1:] != ipi[:-1]] if len(ipi) else np.zeros(0, bool)
+    shells = np.concatenate([orings[oshell], irings[~ishell]])
+    srow = np.concatenate([oi[opi[oshell]], ii[ipi[~ishell]]])
+    holes = np.concatenate([orings[~oshell], irings[ishell]])
+    hrow = np.concatenate([oi[opi[~oshell]], ii[ipi[ishell]]])
+    # shells by row (stable: a row's outer shells, then the holes of its inner parts, each in order)
+    so = np.argsort(srow, kind="stable")
+    shells, srow = shells[so], srow[so]
+    owner = _smallest_shell(shells, srow, holes, hrow)
+    bad = np.zeros(len(outer), bool)
+    bad[hrow[owner < 0]] = True
+    keep = ~bad[hrow]
+    rings = np.concatenate([shells, holes[keep]])
+    ring_owner = np.concatenate([np.arange(len(shells)), owner[keep]])
+    o = np.argsort(ring_owner, kind="stable")  # per polygon: its shell, then its holes in order
+    polys = shapely.polygons(rings[o], indices=ring_owner[o])
+    count = np.bincount(srow, minlength=len(outer))
+    first = np.cumsum(count) - count
+    single = (count == 1) & ~bad
+    out[single] = polys[first[single]]
+    multi = (count > 1) & ~bad
+    if multi.any():
+        take = np.flatnonzero(multi[srow])
+        out[multi] = shapely.multipolygons(polys[take], indices=np.cumsum(multi)[srow[take]] - 1)
+    return out
+
+
+def _smallest_shell(shells, shell_row, holes, hole_row) -> np.ndarray:
+    """For each hole ring, the smallest shell ring of its row around its first vertex (index into ``shells``).
+
+    ``shell_row`` comes sorted.  A hole whose row has one shell is given it
+    unasked; -1 where no shell holds the vertex.
+    """
+    n_rows = int(max(np.max(shell_row, initial=-1), np.max(hole_row, initial=-1))) + 1
+    count = np.bincount(shell_row, minlength=n_rows)
+    start = np.cumsum(count) - count
+    owner = np.where(count[hole_row] == 1, start[hole_row], -1)
+    ask = np.flatnonzero(count[hole_row] > 1)
+    if not len(ask):
+        return owner
+    xy = shapely.get_coordinates(shapely.get_point(holes[ask], 0))
+    k = count[hole_row[ask]]
+    pair = np.repeat(np.arange(len(ask)), k)
+    cand = np.repeat(start[hole_row[ask]] - (np.cumsum(k) - k), k) + np.arange(int(k.sum()))
+    box = shapely.bounds(shells[cand])
+    x, y = xy[pair, 0], xy[pair, 1]
+    near = (box[:, 0] <= x) & (x <= box[:, 2]) & (box[:, 1] <= y) & (y <= box[:, 3])
+    pair, cand, x, y = pair[near], cand[near], x[near], y[near]
+    if len(cand):
+        tested = np.unique(cand)
+        filled = np.empty(len(shells), dtype=object)
+        filled[tested] = shapely.polygons(shells[tested])
+        area = np.zeros(len(shells))
+        area[tested] = shapely.area(filled[tested])
+        inside = shapely.contains_xy(filled[cand], x, y)
+        pair, cand = pair[inside], cand[inside]
+        o = np.lexsort((area[cand], pair))  # per hole, the smallest shell first
+        pair, cand = pair[o], cand[o]
+        lead = np.r_[True, pair[1:] != pair[:-1]] if len(pair) else np.zeros(0, bool)
+        owner[ask[pair[lead]]] = cand[lead]
+    return owner
 
 
 def clip_to_box(geoms, box) -> np.ndarray:
