@@ -341,6 +341,9 @@ TINY_TILTED = shapely.Polygon(
 @example([shapely.box(0, 0, 24, 28), shapely.box(0, 0, 50, 57)], "size", (25.0, 40.0), (2, 2))  # the first holds no lot
 @example([shapely.box(0, 1, 1, 3)], "count", (3.0, 3.0), (1, 1))  # 6 cells of 0.33 m2: merged to one lot
 @example([HOLE_CELL], "size", (3.0, 3.0), (1, 1))  # a cell in the hole, touching its ring: GEOS's clip kept it whole
+@example(
+    [shapely.box(0, 0, 48, 48).difference(shapely.box(14.4, 14.4, 28.8, 33.6))], "size", (23.0, 23.0), (2, 2)
+)  # one cluster
 @example([HOLED_SQUARE], "ratio", (4.8234947927489555, 24.203806345555055), (2, 2))  # a union that lost area
 @example([TINY_TILTED], "count", (3.0, 3.0), (1, 1))  # cells touching at points, united on a 1 um grid: stuck out
 def test_partition_random_blocks(polys, mode, size, cluster):
@@ -360,8 +363,19 @@ def test_partition_random_blocks(polys, mode, size, cluster):
         with pytest.raises(ParameterError, match="is larger than every block"):
             partition(params, polys)
         return
+    # ... and so may blocks that cannot hold two clusters of cells side by side, either way round
+    # (a 48 m square, 23 m cells in clusters of 2 x 2: one 46 m lot and 2 m strips merged into it)
+    cx, cy = cluster[0] * size[0], cluster[1] * size[1]
+
+    def one_cluster(p) -> bool:
+        w, h = obb_sides([p])[0][0], obb_sides([p])[1][0]
+        return not any(
+            a >= 2 * u and b >= v or b >= 2 * v and a >= u for a, b in ((w, h), (h, w)) for u, v in [(cx, cy)]
+        )
+
     blocks, lots, ran = partition(params, polys)
-    check_lots(blocks, lots, "lots.partition", known_whole=sum(too_small) if mode == "size" else 0)
+    whole = sum(t or one_cluster(p) for t, p in zip(too_small, real)) if mode == "size" else 0
+    check_lots(blocks, lots, "lots.partition", known_whole=whole)
     area = shapely.area(lots.geometry)
     barea = shapely.area(blocks.geometry)[lots["block"]]
     assert ((area >= 1.0) | (barea < 1.0 + 1e-9) | (np.bincount(lots["block"])[lots["block"]] == 1)).all()
