@@ -58,6 +58,29 @@ def _angular_order(xy: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return by_angle[argsort_int(org[by_angle])]  # = np.lexsort((angle, org))
 
 
+def _cycle_min(nxt: np.ndarray) -> np.ndarray:
+    """Each element's cycle minimum by pointer doubling (see :func:`permutation_cycles`)."""
+    low = np.arange(len(nxt), dtype=np.int64)
+    step = nxt
+    while len(low):
+        new = np.minimum(low, low[step])
+        if np.array_equal(new, low):
+            break
+        low, step = new, step[step]
+    return low
+
+
+def _labels_of_min(low: np.ndarray) -> tuple[int, np.ndarray]:
+    """Cycles numbered in the order of their lowest element, from each element's cycle minimum.
+
+    The minima are the elements that are their own minimum; a running count
+    of them numbers the cycles (no sort).
+    """
+    head = low == np.arange(len(low))
+    rank = np.cumsum(head) - 1
+    return int(head.sum()), rank[low].astype(np.int64)
+
+
 def permutation_cycles(nxt: np.ndarray) -> tuple[int, np.ndarray]:
     """The cycles of a permutation, labelled in the order of their lowest element.
 
@@ -67,7 +90,8 @@ def permutation_cycles(nxt: np.ndarray) -> tuple[int, np.ndarray]:
     the cycle's minimum), at most ``log2`` of the longest cycle plus one.
     The labels are those of ``scipy.sparse.csgraph.connected_components``
     on the permutation's graph (weak components numbered from the lowest
-    vertex), without importing scipy (0.3 s at start-up).
+    vertex), without importing scipy (0.3 s at start-up): a cycle's label
+    is how many cycle minima come before its own (a running count, no sort).
 
     Parameters
     ----------
@@ -81,16 +105,7 @@ def permutation_cycles(nxt: np.ndarray) -> tuple[int, np.ndarray]:
     label : ndarray of int64 (n,)
         Cycle of each element, ``0 .. count-1``.
     """
-    nxt = np.asarray(nxt, np.int64)
-    low = np.arange(len(nxt), dtype=np.int64)
-    step = nxt
-    while len(low):
-        new = np.minimum(low, low[step])
-        if np.array_equal(new, low):
-            break
-        low, step = new, step[step]
-    mins, label = np.unique(low, return_inverse=True)
-    return len(mins), label.reshape(-1).astype(np.int64)
+    return _labels_of_min(_cycle_min(np.asarray(nxt, np.int64)))
 
 
 def trace_faces(xy: np.ndarray, u: np.ndarray, v: np.ndarray, *, order: np.ndarray | None = None):
@@ -122,6 +137,11 @@ def trace_faces(xy: np.ndarray, u: np.ndarray, v: np.ndarray, *, order: np.ndarr
     area : ndarray of float (nfaces,)
         Signed area of each face walk (m2): positive for bounded faces.
     """
+    return _trace(xy, u, v, order)[:3]
+
+
+def _trace(xy, u, v, order=None):
+    """:func:`trace_faces`, and each half-edge's cycle minimum and cross product (twice its area term)."""
     m = len(u)
     h = np.arange(2 * m, dtype=np.int64)
     org = np.empty(2 * m, np.int64)
@@ -143,22 +163,76 @@ def trace_faces(xy: np.ndarray, u: np.ndarray, v: np.ndarray, *, order: np.ndarr
     cw = np.empty(2 * m, np.int64)
     cw[order] = order[prev_pos]
     nxt = cw[h ^ 1]
-    nf, face = permutation_cycles(nxt)
+    low = _cycle_min(nxt)
+    nf, face = _labels_of_min(low)
     cross = xy[org, 0] * xy[dst, 1] - xy[dst, 0] * xy[org, 1]
     area = np.bincount(face, weights=cross, minlength=nf) / 2.0
-    return nxt, face, area
+    return nxt, face, area, low, cross
 
 
-def _cycle_order(nxt: np.ndarray, face: np.ndarray, nf: int) -> tuple[np.ndarray, np.ndarray]:
+def _without(nxt: np.ndarray, low: np.ndarray, gone: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The "next" permutation and cycle minima of a plane graph with some edges removed, from the whole graph's.
+
+    Around a node, the half-edge clockwise after ``h`` is ``nxt[h ^ 1]``;
+    with some of them removed it is the first one left going on clockwise.
+    So the successor of a half-edge left is its old successor, or, while
+    that one is removed, the successor of the removed one's twin.  Cycles
+    without a removed half-edge stay as they are (their minimum too, under
+    the renumbering, which keeps the order); only the cycles that had one
+    are doubled again, on their own.  Same result as tracing the smaller
+    graph afresh (:func:`trace_faces` with the order filtered), for a few
+    gathers over the whole graph.
+
+    Parameters
+    ----------
+    nxt, low : ndarray of int64 (2 m,)
+        The whole graph's next permutation and each half-edge's cycle minimum.
+    gone : ndarray of bool (m,)
+        Edges removed.
+
+    Returns
+    -------
+    live : ndarray of int64 (2 k,)
+        The half-edges left, in order (half-edge ``i`` of the smaller graph is ``live[i]``).
+    nxt, low : ndarray of int64 (2 k,)
+        The smaller graph's next permutation and cycle minima, numbered as it numbers its half-edges.
+    """
+    gone_h = np.repeat(np.asarray(gone, bool), 2)
+    live = np.flatnonzero(~gone_h)
+    y = nxt[live]
+    todo = np.flatnonzero(gone_h[y])
+    while len(todo):
+        y[todo] = nxt[y[todo] ^ 1]
+        todo = todo[gone_h[y[todo]]]
+    newid = np.cumsum(~gone_h) - 1
+    nxt2 = newid[y]
+    hit = np.zeros(len(nxt), bool)
+    hit[low[gone_h]] = True  # cycles that lose a half-edge, by their minimum
+    low2 = newid[low[live]]
+    sub = np.flatnonzero(hit[low[live]])
+    if len(sub):
+        loc = np.full(len(live), -1, np.int64)
+        loc[sub] = np.arange(len(sub))
+        low2[sub] = sub[_cycle_min(loc[nxt2[sub]])]
+    return live, nxt2, low2
+
+
+def _cycle_order(
+    nxt: np.ndarray, face: np.ndarray, nf: int, low: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Half-edges listed face by face in walk order, and each face's start offset.
 
     List ranking by pointer jumping: O(n log L) numpy gathers, L the longest
-    face.
+    face.  ``low`` (optional): each half-edge's cycle minimum, when known.
     """
     n = len(nxt)
     h = np.arange(n, dtype=np.int64)
-    head = np.full(nf, n, np.int64)
-    np.minimum.at(head, face, h)
+    if low is None:
+        head = np.full(nf, n, np.int64)
+        np.minimum.at(head, face, h)
+    else:
+        head = np.empty(nf, np.int64)
+        head[face] = low
     pred = np.empty(n, np.int64)
     pred[nxt] = h
     tail = pred[head]
@@ -453,7 +527,7 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     if len(uniq) == 0:
         return empty
     order = _angular_order(xy, eu, ev)
-    nxt, face, area = trace_faces(xy, eu, ev, order=order)
+    nxt, face, area, low, cross = _trace(xy, eu, ev, order)
     br = face[0::2] == face[1::2]
     first = {"u": eu, "v": ev, "next": nxt, "walk": face, "area": area} if br.any() else {}
     if br.any():
@@ -463,17 +537,17 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
             empty.bridge = bridge_u[np.maximum(emap, 0)] & (emap >= 0)
             empty.counts["bridges"] = int(br.sum())
             return empty
-        renum = np.full(len(uniq), -1, np.int64)
-        renum[live] = np.arange(len(live))
-        e = renum[order >> 1]
-        nxt, face, area = trace_faces(xy, eu[live], ev[live], order=2 * e[e >= 0] + (order[e >= 0] & 1))
+        # the bridgeless graph's faces, from the first trace (as tracing it afresh would give them)
+        hl, nxt, low = _without(nxt, low, br)
+        nf, face = _labels_of_min(low)
+        area = np.bincount(face, weights=cross[hl], minlength=nf) / 2.0
     counts["bridges"] = int(bridge_u.sum())
     nf = len(area)
     lu, lv = eu[live], ev[live]
     org = np.empty(2 * len(live), np.int64)
     org[0::2] = lu
     org[1::2] = lv
-    ordered, offset = _cycle_order(nxt, face, nf)
+    ordered, offset = _cycle_order(nxt, face, nf, low)
     fsize = np.bincount(face, minlength=nf)
     degenerate = np.abs(area) <= area_eps
     counts["degenerate"] = int(degenerate.sum())
