@@ -119,7 +119,9 @@ def inscribed_radius(polys, enough=np.inf) -> np.ndarray:
             low = shapely.distance(shapely.point_on_surface(polys[ok]), shapely.boundary(polys[ok]))
             search = ~(low >= enough + tol)
             out[ok[~search]] = low[~search]
-        out[ok[search]] = shapely.length(shapely.maximum_inscribed_circle(polys[ok[search]], tol[search]))
+        # GEOS's search runs without the GIL: spread over threads (the same circles)
+        circles = threaded(shapely.maximum_inscribed_circle, polys[ok[search]], tol[search])
+        out[ok[search]] = shapely.length(circles)
     return out
 
 
