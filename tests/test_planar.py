@@ -142,3 +142,47 @@ def test_removing_edges_from_a_trace_is_tracing_the_rest(npts, share, seed):
     nf, face2 = _labels_of_min(low2)
     assert np.array_equal(face2, want_face)
     assert np.array_equal(np.bincount(face2, weights=cross[live], minlength=nf) / 2.0, want_area)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.integers(3, 12), min_size=1, max_size=12),
+    st.integers(0, 2**32 - 1),
+    st.sampled_from([0.0, 1e3, 5.6e6]),
+)
+def test_star_simple_certifies_only_valid_counter_clockwise_rings(sizes, seed, far):
+    """planar.star_simple: every ring it certifies is a valid polygon (GEOS) of positive area, far from the
+    origin too; convex rings (extra collinear and repeated vertices included) are certified, their mirror
+    images (clockwise) and rings folded over themselves are not."""
+    from sengine.geom.planar import star_simple
+
+    rng = np.random.default_rng(seed)
+    rings, want = [], []
+    for k in sizes:
+        kind = rng.integers(0, 4)
+        ang = np.sort(rng.uniform(0, 2 * np.pi, k))
+        rad = rng.uniform(0.5, 30.0) * (rng.uniform(0.2, 1.0, k) if kind == 3 else np.ones(k))
+        ring = np.c_[rad * np.cos(ang), rad * np.sin(ang)] + far + rng.uniform(-50, 50, 2)
+        if kind == 1 and k >= 3:  # a vertex repeated and a point on an edge: still convex
+            ring = np.insert(ring, 1, ring[0], axis=0)
+            ring = np.insert(ring, 3, 0.5 * (ring[2] + ring[3]), axis=0)
+        if kind == 2:  # folded: vertices in a random order
+            ring = ring[rng.permutation(len(ring))]
+        closed = np.r_[ring, ring[:1]]
+        if rng.random() < 0.25:  # clockwise
+            closed = closed[::-1]
+        rings.append(closed)
+        want.append(kind in (0, 1))
+    star = 10.0 * np.exp(1j * 4 * np.pi * np.arange(6) / 5) + far  # a pentagram: round its centre twice
+    rings.append(np.c_[star.real, star.imag])
+    want.append(False)
+    xy = np.concatenate(rings)
+    n = np.array([len(r) for r in rings])
+    sure = star_simple(xy, n)
+    assert not sure[-1]
+    polys = shapely.polygons(shapely.linearrings(xy, indices=np.repeat(np.arange(len(n)), n)))
+    ccw = shapely.is_ccw(shapely.get_exterior_ring(polys))
+    assert not (sure & ~(shapely.is_valid(polys) & ccw & (shapely.area(polys) > 0))).any()
+    # convex counter-clockwise rings of distinct directions are certified (the test can say yes)
+    distinct = np.array([len(np.unique(np.round(r[:-1], 9), axis=0)) >= 3 for r in rings])
+    assert (sure[np.array(want) & ccw & distinct & shapely.is_valid(polys)]).all()

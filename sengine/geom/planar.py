@@ -11,6 +11,7 @@ Public API
 :func:`planar_faces` -- bounded faces of a plane graph as polygons with
 holes; bridges (dead ends) removed; the outer face(s) returned apart.
 :func:`signed_area` -- shoelace area of rings given as grouped vertices.
+:func:`star_simple` -- closed rings certainly simple and counter-clockwise (strictly star-shaped), in numpy.
 :func:`split_walks` -- closed walks that revisit vertices cut into simple cycles.
 :func:`spur_polygons` -- bounded faces with the dead-end trees inside them as spurs of their rings.
 
@@ -42,6 +43,7 @@ __all__ = [
     "planar_faces",
     "PlanarFaces",
     "signed_area",
+    "star_simple",
     "split_walks",
     "spur_polygons",
 ]
@@ -411,6 +413,70 @@ def signed_area(xy: np.ndarray, index: np.ndarray, n: int | None = None) -> np.n
     nxt = np.where(k + 1 < start + np.repeat(size, size), k + 1, start)
     cross = xy[:, 0] * xy[nxt, 1] - xy[nxt, 0] * xy[:, 1]
     return np.bincount(index, weights=cross, minlength=n) / 2.0
+
+
+STAR_ULPS = 1024.0  # margin of the star certificate, in units of rounding of the largest coordinate
+
+
+def star_simple(xy: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """Which closed rings are certainly simple and counter-clockwise: strictly star-shaped round their vertex mean.
+
+    A ring each of whose edges has the mean ``c`` of the ring's vertices
+    strictly on its left, and which goes round ``c`` once (it crosses the
+    ray from ``c`` along +x once), is simple: each edge sweeps its own open
+    interval of directions seen from ``c``, consecutive edges' intervals
+    abut and together they go round once, so edges that are not neighbours
+    see disjoint directions and cannot meet.  Such a ring makes a valid
+    polygon (GEOS's ``is_valid``) of positive area.  Edges of zero length
+    (a coordinate repeated) are passed over, as GEOS passes them.
+    "Strictly" is by a margin (``STAR_ULPS`` units of rounding of the
+    largest coordinate of the call, times the edge's distance from ``c``)
+    far above the float error of the test, so a ring certified is simple in
+    exact arithmetic.  False says nothing: the ring may still be simple.
+
+    Parameters
+    ----------
+    xy : ndarray (k, 2)
+        Ring coordinates (m), ring after ring, each ring closed (its first
+        coordinate repeated at its end).
+    sizes : ndarray of int (r,)
+        Coordinates of each ring, the closing one included.
+
+    Returns
+    -------
+    ndarray of bool (r,)
+        Certainly simple and counter-clockwise.
+    """
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    sizes = np.asarray(sizes, np.int64)
+    r = len(sizes)
+    out = np.zeros(r, bool)
+    live = np.flatnonzero(sizes >= 4)
+    if len(live) < r:  # rings of fewer than three vertices: none certified
+        if len(live):
+            keep = np.repeat(sizes >= 4, sizes)
+            out[live] = star_simple(xy[keep], sizes[live])
+        return out
+    if r == 0:
+        return out
+    end = np.cumsum(sizes)
+    start = end - sizes
+    c = (np.add.reduceat(xy, start, axis=0) - xy[end - 1]) / (sizes - 1)[:, None]
+    d = xy - np.repeat(c, sizes, axis=0)
+    a, b = d[:-1], d[1:]  # edge k: coordinate k to k + 1 (the step from a ring's last coordinate to the next ring's
+    # first is no edge: it is passed over below)
+    cr = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    delta = STAR_ULPS * np.finfo(np.float64).eps * max(float(np.abs(xy).max()), 1.0)
+    with np.errstate(invalid="ignore"):
+        strict = cr > delta * (np.abs(a).sum(axis=1) + np.abs(b).sum(axis=1))
+    same = (a[:, 0] == b[:, 0]) & (a[:, 1] == b[:, 1])
+    up = (a[:, 1] <= 0.0) & (b[:, 1] > 0.0)  # crosses the ray from c along +x, going round counter-clockwise
+    between = end[:-1] - 1
+    strict[between], same[between], up[between] = True, False, False
+    fail = np.add.reduceat(np.r_[~(strict | same), False].astype(np.int64), start)
+    turns = np.add.reduceat(np.r_[up, False].astype(np.int64), start)
+    edges = np.add.reduceat(np.r_[strict & ~same, False].astype(np.int64), start) - np.r_[np.ones(r - 1, np.int64), 0]
+    return (fail == 0) & (turns == 1) & (edges >= 3)
 
 
 @dataclass
