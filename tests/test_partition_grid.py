@@ -209,10 +209,13 @@ def test_box_pairs_are_the_strtree_query(na, nb, cell, ngroups, seed):
     lo_a, hi_a = boxes(na)
     lo_b, hi_b = boxes(nb)
     ga, gb = rng.integers(0, ngroups, na), rng.integers(0, ngroups, nb)
+    ea, eb = rng.random(na) < 0.1, rng.random(nb) < 0.1  # empty geometries: NaN bounds, in no pair
+    lo_a[ea], hi_a[ea], lo_b[eb], hi_b[eb] = np.nan, np.nan, np.nan, np.nan
     ia, ib = box_pairs(lo_a, hi_a, lo_b, hi_b, group_a=ga, group_b=gb, cell=cell)
     if na and nb:
-        tree = shapely.STRtree(shapely.box(lo_b[:, 0], lo_b[:, 1], hi_b[:, 0], hi_b[:, 1]))
-        qa, qb = tree.query(shapely.box(lo_a[:, 0], lo_a[:, 1], hi_a[:, 0], hi_a[:, 1]))
+        ba = np.where(ea, shapely.Polygon(), shapely.box(lo_a[:, 0], lo_a[:, 1], hi_a[:, 0], hi_a[:, 1]))
+        bb = np.where(eb, shapely.Polygon(), shapely.box(lo_b[:, 0], lo_b[:, 1], hi_b[:, 0], hi_b[:, 1]))
+        qa, qb = shapely.STRtree(bb).query(ba)
         same = ga[qa] == gb[qb]
         want = sorted(zip(qa[same].tolist(), qb[same].tolist()))
     else:

@@ -339,7 +339,8 @@ def box_pairs(lo_a, hi_a, lo_b, hi_b, *, group_a=None, group_b=None, cell=None):
     Parameters
     ----------
     lo_a, hi_a : ndarray (n, 2)
-        Lower and upper corners of the boxes of ``a`` (m).
+        Lower and upper corners of the boxes of ``a`` (m); NaN (the bounds
+        of an empty geometry): a box that meets nothing.
     lo_b, hi_b : ndarray (m, 2)
         Those of ``b``.
     group_a, group_b : ndarray of int, optional
@@ -364,6 +365,12 @@ def box_pairs(lo_a, hi_a, lo_b, hi_b, *, group_a=None, group_b=None, cell=None):
         return e64, e64
     ga = np.zeros(na, np.int64) if group_a is None else np.asarray(group_a, np.int64)
     gb = np.zeros(nb, np.int64) if group_b is None else np.asarray(group_b, np.int64)
+    fa = np.isfinite(lo_a).all(axis=1) & np.isfinite(hi_a).all(axis=1)
+    fb = np.isfinite(lo_b).all(axis=1) & np.isfinite(hi_b).all(axis=1)
+    if not (fa.all() and fb.all()):  # boxes of empty geometries (NaN) meet nothing, as in a tree
+        ka, kb = np.flatnonzero(fa), np.flatnonzero(fb)
+        ia, ib = box_pairs(lo_a[ka], hi_a[ka], lo_b[kb], hi_b[kb], group_a=ga[ka], group_b=gb[kb], cell=cell)
+        return ka[ia], kb[ib]
     gmin = min(int(ga.min()), int(gb.min()))
     ng = max(int(ga.max()), int(gb.max())) - gmin + 1
     if ng > 1 << 20:  # many groups or far apart: numbered 0 .. G-1
