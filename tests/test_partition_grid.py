@@ -184,3 +184,41 @@ def test_strips_keep_the_vertices_where_geos_orients_a_ring():
     ref = clip_frame_boxes(geoms, c, ax, *lims)[0]
     assert shapely.to_wkb(got) == shapely.to_wkb(ref)
     assert abs(got.area - shapely.clip_by_rect(poly, 4.5, -20, 5.5, 30).area) < 1e-9
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.integers(0, 60),
+    st.integers(0, 60),
+    st.sampled_from([0.5, 3.0, 40.0, None]),
+    st.integers(1, 4),
+    st.integers(0, 2**32 - 1),
+)
+def test_box_pairs_are_the_strtree_query(na, nb, cell, ngroups, seed):
+    """grid.box_pairs: the pairs of boxes that meet (touching counts), of the same group, as an STRtree query
+    of the boxes gives them (as a set, each once), for any cell size; boxes flat, tiny, long and shared."""
+    from sengine.geom.grid import box_pairs
+
+    rng = np.random.default_rng(seed)
+
+    def boxes(n):
+        lo = rng.integers(-20, 20, (n, 2)).astype(float) * rng.choice([1.0, 0.37], (n, 1))
+        ext = rng.choice([0.0, 0.5, 3.0, 25.0], (n, 2))  # flat boxes (segments along an axis) too
+        return lo, lo + ext
+
+    lo_a, hi_a = boxes(na)
+    lo_b, hi_b = boxes(nb)
+    ga, gb = rng.integers(0, ngroups, na), rng.integers(0, ngroups, nb)
+    ea, eb = rng.random(na) < 0.1, rng.random(nb) < 0.1  # empty geometries: NaN bounds, in no pair
+    lo_a[ea], hi_a[ea], lo_b[eb], hi_b[eb] = np.nan, np.nan, np.nan, np.nan
+    ia, ib = box_pairs(lo_a, hi_a, lo_b, hi_b, group_a=ga, group_b=gb, cell=cell)
+    if na and nb:
+        ba = np.where(ea, shapely.Polygon(), shapely.box(lo_a[:, 0], lo_a[:, 1], hi_a[:, 0], hi_a[:, 1]))
+        bb = np.where(eb, shapely.Polygon(), shapely.box(lo_b[:, 0], lo_b[:, 1], hi_b[:, 0], hi_b[:, 1]))
+        qa, qb = shapely.STRtree(bb).query(ba)
+        same = ga[qa] == gb[qb]
+        want = sorted(zip(qa[same].tolist(), qb[same].tolist()))
+    else:
+        want = []
+    assert np.all(np.diff(ia) >= 0)
+    assert sorted(zip(ia.tolist(), ib.tolist())) == want

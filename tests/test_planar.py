@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import shapely
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -102,3 +103,86 @@ def test_permutation_cycles_of_a_long_cycle():
     assert count == 1 and not label.any()
     count, label = permutation_cycles(np.arange(7))
     assert count == 7 and np.array_equal(label, np.arange(7))
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(4, 80), st.floats(0.0, 1.0), st.integers(0, 2**32 - 1))
+def test_removing_edges_from_a_trace_is_tracing_the_rest(npts, share, seed):
+    """planar._without (the faces once bridges or any edges are gone, patched from the whole graph's trace)
+    equals tracing the smaller graph afresh: same next permutation, cycle minima, labels and areas."""
+    from sengine.geom.planar import _cycle_min, _labels_of_min, _trace, _without
+
+    rng = np.random.default_rng(seed)
+    xy = rng.integers(0, 40, (npts, 2)).astype(float)  # a grid: collinear and repeated points too
+    xy = np.unique(xy, axis=0)
+    if len(xy) < 3:
+        return
+    tri = shapely.delaunay_triangles(shapely.multipoints(xy), only_edges=True)
+    c = shapely.get_coordinates(shapely.get_parts(tri)).reshape(-1, 2, 2)
+    ids = {tuple(p): k for k, p in enumerate(xy.tolist())}
+    u = np.array([ids[tuple(p)] for p in c[:, 0].tolist()], np.int64)
+    v = np.array([ids[tuple(p)] for p in c[:, 1].tolist()], np.int64)
+    if len(u) == 0:
+        return
+    nxt, face, area, low, cross = _trace(xy, u, v)
+    gone = rng.random(len(u)) < share
+    if seed % 2:  # the bridges of what is left, as planar_faces removes them
+        keep = np.flatnonzero(~gone)
+        f = _trace(xy, u[keep], v[keep])[1] if len(keep) else np.zeros(0, np.int64)
+        gone[keep[f[0::2] == f[1::2]]] = True
+    live, nxt2, low2 = _without(nxt, low, gone)
+    keep = np.flatnonzero(~gone)
+    assert np.array_equal(live >> 1, np.repeat(keep, 2))
+    if len(keep) == 0:
+        assert len(nxt2) == 0
+        return
+    want_nxt, want_face, want_area, want_low, _ = _trace(xy, u[keep], v[keep])
+    assert np.array_equal(nxt2, want_nxt)
+    assert np.array_equal(low2, want_low) and np.array_equal(low2, _cycle_min(nxt2))
+    nf, face2 = _labels_of_min(low2)
+    assert np.array_equal(face2, want_face)
+    assert np.array_equal(np.bincount(face2, weights=cross[live], minlength=nf) / 2.0, want_area)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.integers(3, 12), min_size=1, max_size=12),
+    st.integers(0, 2**32 - 1),
+    st.sampled_from([0.0, 1e3, 5.6e6]),
+)
+def test_star_simple_certifies_only_valid_counter_clockwise_rings(sizes, seed, far):
+    """planar.star_simple: every ring it certifies is a valid polygon (GEOS) of positive area, far from the
+    origin too; convex rings (extra collinear and repeated vertices included) are certified, their mirror
+    images (clockwise) and rings folded over themselves are not."""
+    from sengine.geom.planar import star_simple
+
+    rng = np.random.default_rng(seed)
+    rings, want = [], []
+    for k in sizes:
+        kind = rng.integers(0, 4)
+        ang = np.sort(rng.uniform(0, 2 * np.pi, k))
+        rad = rng.uniform(0.5, 30.0) * (rng.uniform(0.2, 1.0, k) if kind == 3 else np.ones(k))
+        ring = np.c_[rad * np.cos(ang), rad * np.sin(ang)] + far + rng.uniform(-50, 50, 2)
+        if kind == 1 and k >= 3:  # a vertex repeated and a point on an edge: still convex
+            ring = np.insert(ring, 1, ring[0], axis=0)
+            ring = np.insert(ring, 3, 0.5 * (ring[2] + ring[3]), axis=0)
+        if kind == 2:  # folded: vertices in a random order
+            ring = ring[rng.permutation(len(ring))]
+        closed = np.r_[ring, ring[:1]]
+        if rng.random() < 0.25:  # clockwise
+            closed = closed[::-1]
+        rings.append(closed)
+        want.append(kind in (0, 1))
+    star = 10.0 * np.exp(1j * 4 * np.pi * np.arange(6) / 5) + far  # a pentagram: round its centre twice
+    rings.append(np.c_[star.real, star.imag])
+    want.append(False)
+    xy = np.concatenate(rings)
+    n = np.array([len(r) for r in rings])
+    sure = star_simple(xy, n)
+    assert not sure[-1]
+    polys = shapely.polygons(shapely.linearrings(xy, indices=np.repeat(np.arange(len(n)), n)))
+    ccw = shapely.is_ccw(shapely.get_exterior_ring(polys))
+    assert not (sure & ~(shapely.is_valid(polys) & ccw & (shapely.area(polys) > 0))).any()
+    # convex counter-clockwise rings of distinct directions are certified (the test can say yes)
+    distinct = np.array([len(np.unique(np.round(r[:-1], 9), axis=0)) >= 3 for r in rings])
+    assert (sure[np.array(want) & ccw & distinct & shapely.is_valid(polys)]).all()

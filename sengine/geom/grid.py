@@ -18,7 +18,7 @@ import shapely
 
 from .polygons import clip_frame_boxes, clip_unit_local
 
-__all__ = ["clip_frame_grid"]
+__all__ = ["clip_frame_grid", "box_pairs"]
 
 
 def _ramp(counts) -> np.ndarray:
@@ -323,3 +323,103 @@ def _boxes(center, axis, a0, a1, b0, b1):
     xy = (center[:, None, :] + a * axis[:, None, :] + b * nrm[:, None, :]).reshape(-1, 2)
     offsets = (np.arange(k + 1) * 5, np.arange(k + 1))
     return shapely.from_ragged_array(shapely.GeometryType.POLYGON, xy, offsets)
+
+
+def box_pairs(lo_a, hi_a, lo_b, hi_b, *, group_a=None, group_b=None, cell=None):
+    """Pairs of boxes that meet (closed), one of ``a`` and one of ``b`` of the same group, found on a grid.
+
+    The pairs ``shapely.STRtree(boxes_b).query(boxes_a)`` gives (envelopes
+    that intersect or touch), as a set, without making a GEOS box or tree:
+    each box is listed in the square cells of side ``cell`` its extent
+    meets, boxes of ``a`` and ``b`` are joined on (group, cell) by one sort,
+    and a pair is kept in one cell only, the one holding the corner where
+    the two boxes' lower ends meet (``max`` of their lows), which both
+    boxes' cells include when they meet.
+
+    Parameters
+    ----------
+    lo_a, hi_a : ndarray (n, 2)
+        Lower and upper corners of the boxes of ``a`` (m); NaN (the bounds
+        of an empty geometry): a box that meets nothing.
+    lo_b, hi_b : ndarray (m, 2)
+        Those of ``b``.
+    group_a, group_b : ndarray of int, optional
+        Only boxes of one group pair up (default: all one group).
+    cell : float, optional
+        Side of the grid's cells (m; default: twice the median extent of
+        the boxes of ``a``; never under a 256th of the largest box nor a
+        4096th of the whole extent).  Any size gives the same pairs; it sets
+        the cost only.
+
+    Returns
+    -------
+    ia, ib : ndarray of int64
+        The pairs, ``ia`` non-decreasing (then ``ib`` by cell and number: an
+        order fixed by the input, not by the tree STRtree builds).
+    """
+    lo_a, hi_a = np.asarray(lo_a, np.float64).reshape(-1, 2), np.asarray(hi_a, np.float64).reshape(-1, 2)
+    lo_b, hi_b = np.asarray(lo_b, np.float64).reshape(-1, 2), np.asarray(hi_b, np.float64).reshape(-1, 2)
+    na, nb = len(lo_a), len(lo_b)
+    e64 = np.zeros(0, np.int64)
+    if na == 0 or nb == 0:
+        return e64, e64
+    ga = np.zeros(na, np.int64) if group_a is None else np.asarray(group_a, np.int64)
+    gb = np.zeros(nb, np.int64) if group_b is None else np.asarray(group_b, np.int64)
+    fa = np.isfinite(lo_a).all(axis=1) & np.isfinite(hi_a).all(axis=1)
+    fb = np.isfinite(lo_b).all(axis=1) & np.isfinite(hi_b).all(axis=1)
+    if not (fa.all() and fb.all()):  # boxes of empty geometries (NaN) meet nothing, as in a tree
+        ka, kb = np.flatnonzero(fa), np.flatnonzero(fb)
+        ia, ib = box_pairs(lo_a[ka], hi_a[ka], lo_b[kb], hi_b[kb], group_a=ga[ka], group_b=gb[kb], cell=cell)
+        return ka[ia], kb[ib]
+    gmin = min(int(ga.min()), int(gb.min()))
+    ng = max(int(ga.max()), int(gb.max())) - gmin + 1
+    if ng > 1 << 20:  # many groups or far apart: numbered 0 .. G-1
+        groups, inv = np.unique(np.r_[ga, gb], return_inverse=True)
+        ga, gb, ng = inv[:na].astype(np.int64), inv[na:].astype(np.int64), len(groups)
+    else:
+        ga, gb = ga - gmin, gb - gmin
+    if cell is None:
+        cell = 2.0 * float(np.median((hi_a - lo_a).max(axis=1)))
+    origin = np.minimum(lo_a.min(axis=0), lo_b.min(axis=0))
+    size = np.maximum(hi_a.max(axis=0), hi_b.max(axis=0)) - origin
+    # keys (group, column, row) fit in 62 bits: at most `side` cells a side
+    side = max(int(np.sqrt(2.0**62 / ng)) - 2, 1)
+    # and no box in more than 256 x 256 cells, nor the extent more than 4096 cells a side
+    big = max(float((hi_a - lo_a).max()), float((hi_b - lo_b).max()))
+    cell = max(float(cell), float(size.max()) / min(side, 4096), big / 256.0, 1e-9)
+    ncell = int(np.floor(float(size.max()) / cell)) + 2
+
+    def index(p):
+        return np.floor((p - origin) / cell).astype(np.int64)
+
+    def key(g, x, y):
+        return (g * ncell + x) * ncell + y
+
+    def listed(lo, hi, g):
+        c0, c1 = index(lo), index(hi)
+        cx, cy = c1[:, 0] - c0[:, 0] + 1, c1[:, 1] - c0[:, 1] + 1
+        cnt = cx * cy
+        box = np.repeat(np.arange(len(lo)), cnt)
+        j = _ramp(cnt)
+        return box, key(g[box], c0[box, 0] + j // cy[box], c0[box, 1] + j % cy[box])
+
+    box_a, key_a = listed(lo_a, hi_a, ga)
+    box_b, key_b = listed(lo_b, hi_b, gb)
+    o = np.argsort(key_b, kind="stable")
+    key_b, box_b = key_b[o], box_b[o]
+    first = np.searchsorted(key_b, key_a, side="left")
+    cnt = np.searchsorted(key_b, key_a, side="right") - first
+    at = np.repeat(np.arange(len(key_a)), cnt)  # the cell entry of a each pair comes from
+    ia = box_a[at]
+    ib = box_b[np.repeat(first, cnt) + _ramp(cnt)]
+    # boxes that meet, and only in the cell of the corner where their lower ends meet
+    xa, xb = lo_a[:, 0][ia], lo_b[:, 0][ib]
+    meet = (xa <= hi_b[:, 0][ib]) & (xb <= hi_a[:, 0][ia])
+    at, ia, ib, xa, xb = at[meet], ia[meet], ib[meet], xa[meet], xb[meet]
+    ya, yb = lo_a[:, 1][ia], lo_b[:, 1][ib]
+    meet = (ya <= hi_b[:, 1][ib]) & (yb <= hi_a[:, 1][ia])
+    at, ia, ib = at[meet], ia[meet], ib[meet]
+    cx = np.floor((np.maximum(xa[meet], xb[meet]) - origin[0]) / cell).astype(np.int64)
+    cy = np.floor((np.maximum(ya[meet], yb[meet]) - origin[1]) / cell).astype(np.int64)
+    once = key_a[at] == key(ga[ia], cx, cy)
+    return ia[once], ib[once]

@@ -11,6 +11,7 @@ Public API
 :func:`planar_faces` -- bounded faces of a plane graph as polygons with
 holes; bridges (dead ends) removed; the outer face(s) returned apart.
 :func:`signed_area` -- shoelace area of rings given as grouped vertices.
+:func:`star_simple` -- closed rings certainly simple and counter-clockwise (strictly star-shaped), in numpy.
 :func:`split_walks` -- closed walks that revisit vertices cut into simple cycles.
 :func:`spur_polygons` -- bounded faces with the dead-end trees inside them as spurs of their rings.
 
@@ -42,6 +43,7 @@ __all__ = [
     "planar_faces",
     "PlanarFaces",
     "signed_area",
+    "star_simple",
     "split_walks",
     "spur_polygons",
 ]
@@ -58,6 +60,29 @@ def _angular_order(xy: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return by_angle[argsort_int(org[by_angle])]  # = np.lexsort((angle, org))
 
 
+def _cycle_min(nxt: np.ndarray) -> np.ndarray:
+    """Each element's cycle minimum by pointer doubling (see :func:`permutation_cycles`)."""
+    low = np.arange(len(nxt), dtype=np.int64)
+    step = nxt
+    while len(low):
+        new = np.minimum(low, low[step])
+        if np.array_equal(new, low):
+            break
+        low, step = new, step[step]
+    return low
+
+
+def _labels_of_min(low: np.ndarray) -> tuple[int, np.ndarray]:
+    """Cycles numbered in the order of their lowest element, from each element's cycle minimum.
+
+    The minima are the elements that are their own minimum; a running count
+    of them numbers the cycles (no sort).
+    """
+    head = low == np.arange(len(low))
+    rank = np.cumsum(head) - 1
+    return int(head.sum()), rank[low].astype(np.int64)
+
+
 def permutation_cycles(nxt: np.ndarray) -> tuple[int, np.ndarray]:
     """The cycles of a permutation, labelled in the order of their lowest element.
 
@@ -67,7 +92,8 @@ def permutation_cycles(nxt: np.ndarray) -> tuple[int, np.ndarray]:
     the cycle's minimum), at most ``log2`` of the longest cycle plus one.
     The labels are those of ``scipy.sparse.csgraph.connected_components``
     on the permutation's graph (weak components numbered from the lowest
-    vertex), without importing scipy (0.3 s at start-up).
+    vertex), without importing scipy (0.3 s at start-up): a cycle's label
+    is how many cycle minima come before its own (a running count, no sort).
 
     Parameters
     ----------
@@ -81,16 +107,7 @@ def permutation_cycles(nxt: np.ndarray) -> tuple[int, np.ndarray]:
     label : ndarray of int64 (n,)
         Cycle of each element, ``0 .. count-1``.
     """
-    nxt = np.asarray(nxt, np.int64)
-    low = np.arange(len(nxt), dtype=np.int64)
-    step = nxt
-    while len(low):
-        new = np.minimum(low, low[step])
-        if np.array_equal(new, low):
-            break
-        low, step = new, step[step]
-    mins, label = np.unique(low, return_inverse=True)
-    return len(mins), label.reshape(-1).astype(np.int64)
+    return _labels_of_min(_cycle_min(np.asarray(nxt, np.int64)))
 
 
 def trace_faces(xy: np.ndarray, u: np.ndarray, v: np.ndarray, *, order: np.ndarray | None = None):
@@ -122,6 +139,11 @@ def trace_faces(xy: np.ndarray, u: np.ndarray, v: np.ndarray, *, order: np.ndarr
     area : ndarray of float (nfaces,)
         Signed area of each face walk (m2): positive for bounded faces.
     """
+    return _trace(xy, u, v, order)[:3]
+
+
+def _trace(xy, u, v, order=None):
+    """:func:`trace_faces`, and each half-edge's cycle minimum and cross product (twice its area term)."""
     m = len(u)
     h = np.arange(2 * m, dtype=np.int64)
     org = np.empty(2 * m, np.int64)
@@ -143,22 +165,76 @@ def trace_faces(xy: np.ndarray, u: np.ndarray, v: np.ndarray, *, order: np.ndarr
     cw = np.empty(2 * m, np.int64)
     cw[order] = order[prev_pos]
     nxt = cw[h ^ 1]
-    nf, face = permutation_cycles(nxt)
+    low = _cycle_min(nxt)
+    nf, face = _labels_of_min(low)
     cross = xy[org, 0] * xy[dst, 1] - xy[dst, 0] * xy[org, 1]
     area = np.bincount(face, weights=cross, minlength=nf) / 2.0
-    return nxt, face, area
+    return nxt, face, area, low, cross
 
 
-def _cycle_order(nxt: np.ndarray, face: np.ndarray, nf: int) -> tuple[np.ndarray, np.ndarray]:
+def _without(nxt: np.ndarray, low: np.ndarray, gone: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The "next" permutation and cycle minima of a plane graph with some edges removed, from the whole graph's.
+
+    Around a node, the half-edge clockwise after ``h`` is ``nxt[h ^ 1]``;
+    with some of them removed it is the first one left going on clockwise.
+    So the successor of a half-edge left is its old successor, or, while
+    that one is removed, the successor of the removed one's twin.  Cycles
+    without a removed half-edge stay as they are (their minimum too, under
+    the renumbering, which keeps the order); only the cycles that had one
+    are doubled again, on their own.  Same result as tracing the smaller
+    graph afresh (:func:`trace_faces` with the order filtered), for a few
+    gathers over the whole graph.
+
+    Parameters
+    ----------
+    nxt, low : ndarray of int64 (2 m,)
+        The whole graph's next permutation and each half-edge's cycle minimum.
+    gone : ndarray of bool (m,)
+        Edges removed.
+
+    Returns
+    -------
+    live : ndarray of int64 (2 k,)
+        The half-edges left, in order (half-edge ``i`` of the smaller graph is ``live[i]``).
+    nxt, low : ndarray of int64 (2 k,)
+        The smaller graph's next permutation and cycle minima, numbered as it numbers its half-edges.
+    """
+    gone_h = np.repeat(np.asarray(gone, bool), 2)
+    live = np.flatnonzero(~gone_h)
+    y = nxt[live]
+    todo = np.flatnonzero(gone_h[y])
+    while len(todo):
+        y[todo] = nxt[y[todo] ^ 1]
+        todo = todo[gone_h[y[todo]]]
+    newid = np.cumsum(~gone_h) - 1
+    nxt2 = newid[y]
+    hit = np.zeros(len(nxt), bool)
+    hit[low[gone_h]] = True  # cycles that lose a half-edge, by their minimum
+    low2 = newid[low[live]]
+    sub = np.flatnonzero(hit[low[live]])
+    if len(sub):
+        loc = np.full(len(live), -1, np.int64)
+        loc[sub] = np.arange(len(sub))
+        low2[sub] = sub[_cycle_min(loc[nxt2[sub]])]
+    return live, nxt2, low2
+
+
+def _cycle_order(
+    nxt: np.ndarray, face: np.ndarray, nf: int, low: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Half-edges listed face by face in walk order, and each face's start offset.
 
     List ranking by pointer jumping: O(n log L) numpy gathers, L the longest
-    face.
+    face.  ``low`` (optional): each half-edge's cycle minimum, when known.
     """
     n = len(nxt)
     h = np.arange(n, dtype=np.int64)
-    head = np.full(nf, n, np.int64)
-    np.minimum.at(head, face, h)
+    if low is None:
+        head = np.full(nf, n, np.int64)
+        np.minimum.at(head, face, h)
+    else:
+        head = np.empty(nf, np.int64)
+        head[face] = low
     pred = np.empty(n, np.int64)
     pred[nxt] = h
     tail = pred[head]
@@ -339,6 +415,70 @@ def signed_area(xy: np.ndarray, index: np.ndarray, n: int | None = None) -> np.n
     return np.bincount(index, weights=cross, minlength=n) / 2.0
 
 
+STAR_ULPS = 1024.0  # margin of the star certificate, in units of rounding of the largest coordinate
+
+
+def star_simple(xy: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """Which closed rings are certainly simple and counter-clockwise: strictly star-shaped round their vertex mean.
+
+    A ring each of whose edges has the mean ``c`` of the ring's vertices
+    strictly on its left, and which goes round ``c`` once (it crosses the
+    ray from ``c`` along +x once), is simple: each edge sweeps its own open
+    interval of directions seen from ``c``, consecutive edges' intervals
+    abut and together they go round once, so edges that are not neighbours
+    see disjoint directions and cannot meet.  Such a ring makes a valid
+    polygon (GEOS's ``is_valid``) of positive area.  Edges of zero length
+    (a coordinate repeated) are passed over, as GEOS passes them.
+    "Strictly" is by a margin (``STAR_ULPS`` units of rounding of the
+    largest coordinate of the call, times the edge's distance from ``c``)
+    far above the float error of the test, so a ring certified is simple in
+    exact arithmetic.  False says nothing: the ring may still be simple.
+
+    Parameters
+    ----------
+    xy : ndarray (k, 2)
+        Ring coordinates (m), ring after ring, each ring closed (its first
+        coordinate repeated at its end).
+    sizes : ndarray of int (r,)
+        Coordinates of each ring, the closing one included.
+
+    Returns
+    -------
+    ndarray of bool (r,)
+        Certainly simple and counter-clockwise.
+    """
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    sizes = np.asarray(sizes, np.int64)
+    r = len(sizes)
+    out = np.zeros(r, bool)
+    live = np.flatnonzero(sizes >= 4)
+    if len(live) < r:  # rings of fewer than three vertices: none certified
+        if len(live):
+            keep = np.repeat(sizes >= 4, sizes)
+            out[live] = star_simple(xy[keep], sizes[live])
+        return out
+    if r == 0:
+        return out
+    end = np.cumsum(sizes)
+    start = end - sizes
+    c = (np.add.reduceat(xy, start, axis=0) - xy[end - 1]) / (sizes - 1)[:, None]
+    d = xy - np.repeat(c, sizes, axis=0)
+    a, b = d[:-1], d[1:]  # edge k: coordinate k to k + 1 (the step from a ring's last coordinate to the next ring's
+    # first is no edge: it is passed over below)
+    cr = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    delta = STAR_ULPS * np.finfo(np.float64).eps * max(float(np.abs(xy).max()), 1.0)
+    with np.errstate(invalid="ignore"):
+        strict = cr > delta * (np.abs(a).sum(axis=1) + np.abs(b).sum(axis=1))
+    same = (a[:, 0] == b[:, 0]) & (a[:, 1] == b[:, 1])
+    up = (a[:, 1] <= 0.0) & (b[:, 1] > 0.0)  # crosses the ray from c along +x, going round counter-clockwise
+    between = end[:-1] - 1
+    strict[between], same[between], up[between] = True, False, False
+    fail = np.add.reduceat(np.r_[~(strict | same), False].astype(np.int64), start)
+    turns = np.add.reduceat(np.r_[up, False].astype(np.int64), start)
+    edges = np.add.reduceat(np.r_[strict & ~same, False].astype(np.int64), start) - np.r_[np.ones(r - 1, np.int64), 0]
+    return (fail == 0) & (turns == 1) & (edges >= 3)
+
+
 @dataclass
 class PlanarFaces:
     """The faces of a plane graph (result of :func:`planar_faces`).
@@ -434,7 +574,13 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     a = np.minimum(u0, v0)
     b = np.maximum(u0, v0)
     key = a[~loop] * n + b[~loop]
-    uniq, inv = np.unique(key, return_inverse=True)
+    # np.unique(key, return_inverse=True), by a stable sort: edges come mostly in order, which it sorts fast
+    o = np.argsort(key, kind="stable")
+    sk = key[o]
+    new = np.r_[True, sk[1:] != sk[:-1]] if len(sk) else np.zeros(0, bool)
+    uniq = sk[new]
+    inv = np.empty(len(key), np.int64)
+    inv[o] = np.cumsum(new) - 1
     emap = np.full(m0, -1, np.int64)
     emap[~loop] = inv.ravel()
     flip = u0 > v0
@@ -453,7 +599,7 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     if len(uniq) == 0:
         return empty
     order = _angular_order(xy, eu, ev)
-    nxt, face, area = trace_faces(xy, eu, ev, order=order)
+    nxt, face, area, low, cross = _trace(xy, eu, ev, order)
     br = face[0::2] == face[1::2]
     first = {"u": eu, "v": ev, "next": nxt, "walk": face, "area": area} if br.any() else {}
     if br.any():
@@ -463,17 +609,17 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
             empty.bridge = bridge_u[np.maximum(emap, 0)] & (emap >= 0)
             empty.counts["bridges"] = int(br.sum())
             return empty
-        renum = np.full(len(uniq), -1, np.int64)
-        renum[live] = np.arange(len(live))
-        e = renum[order >> 1]
-        nxt, face, area = trace_faces(xy, eu[live], ev[live], order=2 * e[e >= 0] + (order[e >= 0] & 1))
+        # the bridgeless graph's faces, from the first trace (as tracing it afresh would give them)
+        hl, nxt, low = _without(nxt, low, br)
+        nf, face = _labels_of_min(low)
+        area = np.bincount(face, weights=cross[hl], minlength=nf) / 2.0
     counts["bridges"] = int(bridge_u.sum())
     nf = len(area)
     lu, lv = eu[live], ev[live]
     org = np.empty(2 * len(live), np.int64)
     org[0::2] = lu
     org[1::2] = lv
-    ordered, offset = _cycle_order(nxt, face, nf)
+    ordered, offset = _cycle_order(nxt, face, nf, low)
     fsize = np.bincount(face, minlength=nf)
     degenerate = np.abs(area) <= area_eps
     counts["degenerate"] = int(degenerate.sum())

@@ -58,6 +58,7 @@ import shapely
 
 from sengine.geom.boundary import polygon_parts, street_edges
 from sengine.geom.merge import merge_small
+from sengine.geom.planar import star_simple
 from sengine.geom.polygons import threaded
 from sengine.geom.split import RingSet, split
 from sengine.random import hash01
@@ -78,15 +79,23 @@ def _normal(seed, key):
     return np.sqrt(-2.0 * np.log(np.maximum(u1, 1e-300))) * np.cos(2.0 * np.pi * u2)
 
 
-def _clean(geoms, area):
+def _clean(geoms, area, star=True):
     """Simple, counter-clockwise polygons (the partition certificate's test).
 
     ``geoms``: polygons, or their :class:`~.contour.Rings`, of which only
-    those of positive area are built.
+    those of positive area are tested.  Rings strictly star-shaped round
+    their vertex mean (:func:`sengine.geom.planar.star_simple`, numpy: most
+    candidate lots, which are nearly convex) are simple without building a
+    polygon or asking GEOS; the others are built and GEOS tests them.
+    ``star=False``: GEOS tests them all (windows of three candidates, which
+    the jagged inner line makes star-shaped too seldom to pay the test).
     """
     ok = np.asarray(area) > 0
-    geoms = geoms.polygons(ok) if isinstance(geoms, Rings) else np.asarray(geoms, dtype=object)[ok]
-    ok[ok] = threaded(shapely.is_valid, geoms)  # GEOS runs without the GIL
+    if isinstance(geoms, Rings):
+        ask = ok & ~star_simple(geoms.xy, geoms.sizes) if star else ok
+        ok[ask] = threaded(shapely.is_valid, geoms.polygons(ask))  # GEOS runs without the GIL
+        return ok
+    ok[ok] = threaded(shapely.is_valid, np.asarray(geoms, dtype=object)[ok])
     return ok
 
 
@@ -119,7 +128,9 @@ def inscribed_radius(polys, enough=np.inf) -> np.ndarray:
             low = shapely.distance(shapely.point_on_surface(polys[ok]), shapely.boundary(polys[ok]))
             search = ~(low >= enough + tol)
             out[ok[~search]] = low[~search]
-        out[ok[search]] = shapely.length(shapely.maximum_inscribed_circle(polys[ok[search]], tol[search]))
+        # GEOS's search runs without the GIL: spread over threads (the same circles)
+        circles = threaded(shapely.maximum_inscribed_circle, polys[ok[search]], tol[search])
+        out[ok[search]] = shapely.length(circles)
     return out
 
 
@@ -230,7 +241,7 @@ def _overlapping_windows(C, cand: _Candidates) -> np.ndarray:
     if len(wsel):
         one = np.ones(len(wsel), np.int64)
         win, wa, _, _ = C.chains(cp[wsel], ja[wsel], ja[wsel] + 3 * w[wsel], one, lazy=True)
-        bad_win[wsel] = ~_clean(win, wa)
+        bad_win[wsel] = ~_clean(win, wa, star=False)
     cstart = np.cumsum(nseg) - nseg
     overlapping = np.zeros(len(cp), bool)
     for k in range(3):

@@ -76,6 +76,7 @@ from sengine.geom.boundary import (
     segments_on_lines,
     street_edges,
 )
+from sengine.geom.grid import box_pairs
 from sengine.geom.polygons import inset
 from sengine.geom.split import RingSet
 
@@ -306,12 +307,15 @@ def _cast(p, nrm, ray_part, reach, seg0, seg1, seg_part, seg_key, tmin=1e-6):
     if R == 0 or len(seg0) == 0:
         return best, key, seg, par
     q = p + reach[:, None] * nrm
-    lo, hi = np.minimum(seg0, seg1), np.maximum(seg0, seg1)
-    tree = shapely.STRtree(shapely.box(lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]))
-    rlo, rhi = np.minimum(p, q), np.maximum(p, q)
-    ri, si = tree.query(shapely.box(rlo[:, 0], rlo[:, 1], rhi[:, 0], rhi[:, 1]))
-    same = seg_part[si] == ray_part[ri]
-    ri, si = ri[same], si[same]
+    # rays and segments of one part whose boxes meet (numpy, on a grid: no GEOS boxes or tree)
+    ri, si = box_pairs(
+        np.minimum(p, q),
+        np.maximum(p, q),
+        np.minimum(seg0, seg1),
+        np.maximum(seg0, seg1),
+        group_a=ray_part,
+        group_b=seg_part,
+    )
     a, b = seg0[si], seg1[si]
     ab = b - a
     n = nrm[ri]
