@@ -36,6 +36,7 @@ import numpy as np
 import shapely
 
 from .segments import argsort_int
+from .sorting import unique_int
 
 __all__ = [
     "trace_faces",
@@ -574,13 +575,7 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     a = np.minimum(u0, v0)
     b = np.maximum(u0, v0)
     key = a[~loop] * n + b[~loop]
-    # np.unique(key, return_inverse=True), by a stable sort: edges come mostly in order, which it sorts fast
-    o = np.argsort(key, kind="stable")
-    sk = key[o]
-    new = np.r_[True, sk[1:] != sk[:-1]] if len(sk) else np.zeros(0, bool)
-    uniq = sk[new]
-    inv = np.empty(len(key), np.int64)
-    inv[o] = np.cumsum(new) - 1
+    uniq, inv = unique_int(key, return_inverse=True)
     emap = np.full(m0, -1, np.int64)
     emap[~loop] = inv.ravel()
     flip = u0 > v0
