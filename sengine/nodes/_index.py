@@ -12,6 +12,7 @@ of the library.
 INDEX: dict[str, dict[str, list[str]]] = {
     "node": {
         "blocks.circuits": ["sengine.nodes.blocks.circuits"],
+        "blocks.grain": ["sengine.nodes.blocks.grain"],
         "blocks.landuse": ["sengine.nodes.blocks.landuse"],
         "buildings.check": ["sengine.nodes.buildings.regulation"],
         "buildings.context": ["sengine.nodes.buildings.context"],

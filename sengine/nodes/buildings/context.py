@@ -73,10 +73,11 @@ import numpy as np
 import shapely
 
 from sengine import Layer, NodeResult, Param, Port, SENode, register
-from sengine.errors import ParameterError
+from sengine.errors import InputDataError, ParameterError
 from sengine.geom.grain import street_density
 from sengine.random import uniform
 
+from ..blocks.grain import FABRICS, NO_FRONTAGE, fabric_of
 from .typology import TYPOLOGIES, parse_choices
 
 __all__ = ["neighbour_floors", "open_land", "BuildingsContext"]
@@ -85,8 +86,6 @@ log = logging.getLogger(__name__)
 
 #: ``height_source`` values of map buildings whose storeys the map states (not the reader's default).
 TAGGED = ("height", "levels")
-#: Road classes no building fronts: left out of the street grain.
-NO_FRONTAGE = ("motorway", "motorway_link", "trunk", "trunk_link")
 #: Road classes of streets people live on (OSM: ``highway=residential`` is "used for accessing
 #: residential areas and in residential areas", ``unclassified`` and above link settlements [3]_).
 LIVED_ON = ("residential", "living_street", "pedestrian")
@@ -262,21 +261,36 @@ class BuildingsContext(SENode):
         typology[low] = p.low_rise_typology
         columns = {}
         rural = town = house = fields = np.zeros(n, bool)
-        if roads is not None and n:
-            kind = np.asarray(roads.get("class", np.full(len(roads), "")), dtype=str)
-            grain = street_density(roads.geometry[~np.isin(kind, NO_FRONTAGE)], sites, p.grain_radius)
-            rural = ~fitted & (grain < p.rural_grain)
-            town = ~fitted & ~rural & (grain < p.urban_grain)
-            # from the village to the town centre detached houses give way to rows: a town lot is a
-            # house with the chance its grain is short of urban_grain (all at rural_grain, none at urban)
-            span = max(p.urban_grain - p.rural_grain, 1e-9)
-            u = uniform(self.context.seed, f"{self.id}/town-house", lots.ids)
-            house = town & (u < (p.urban_grain - grain) / span)
-            rows = town & ~house
+        fabric = np.asarray(lots["fabric"], str) if "fabric" in lots and n else None
+        kind = np.asarray(roads.get("class", np.full(len(roads), "")), dtype=str) if roads is not None else None
+        if fabric is not None or (roads is not None and n):
+            if fabric is not None:  # the block's fabric (blocks.grain) decided its lots' size: follow it
+                grain = np.asarray(lots["grain"], np.float64)
+                names, code = np.unique(fabric, return_inverse=True)
+                unknown = sorted(set(names.tolist()) - set(FABRICS))
+                if unknown:
+                    raise InputDataError(
+                        f"lots carry fabric {unknown[0]!r}, not one of {', '.join(FABRICS)}", where=self.where
+                    )
+                code = np.array([FABRICS.index(f) for f in names], np.int64)[code.reshape(-1)]
+            else:
+                grain = street_density(roads.geometry[~np.isin(kind, NO_FRONTAGE)], sites, p.grain_radius)
+                # from the village to the town centre detached houses give way to rows: a town lot is a
+                # house with the chance its grain is short of urban_grain (all at rural_grain, none at urban)
+                u = uniform(self.context.seed, f"{self.id}/town-house", lots.ids)
+                code = fabric_of(grain, u, p.rural_grain, p.urban_grain)
+            rural = ~fitted & (code == FABRICS.index("rural"))
+            house = ~fitted & (code == FABRICS.index("houses"))
+            rows = ~fitted & (code == FABRICS.index("rows"))
+            town = house | rows
             floors[rural | house], floors[rows] = p.rural_floors, p.town_floors
             typology[(rural | house) & untyped] = p.rural_typology
             typology[rows & untyped] = p.low_rise_typology
-            lived_on = np.isin(kind, LIVED_ON)
+            # houses stand apart: a plot too narrow for one stays a garden rather than take a terrace
+            siting = np.asarray(lots.get("siting", np.full(n, "", dtype=object)), dtype=object).copy()
+            siting[(rural | house) & ~siting.astype(bool)] = "detached"
+            columns["siting"] = siting
+            lived_on = np.isin(kind, LIVED_ON) if kind is not None else np.zeros(0, bool)
             # a map that names no street lived on (untagged or synthetic roads) gives no evidence of fields
             if p.village_reach > 0 and lived_on.any() and rural.any():
                 fields = rural & open_land(sites, roads.geometry[lived_on], p.village_reach)

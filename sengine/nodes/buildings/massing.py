@@ -56,6 +56,7 @@ import shapely
 
 from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import InputDataError
+from sengine.geom.polygons import obb_frame
 from sengine.geom.sorting import unique_int
 from sengine.random import uniform
 
@@ -288,11 +289,21 @@ class _Massing(SENode):
         )
         area = building_area(L.geometry, edges, fs, ss, rs)
         typ = self._typologies(r, ids)
-        # a tower stands free: its building area keeps the side setback whatever the siting
-        free = np.isin(typ, _FREE) & (ss < r["setback_side"].astype(np.float64))
+        # a tower or a house stands free: its building area keeps the side setback whatever the siting
+        side = r["setback_side"].astype(np.float64)
+        free = np.isin(typ, _FREE) & (ss < side)
         if free.any():
-            ss = np.where(free, np.maximum(ss, r["setback_side"].astype(np.float64)), ss)
-            area[free] = building_area(L.geometry[free], _sub_edges(edges, free), fs[free], ss[free], rs[free])
+            alone = building_area(L.geometry[free], _sub_edges(edges, free), fs[free], side[free], rs[free])
+            # on a plot too narrow for that (what the side setbacks leave is under half a house wide) it
+            # is a terraced or semi-detached house: a slab on the side lot lines, sharing party walls
+            rows = np.flatnonzero(free)
+            narrow = obb_frame(alone)[3] < 0.5 * p.house
+            typ[rows[narrow]] = TYPOLOGIES.index("I")
+            ss[rows[~narrow]] = side[rows[~narrow]]
+            area[rows[~narrow]] = alone[~narrow]
+            report_attached = int(narrow.sum())
+        else:
+            report_attached = 0
         site = Site(area, edges, fs, ss, rs, podium_depth=p.podium_depth, house=p.house)
         lot_area = shapely.area(L.geometry) if n else np.zeros(0)
         far = np.array([np.nan if v is None else float(v) for v in r["far"]], np.float64)
@@ -320,7 +331,7 @@ class _Massing(SENode):
             main[bad], low[bad] = parts.draw(bad, depth[bad], np.ones(len(bad)))
         build = main > 0
         floors = np.zeros(n, np.int64)
-        report = {"far_iterated": 0, "far_converged": 0, "far_capped_by_height": 0}
+        report = {"far_iterated": 0, "far_converged": 0, "far_capped_by_height": 0, "attached_narrow": report_attached}
         # level of control 1: explicit floors, else the height map; the FAR and the height class cap them
         one = build & (loc == 1)
         explicit = np.array([v is not None for v in r["floors"]], bool)

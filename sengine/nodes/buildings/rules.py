@@ -215,7 +215,7 @@ def per_lot(
         sel = mapped == i if (mapped >= 0).any() else out["use"].astype(str) == cls
         if sel.any():
             _apply(out, rule, sel, where, skip=("use",))
-    for col in ("far", "loc", "floors", "typology", "height_class"):
+    for col in ("far", "loc", "floors", "typology", "height_class", "siting"):
         if col in lots:
             vals = np.asarray(lots[col], dtype=object)
             known = np.array([v is not None and v == v and str(v) != "" for v in vals], bool)

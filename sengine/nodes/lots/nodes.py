@@ -358,6 +358,8 @@ class _Lots(SENode):
             kind=kind,
             depth=lot_depth(lots, att["front_angle"]),
             park=park,
+            # the block's fabric (blocks.grain) goes with its lots: the buildings follow it
+            **{c: blocks[c][owner] for c in INHERITED if c in blocks},
         )
         return NodeResult({"lots": lay}, report)
 
@@ -421,7 +423,8 @@ def _recursive(
         fronts=fronts,
         box=box,
     )
-    over = int(((shapely.area(lots) > max_area) & ~inner).sum())  # inner lots stay whole by design
+    largest = np.asarray(max_area, np.float64)[owner] if np.ndim(max_area) else max_area
+    over = int(((shapely.area(lots) > largest) & ~inner).sum())  # inner lots stay whole by design
     report["over_max_area"] = report.get("over_max_area", 0) + over
     return LotSplit(lots, owner, np.full(len(lots), "recursive"), inner, on, np.ones(len(lots), bool))
 
@@ -594,6 +597,21 @@ _P_SKELETON = {
 }
 
 
+#: Block columns their lots carry (blocks.grain's fabric: the massing follows it).
+INHERITED = ("grain", "fabric")
+
+
+def _max_area(blocks: Layer, sel, max_area: float, min_area: float, where) -> np.ndarray | float:
+    """The largest lot of each block ``sel``: its ``lot_area`` column (blocks.grain) where positive, else ``max_area``."""
+    if "lot_area" not in blocks:
+        return max_area
+    own = np.asarray(blocks["lot_area"], np.float64)[sel]
+    small = own[(own > 0) & (own < min_area)]
+    if len(small):
+        raise ParameterError(f"the blocks' lot_area {small.min():g} m2 is below min_area={min_area:g} m2", where=where)
+    return np.where(own > 0, own, max_area)
+
+
 def _streets_of(blocks: Layer) -> dict:
     """Which of the blocks' sides face a street: ``fronts`` (their ``street_front``) and the extract's ``box``."""
     return {"fronts": blocks.get("street_front"), "box": blocks.meta.get("bbox")}
@@ -618,7 +636,9 @@ class LotsRecursive(_Lots):
     params = dict(_P_RECURSIVE)
 
     def split(self, blocks, report):
-        return _recursive(self, blocks.geometry, blocks.ids, report, **_streets_of(blocks), **dict(self.p))
+        p = dict(self.p)
+        p["max_area"] = _max_area(blocks, slice(None), p["max_area"], p["min_area"], self.where)
+        return _recursive(self, blocks.geometry, blocks.ids, report, **_streets_of(blocks), **p)
 
 
 @register
@@ -744,7 +764,7 @@ class LotsDistrict(_Lots):
                     geoms[sel],
                     blocks.ids[sel],
                     report,
-                    max_area=v["max_area"],
+                    max_area=_max_area(blocks, sel, v["max_area"], v["min_area"], where),
                     min_area=v["min_area"],
                     min_frontage=v["min_frontage"],
                     row_depth=v["row_depth"],

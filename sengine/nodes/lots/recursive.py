@@ -564,8 +564,8 @@ def check_recursive(blocks, *, max_area, min_area, min_frontage, where=None, rep
     ndarray of bool
         The blocks below ``min_frontage``.
     """
-    if min_area > max_area:
-        raise ParameterError(f"min_area={min_area:g} m2 is above max_area={max_area:g} m2", where=where)
+    if min_area > np.min(max_area, initial=np.inf):
+        raise ParameterError(f"min_area={min_area:g} m2 is above max_area={np.min(max_area):g} m2", where=where)
     blocks = np.asarray(blocks, dtype=object)
     area = shapely.area(blocks)
     live = ~shapely.is_empty(blocks) & (area > 0)

@@ -1,0 +1,183 @@
+"""blocks.grain: each block's fabric (rural, houses, rows, urban) from the street grain, and lots and buildings that follow it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import shapely
+from conftest import ROOT
+from test_context import _street_grid
+from test_massing import row_block
+
+import sengine
+from sengine import Context, Layer
+from sengine.errors import InputDataError, ParameterError
+from sengine.nodes.blocks.grain import FABRICS, fabric_of
+from sengine.nodes.buildings.walls import party_walls
+from sengine.random import uniform
+from sengine.registry import get
+
+Grain = get("blocks.grain")
+Context_ = get("buildings.context")
+Recursive = get("lots.recursive")
+Massing = get("buildings.massing")
+
+
+def test_fabric_bands_and_the_house_chance_worked_by_hand():
+    # rural under 8, urban from 14; between, houses where u < (14 - grain) / 6
+    grain = np.array([0.0, 7.99, 8.0, 10.0, 10.0, 13.0, 13.0, 14.0, 30.0])
+    u = np.array([0.99, 0.99, 0.99, 0.66, 0.67, 0.16, 0.17, 0.0, 0.0])
+    names = np.asarray(FABRICS)[fabric_of(grain, u, 8.0, 14.0)]
+    assert names.tolist() == ["rural", "rural", "houses", "houses", "rows", "houses", "rows", "urban", "urban"]
+    # equal limits: no town band at all
+    assert fabric_of(np.array([7.0, 8.0]), np.zeros(2), 8.0, 8.0).tolist() == [0, 3]
+
+
+def _grid_roads():
+    dense, k1 = _street_grid(0.0, 0.0, 3000.0, 100.0)  # 20 km/km2
+    loose, k2 = _street_grid(10_000.0, 0.0, 3000.0, 200.0)  # 10 km/km2
+    road = [shapely.LineString([(20_000.0, 0.0), (20_000.0, 3000.0)])]  # a country road
+    return Layer.from_geoms(dense + loose + road, **{"class": np.concatenate([k1, k2, ["unclassified"]])})
+
+
+def test_blocks_get_their_fabric_grain_and_lot_area_from_the_streets_round_them():
+    xs = [1510.0] + [11_510.0 + 200.0 * k for k in range(6)] + [20_010.0]
+    blocks = Layer.from_geoms([shapely.box(x, 1510, x + 80, 1590) for x in xs], ids=np.arange(10, 10 + len(xs)))
+    out = Grain("grain", {}, Context(seed=3)).run(blocks=blocks, roads=_grid_roads())
+    b = out["blocks"]
+    grain = np.asarray(b["grain"])
+    assert abs(grain[0] - 20.0) <= 2.0 and (np.abs(grain[1:7] - 10.0) <= 2.0).all() and grain[7] < 8.0
+    u = uniform(3, "grain/houses", blocks.ids)
+    town = np.where(u[1:7] < (14.0 - grain[1:7]) / 6.0, "houses", "rows")
+    assert b["fabric"].tolist() == ["urban", *town, "rural"]
+    want = {"rural": 1200.0, "houses": 800.0, "rows": 250.0, "urban": 0.0}
+    assert np.asarray(b["lot_area"]).tolist() == [want[f] for f in b["fabric"]]
+    assert out.report == {f"blocks_{f}": int((np.asarray(b["fabric"]) == f).sum()) for f in FABRICS}
+    # per block, not per batch: each block alone gets the same fabric
+    for i in range(len(blocks)):
+        one = Grain("grain", {}, Context(seed=3)).run(blocks=blocks.take([i]), roads=_grid_roads())["blocks"]
+        assert one["fabric"][0] == b["fabric"][i] and one["grain"][0] == grain[i]
+
+
+def test_a_rural_grain_above_the_urban_one_is_refused_in_one_line():
+    with pytest.raises(ParameterError, match="rural_grain") as err:
+        Grain("grain", {"rural_grain": "20", "urban_grain": "10"}, Context(seed=1))
+    assert "grain" in str(err.value) and "\n" not in str(err.value)
+
+
+def _sized_blocks(lot_area, fabric):
+    n = len(lot_area)
+    return Layer.from_geoms(
+        [shapely.box(200.0 * i, 0.0, 200.0 * i + 120.0, 60.0) for i in range(n)],
+        ids=np.arange(n),
+        lot_area=np.asarray(lot_area, np.float64),
+        fabric=np.asarray(fabric),
+        grain=np.linspace(5.0, 20.0, n),
+    )
+
+
+def test_recursive_lots_take_each_blocks_lot_area_and_carry_its_fabric():
+    blocks = _sized_blocks([250.0, 1200.0, 0.0], ["rows", "rural", "urban"])
+    out = Recursive("lots", {"max_area": "800"}, Context(seed=1)).run(blocks=blocks)
+    lots, report = out["lots"], out.report
+    area = shapely.area(lots.geometry)
+    block = np.asarray(lots["block"])
+    largest = np.array([250.0, 1200.0, 800.0])[block]
+    inner = np.asarray(lots["inner"], bool)
+    assert int(((area > largest) & ~inner).sum()) == report["over_max_area"]
+    # a lot over its block's size is one that no cut could halve without a part thinner than 1:6
+    # (a 30 m deep row lot 9.5 m wide): a little over, never twice
+    assert (area[~inner] <= 1.2 * largest[~inner]).all() and report["over_max_area"] == report["recursive_stuck"]
+    med = [np.median(area[(block == k) & ~inner]) for k in range(3)]
+    assert med[0] < 250.0 < med[2] < 800.0 < med[1]  # rows < urban (the node's 800) < rural
+    # the lots partition their blocks, and carry their block's fabric and grain
+    for k in range(3):
+        assert shapely.area(shapely.union_all(lots.geometry[block == k])) == pytest.approx(7200.0, rel=1e-9)
+    assert np.asarray(lots["fabric"]).tolist() == np.asarray(blocks["fabric"])[block].tolist()
+    np.testing.assert_array_equal(np.asarray(lots["grain"]), np.asarray(blocks["grain"])[block])
+
+
+def test_a_lot_area_below_the_lot_nodes_min_area_is_refused_in_one_line():
+    blocks = _sized_blocks([20.0, 800.0], ["rows", "rural"])
+    with pytest.raises(ParameterError, match="lot_area 20 m2 is below min_area=50") as err:
+        Recursive("lots", {}, Context(seed=1)).run(blocks=blocks)
+    assert "lots" in str(err.value) and "\n" not in str(err.value)
+
+
+def _fabric_lots(fabric):
+    n = len(fabric)
+    return Layer.from_geoms(
+        [shapely.box(20.0 * i, 0, 20.0 * i + 15, 30) for i in range(n)],
+        ids=np.arange(n),
+        fabric=np.asarray(fabric),
+        grain=np.full(n, 10.0),
+    )
+
+
+def test_the_context_builds_what_the_blocks_fabric_says():
+    lots = _fabric_lots(["rural", "houses", "rows", "urban"])
+    out = Context_("context", {}, Context(seed=1)).run(lots=lots)
+    got = out["lots"]
+    assert np.asarray(got["floors"])[:3].tolist() == [2.0, 2.0, 2.0] and np.isnan(got["floors"][3])
+    assert got["typology"].tolist() == ["house", "house", "I:3,L", ""]
+    assert got["siting"].tolist() == ["detached", "detached", "", ""]  # houses stand apart
+    assert out.report["rural_lots"] == 1 and out.report["town_lots"] == 2 and out.report["town_houses"] == 1
+    with pytest.raises(InputDataError, match="fabric 'suburb'") as err:
+        Context_("context", {}, Context(seed=1)).run(lots=_fabric_lots(["rural", "suburb"]))
+    assert "\n" not in str(err.value)
+
+
+def test_a_house_on_a_plot_too_narrow_to_stand_free_is_a_terrace_with_party_walls():
+    lots, blocks = row_block(7.0, depth=30.0, count=8, rows=2, angle=17.0)  # two rows back to back
+    node = Massing("buildings", {"typology": "house", "siting": "attached", "floors": "2"}, Context(seed=1))
+    out = node.run(lots=lots, blocks=blocks)
+    b = out["buildings"]
+    # 7 m minus 4 m side setbacks leaves under half a house: each stands on its side lot lines instead,
+    # the end-of-terrace houses on the corners too
+    assert len(b) == 16 and out.report["attached_narrow"] == 16
+    assert set(b["typology"]) == {"I"} and set(b["siting"]) == {"attached"}
+    walls = party_walls(b.geometry)
+    end = np.isin(np.asarray(b["lot"]) % 8, (0, 7))
+    np.testing.assert_allclose(walls[~end], 2 * 14.0, rtol=1e-6)  # both 14 m side walls shared
+    # the corner houses run along the side street too: they meet the row behind, back to back
+    np.testing.assert_allclose(walls[end], 14.0 + 7.0, rtol=1e-6)
+    # a lot wide enough keeps the detached house and its side setbacks
+    wide, wide_blocks = row_block(20.0, depth=30.0, count=3, rows=2)
+    out = node.run(lots=wide, blocks=wide_blocks)
+    assert out.report["attached_narrow"] == 0 and set(out["buildings"]["typology"]) == {"house"}
+    assert len(out["buildings"]) == 6 and (party_walls(out["buildings"].geometry) == 0).all()
+
+
+def test_a_detached_house_on_a_narrow_plot_leaves_a_garden():
+    lots, blocks = row_block(7.0, depth=30.0, count=3, rows=1)
+    node = Massing("buildings", {"typology": "house", "floors": "2"}, Context(seed=1))
+    out = node.run(lots=lots.with_columns(siting=np.full(3, "detached", dtype=object)), blocks=blocks)
+    assert len(out["buildings"]) == 0 and out.report["attached_narrow"] == 0
+
+
+@pytest.mark.slow
+def test_on_monaco_rows_are_narrow_terraces_and_houses_wide_detached_plots():
+    """Monaco's streets read as a town (grain bands 0-40): row lots 5-11 m wide with party walls, house lots wider."""
+    net = sengine.load(
+        ROOT / "configs" / "monaco.xml",
+        sets=["grain.rural_grain=0", "grain.urban_grain=40", "context.min_neighbours=200"],
+    )
+    result = net.run(seed=1)
+    lots = result.layers["fields"]["lots"]
+    fabric = np.asarray(lots["fabric"]).astype(str)
+    street = (np.asarray(lots["frontage"]) > 0) & ~np.asarray(lots["inner"], bool)
+    rows, houses = street & (fabric == "rows"), street & (fabric == "houses")
+    assert rows.sum() > 300 and houses.sum() > 100
+    front = np.asarray(lots["frontage"])
+    assert 5.0 <= np.median(front[rows]) <= 11.0 < np.median(front[houses])
+    gen = result.layers["generated"]["buildings"]
+    of = dict(zip(lots.ids.tolist(), fabric))
+    bf = np.array([of[int(k)] for k in gen["lot"]])
+    walls = party_walls(gen.geometry) / shapely.length(gen.geometry)
+    assert np.median(walls[bf == "rows"]) > 0.3  # terraces: both side walls shared
+    assert np.median(walls[bf == "houses"]) == 0.0  # houses stand apart
+    # the report counts what the layers hold
+    report = result.stats["report"]
+    assert report["grain"]["blocks_rows"] == int(
+        (np.asarray(result.layers["grain"]["blocks"]["fabric"]) == "rows").sum()
+    )
