@@ -290,6 +290,18 @@ def on_grain():
     return {"lots": lots(), "roads": roads()}
 
 
+def on_grain_blocks():
+    return {"blocks": blocks(), "roads": roads()}
+
+
+def _block_grain_sum(out):
+    return float(np.sum(out["blocks"]["grain"]))
+
+
+def _lot_area_sum(out):
+    return float(np.sum(out["blocks"]["lot_area"]))
+
+
 def _fitted(out):
     return out.report["lots_fitted"]
 
@@ -426,6 +438,49 @@ CASES: list[Case] = [
     Case("buildings.context", "neighbours", 1, 40, _floors_sum, 0, on_context, base=(("min_neighbours", 1),)),
     Case("buildings.context", "low_rise", 0, 30, _low_rise, +1, on_context),
     Case("buildings.context", "low_rise_typology", "I:3,L", "I", _bars_only, +1, on_context, base=(("low_rise", 30),)),
+    Case("blocks.grain", "grain_radius", 100.0, 1000.0, _block_grain_sum, 0, on_grain_blocks),
+    Case("blocks.grain", "urban_grain", 8.0, 60.0, _report("blocks_urban"), -1, on_grain_blocks),
+    Case("blocks.grain", "rural_grain", 0.0, 14.0, _report("blocks_rural"), +1, on_grain_blocks),
+    Case(
+        "blocks.grain",
+        "rural_lot_area",
+        500.0,
+        2000.0,
+        _lot_area_sum,
+        +1,
+        on_grain_blocks,
+        base=(("rural_grain", 200.0), ("urban_grain", 200.0)),
+    ),
+    Case(
+        "blocks.grain",
+        "house_lot_area",
+        500.0,
+        2000.0,
+        _lot_area_sum,
+        +1,
+        on_grain_blocks,
+        base=(("rural_grain", 0.0), ("urban_grain", 200.0)),
+    ),
+    Case(
+        "blocks.grain",
+        "row_lot_area",
+        100.0,
+        400.0,
+        _lot_area_sum,
+        +1,
+        on_grain_blocks,
+        base=(("rural_grain", 0.0), ("urban_grain", 200.0)),
+    ),
+    Case(
+        "blocks.grain",
+        "urban_lot_area",
+        0.0,
+        400.0,
+        _lot_area_sum,
+        +1,
+        on_grain_blocks,
+        base=(("urban_grain", 0.0), ("rural_grain", 0.0)),
+    ),
     Case("buildings.context", "grain_radius", 100.0, 1000.0, _grain_sum, 0, on_grain),
     Case("buildings.context", "urban_grain", 8.0, 60.0, _report("town_lots"), +1, on_grain),
     Case("buildings.context", "rural_grain", 0.0, 14.0, _report("rural_lots"), +1, on_grain),
