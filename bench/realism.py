@@ -14,6 +14,9 @@ and generated buildings are measured:
   wing depth (the diameter of the largest circle inside the footprint: a
   perimeter block's wing is as deep as that); the share of each block's land
   that generated buildings cover (median over blocks with one);
+* the generated buildings by Statbel's types of houses (:func:`house_types`:
+  detached, semi-detached, terraced, flats);
+* where the lots carry ``blocks.grain``'s ``fabric``, all of the above per fabric;
 * the ``planning`` node's city figures: FAR, coverage, GFA and residents.
 
 Real-world figures to compare with are in the README's realism section.
@@ -126,6 +129,57 @@ def building_figures(buildings, blocks) -> dict:
     return out
 
 
+def house_types(buildings) -> dict:
+    """Shares of the generated buildings as Statbel types its building stock.
+
+    ``flats``: three storeys or more (a block of flats); the others by the
+    neighbours they share a wall with (over 1 m of outline within
+    :data:`PARTY_TOL`): none ``open`` (detached), one ``semi`` (semi-detached
+    or end of terrace), two or more ``closed`` (terraced).
+    """
+    gen = np.ones(len(buildings), bool)
+    if "source" in buildings:
+        gen = np.asarray(buildings["source"]).astype(str) != "osm"
+    geoms = buildings.geometry[gen]
+    n = len(geoms)
+    if n == 0:
+        return {}
+    a, b = shapely.STRtree(geoms).query(geoms, predicate="dwithin", distance=PARTY_TOL)
+    keep = a != b
+    a, b = a[keep], b[keep]
+    shared = shapely.length(shapely.intersection(shapely.boundary(geoms[a]), shapely.buffer(geoms[b], PARTY_TOL)))
+    neighbours = np.bincount(a[shared > 1.0], minlength=n)
+    flats = np.asarray(buildings["floors"])[gen] >= 3
+    kinds = {
+        "open": ~flats & (neighbours == 0),
+        "semi": ~flats & (neighbours == 1),
+        "closed": ~flats & (neighbours >= 2),
+        "flats": flats,
+    }
+    return {k: round(float(v.mean()), 4) for k, v in kinds.items()}
+
+
+def by_fabric(lots, buildings, blocks) -> dict:
+    """:func:`lot_figures`, :func:`building_figures` and :func:`house_types` per fabric (``blocks.grain``)."""
+    if "fabric" not in lots:
+        return {}
+    fabric = np.asarray(lots["fabric"]).astype(str)
+    of = dict(zip(np.asarray(lots.ids).tolist(), fabric.tolist()))
+    bf = np.array([of.get(int(k), "") for k in np.asarray(buildings["lot"])]) if len(buildings) else np.zeros(0, str)
+    out = {}
+    for f in np.unique(fabric):
+        b = buildings.take(np.flatnonzero(bf == f))
+        gfa = float(np.sum(b["gfa"])) if "gfa" in b and len(b) else 0.0
+        out[str(f)] = {
+            "lots": lot_figures(lots.take(np.flatnonzero(fabric == f))),
+            "buildings": building_figures(b, blocks),
+            "types": house_types(b),
+            "median_floors": float(np.median(b["floors"])) if len(b) else 0.0,
+            "gfa_per_building_m2": round(gfa / max(len(b), 1), 1),
+        }
+    return out
+
+
 def measure(case: str, sets: list[str]) -> dict:
     net = CASES[case](sets)
     t = time.perf_counter()
@@ -139,6 +193,8 @@ def measure(case: str, sets: list[str]) -> dict:
         "seconds": round(seconds, 3),
         "lots": lot_figures(lots),
         "buildings": building_figures(buildings, blocks),
+        "types": house_types(buildings),
+        "by_fabric": by_fabric(lots, buildings, blocks),
         "planning": city,
     }
 

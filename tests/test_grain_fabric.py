@@ -148,6 +148,17 @@ def test_a_house_on_a_plot_too_narrow_to_stand_free_is_a_terrace_with_party_wall
     assert len(out["buildings"]) == 6 and (party_walls(out["buildings"].geometry) == 0).all()
 
 
+def test_a_terrace_shares_its_roof_kind_and_lots_elsewhere_draw_their_own():
+    lots, blocks = row_block(7.0, depth=30.0, count=12, rows=2)
+    node = Massing("buildings", {"typology": "I", "use": "residential", "floors": "2"}, Context(seed=1))
+    alone = node.run(lots=lots, blocks=blocks)["buildings"]
+    assert len(set(alone["roof"])) > 1  # 24 draws from gable, hip, parapet and flat
+    terrace = node.run(lots=lots.with_columns(fabric=np.full(len(lots), "rows")), blocks=blocks)["buildings"]
+    assert len(terrace) == len(alone) and len(set(terrace["roof"])) == 1
+    # only the roofs differ: the same footprints
+    np.testing.assert_array_equal(terrace.geometry, alone.geometry)
+
+
 def test_a_detached_house_on_a_narrow_plot_leaves_a_garden():
     lots, blocks = row_block(7.0, depth=30.0, count=3, rows=1)
     node = Massing("buildings", {"typology": "house", "floors": "2"}, Context(seed=1))
@@ -176,6 +187,11 @@ def test_on_monaco_rows_are_narrow_terraces_and_houses_wide_detached_plots():
     walls = party_walls(gen.geometry) / shapely.length(gen.geometry)
     assert np.median(walls[bf == "rows"]) > 0.3  # terraces: both side walls shared
     assert np.median(walls[bf == "houses"]) == 0.0  # houses stand apart
+    # each block's terraces have one roof kind
+    block = np.asarray(lots["block"])[lots.rows_of(gen["lot"])]
+    attached = (bf == "rows") & (np.asarray(gen["siting"]) == "attached")
+    kinds = {b: set(np.asarray(gen["roof"])[attached & (block == b)]) for b in np.unique(block[attached])}
+    assert len(kinds) > 5 and all(len(k) == 1 for k in kinds.values())
     # the report counts what the layers hold
     report = result.stats["report"]
     assert report["grain"]["blocks_rows"] == int(

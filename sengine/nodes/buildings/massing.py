@@ -400,7 +400,12 @@ class _Massing(SENode):
         f = np.where(role == MAIN, floors[row], np.minimum(p.podium_floors, floors[row]))
         f = np.maximum(f, 1)
         typology = np.array(TYPOLOGIES, dtype=object)[typ[row]] if m else np.empty(0, object)
-        roof = self._roofs(use[row], typology, role, lot_ids * PARTS + rank, r["roof"][row])
+        # a terrace is built as one: the attached houses of a block of rows (blocks.grain) share their roof kind
+        terrace = np.zeros(m, bool)
+        if m and "fabric" in L and "block" in L:
+            terrace = (np.asarray(L["fabric"]).astype(str)[row] == "rows") & (siting[row] == "attached")
+        block = np.asarray(L["block"], np.int64)[row] if terrace.any() else None
+        roof = self._roofs(use[row], typology, role, lot_ids * PARTS + rank, r["roof"][row], terrace, block)
         roof_h = roof_heights(roof, g, fh) if m else np.zeros(0)
         area = shapely.area(g) if m else np.zeros(0)
         gfa = area * f
@@ -434,8 +439,11 @@ class _Massing(SENode):
             dict(L.meta),
         )
 
-    def _roofs(self, use, typology, role, ids, rule_roof) -> np.ndarray:
+    def _roofs(self, use, typology, role, ids, rule_roof, terrace=None, block=None) -> np.ndarray:
         out = roof_kinds(use, typology, role, self.context.seed, f"{self.id}/roof", ids)
+        if terrace is not None and terrace.any():  # one draw per block for its terraces
+            t = np.flatnonzero(terrace)
+            out[t] = roof_kinds(use[t], typology[t], role[t], self.context.seed, f"{self.id}/terrace-roof", block[t])
         texts = np.asarray(rule_roof).astype(str)
         given = ~np.isin(texts, ("auto", "None", "")) & (np.asarray(role) == MAIN)
         if given.any():
