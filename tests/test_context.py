@@ -200,6 +200,12 @@ def test_a_village_from_its_streets_alone_gets_detached_houses():
         ROOT / "configs" / "helsinki.xml", maps=[f"osm={ROOT / 'configs' / 'data' / 'kirchberg_iller.osm'}"]
     )
     net.set_param("context", "min_neighbours", 200)  # no lot has that many map buildings near
+    # semi-detached pairs (the default) touch their partner only
+    paired = net.run(seed=1).layers["generated"]["buildings"]
+    houses = paired.geometry[np.asarray(paired["typology"]).astype(str) == "house"]
+    a, b = shapely.STRtree(houses).query(houses, predicate="dwithin", distance=1.0)
+    assert (np.bincount(a[a != b], minlength=len(houses)) <= 1).all()
+    net.set_param("generated", "semi_detached", 0.0)
     result = net.run(seed=1)
     lots = result.layers["context"]["lots"]
     assert (np.asarray(lots["grain"]) < 8.0).all()

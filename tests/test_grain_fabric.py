@@ -13,6 +13,8 @@ import sengine
 from sengine import Context, Layer
 from sengine.errors import InputDataError, ParameterError
 from sengine.nodes.blocks.grain import FABRICS, fabric_of
+from sengine.nodes.buildings.edges import lot_edges
+from sengine.nodes.buildings.pairs import semi_pairs, side_neighbours
 from sengine.nodes.buildings.walls import party_walls
 from sengine.random import uniform
 from sengine.registry import get
@@ -197,3 +199,70 @@ def test_on_monaco_rows_are_narrow_terraces_and_houses_wide_detached_plots():
     assert report["grain"]["blocks_rows"] == int(
         (np.asarray(result.layers["grain"]["blocks"]["fabric"]) == "rows").sum()
     )
+
+
+# -- semi-detached pairs ----------------------------------------------------------------
+
+
+def test_semi_pairs_pair_a_chain_from_its_first_lot_and_never_a_ring():
+    # a street of 7 plots (0..6, left to right), plot 7 alone, plots 8-10 a ring round a small block
+    left = np.array([-1, 0, 1, 2, 3, 4, 5, -1, 10, 8, 9])
+    right = np.array([1, 2, 3, 4, 5, 6, -1, -1, 9, 10, 8])
+    yes = np.ones(11, bool)
+    got = semi_pairs(left, right, yes, np.zeros(11), 1.0)
+    assert got.tolist() == ["right", "left", "right", "left", "right", "left", "", "", "", "", ""]
+    assert (semi_pairs(left, right, yes, np.zeros(11), 0.0) == "").all()
+    # the draw is read at the left plot of each pair
+    u = np.array([0.9, 0.0, 0.1, 0.0, 0.9, 0.0, 0.0, 0, 0, 0, 0])
+    assert semi_pairs(left, right, yes, u, 0.5).tolist()[:7] == ["", "", "right", "left", "", "", ""]
+    # a plot that may not hold a pair breaks the chain: 3 out, so 4 starts a new one
+    no3 = yes.copy()
+    no3[3] = False
+    assert semi_pairs(left, right, no3, np.zeros(11), 1.0).tolist()[:7] == [
+        "right",
+        "left",
+        "",
+        "",
+        "right",
+        "left",
+        "",
+    ]
+    # neighbours that do not see each other are no pair
+    bad = left.copy()
+    bad[1] = -1
+    assert semi_pairs(bad, right, yes, np.zeros(11), 1.0).tolist()[:3] == ["", "right", "left"]
+
+
+@pytest.mark.parametrize("angle", [0.0, 33.0, -121.0])
+def test_side_neighbours_of_two_rows_seen_from_their_streets(angle):
+    lots, blocks = row_block(16.0, depth=35.0, count=5, rows=2, angle=angle)  # lots 0-4 face y = 0, 5-9 y = 70
+    edges = lot_edges(lots.geometry, blocks=blocks.geometry, owner=np.zeros(len(lots), np.int64))
+    left, right = side_neighbours(lots.geometry, edges)
+    # the front row is seen from the south: its left is west; the back row is seen from the north
+    assert left[1:4].tolist() == [0, 1, 2] and right[1:4].tolist() == [2, 3, 4]
+    assert left[6:9].tolist() == [7, 8, 9] and right[6:9].tolist() == [5, 6, 7]
+
+
+def test_semi_detached_houses_share_one_wall_and_keep_the_other_setback():
+    lots, blocks = row_block(16.0, depth=35.0, count=8, rows=2, angle=20.0)
+    params = {"typology": "house", "siting": "detached", "floors": "2", "semi_detached": "1"}
+    out = Massing("buildings", params, Context(seed=1)).run(lots=lots, blocks=blocks)
+    b = out["buildings"]
+    walls = party_walls(b.geometry)
+    corner = np.isin(np.asarray(b["lot"]) % 8, (0, 7))
+    # the corner houses face two streets and stand alone; the six between pair off, one 14 m wall each
+    assert out.report["semi_detached"] == 12 and (walls[corner] == 0).all()
+    np.testing.assert_allclose(walls[~corner], 14.0, rtol=1e-6)
+    # each is at most a house (10 m) wide and keeps 4 m from its other side line
+    np.testing.assert_allclose(shapely.area(b.geometry[~corner]), 10.0 * 14.0, rtol=1e-6)
+    sides = [shapely.boundary(lots.geometry[k]) for k in np.asarray(b["lot"])[~corner]]
+    gap = shapely.distance(b.geometry[~corner], np.asarray(sides, dtype=object))
+    assert (gap < 1e-6).all()  # on one side line (its partner's) ...
+    # ... and none stands nearer than 4 m to a lot that is not its partner
+    g = b.geometry
+    i, j = shapely.STRtree(g).query(g, predicate="dwithin", distance=3.99)
+    pair_ids = set(map(tuple, np.sort(np.c_[i[i != j], j[i != j]], axis=1).tolist()))
+    assert all(abs(int(b["lot"][x]) - int(b["lot"][y])) == 1 for x, y in pair_ids)
+    assert len(pair_ids) == 6
+    none = Massing("buildings", {**params, "semi_detached": "0"}, Context(seed=1)).run(lots=lots, blocks=blocks)
+    assert none.report["semi_detached"] == 0 and (party_walls(none["buildings"].geometry) == 0).all()

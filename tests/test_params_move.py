@@ -333,6 +333,12 @@ def on_stats():
     return {"lots": lots(), "buildings": buildings(), "blocks": blocks()}
 
 
+def _party_walls(out):
+    from sengine.nodes.buildings.walls import party_walls
+
+    return float(np.sum(party_walls(out["buildings"].geometry)))
+
+
 B = "buildings"
 MASSING = []
 for _node, _extra in (("buildings.massing", ()), ("buildings.far", (("loc", 1), ("far", 0.0)))):
@@ -348,6 +354,16 @@ for _node, _extra in (("buildings.massing", ()), ("buildings.far", (("loc", 1), 
         Case(_node, "depth", 8.0, 20.0, area(B), +1, on_lots, _extra + (("typology", "I"),)),
         Case(_node, "tower", 12.0, 24.0, area(B), +1, on_lots, _extra + (("typology", "tower"),)),
         Case(_node, "house", 6.0, 14.0, area(B), +1, on_lots, _extra + (("typology", "house"),)),
+        Case(
+            _node,
+            "semi_detached",
+            0.0,
+            1.0,
+            _party_walls,
+            +1,
+            on_lots,
+            _extra + (("typology", "house"), ("siting", "detached")),
+        ),
         Case(_node, "podium_floors", 1, 4, podium("height"), +1, on_lots, _extra + (("typology", "towers"),)),
         Case(_node, "podium_depth", 8.0, 24.0, podium("area"), +1, on_lots, _extra + (("typology", "towers"),)),
         Case(_node, "floors", 3, 6, mean(B, "height"), +1, on_lots, _extra),

@@ -64,8 +64,9 @@ from ..maps import image_of, rules_of
 from .edges import lot_edges
 from .extrude import HEIGHT_PARAMS, mapped_heights
 from .far import TOLERANCE, depth_for, far_to_building
+from .pairs import semi_pairs, side_neighbours
 from .rules import class_bounds, per_lot
-from .siting import building_area
+from .siting import band, building_area, side_lines
 from .typology import (
     BY_USE,
     LOW,
@@ -157,6 +158,15 @@ class _Massing(SENode):
             "tower": Param("float", 24.0, min=6.0, max=200.0, unit="m", doc="side of a tower's square (loc 1)"),
             "house": Param(
                 "float", 10.0, min=4.0, max=100.0, unit="m", doc="greatest width of a detached house along the street"
+            ),
+            "semi_detached": Param(
+                "float",
+                0.7,
+                min=0.0,
+                max=1.0,
+                unit="1",
+                doc="chance two neighbouring detached houses are built as a semi-detached pair (Wallonia 2018: "
+                "28 % of buildings semi-detached, 38 % detached)",
             ),
             "podium_floors": Param("int", 2, min=1, max=20, unit="1", doc="floors of podiums and linking corridors"),
             "podium_depth": Param("float", 20.0, min=4.0, max=200.0, unit="m", doc="depth of podiums from the street"),
@@ -304,6 +314,20 @@ class _Massing(SENode):
             report_attached = int(narrow.sum())
         else:
             report_attached = 0
+        # semi-detached: neighbouring houses paired off, each standing on the line it shares with its partner
+        party = np.full(n, "", dtype="<U5")
+        cand = (typ == TYPOLOGIES.index("house")) & (ss >= side) & ~edges.corner  # a corner house faces two streets
+        if p.semi_detached > 0 and cand.sum() > 1:
+            left, right = side_neighbours(L.geometry, edges)
+            u = uniform(self.context.seed, f"{self.id}/semi", ids)
+            party = semi_pairs(left, right, cand, u, p.semi_detached)
+            for hand in ("left", "right"):
+                on = party == hand
+                if on.any():
+                    sub = _sub_edges(edges, on)
+                    paired = building_area(L.geometry[on], sub, fs[on], side[on], rs[on], party=party[on])
+                    # the house runs from the shared line, at most a house long (not centred on the front)
+                    area[on] = band(paired, side_lines(sub, int(on.sum()), hand), p.house)
         site = Site(area, edges, fs, ss, rs, podium_depth=p.podium_depth, house=p.house)
         lot_area = shapely.area(L.geometry) if n else np.zeros(0)
         far = np.array([np.nan if v is None else float(v) for v in r["far"]], np.float64)
@@ -331,7 +355,13 @@ class _Massing(SENode):
             main[bad], low[bad] = parts.draw(bad, depth[bad], np.ones(len(bad)))
         build = main > 0
         floors = np.zeros(n, np.int64)
-        report = {"far_iterated": 0, "far_converged": 0, "far_capped_by_height": 0, "attached_narrow": report_attached}
+        report = {
+            "far_iterated": 0,
+            "far_converged": 0,
+            "far_capped_by_height": 0,
+            "attached_narrow": report_attached,
+            "semi_detached": int((party != "").sum()),
+        }
         # level of control 1: explicit floors, else the height map; the FAR and the height class cap them
         one = build & (loc == 1)
         explicit = np.array([v is not None for v in r["floors"]], bool)

@@ -272,8 +272,12 @@ def _minus(area, lines: Lines, dist, convex):
     return out
 
 
-def building_area(lots, edges: LotEdges, front, side, rear) -> np.ndarray:
+def building_area(lots, edges: LotEdges, front, side, rear, *, party=None) -> np.ndarray:
     """Each lot minus its setbacks (m, per lot or scalar): the building area (000 §5.3.2).
+
+    ``party`` (per lot ``"left"``, ``"right"`` or ``""``) names the hand
+    whose side lines take no setback: a semi-detached house stands on the
+    line it shares with its partner.
 
     Returns polygons, multipolygons (a lot narrowed to pieces) or empty
     geometries (a lot thinner than its setbacks).
@@ -282,8 +286,17 @@ def building_area(lots, edges: LotEdges, front, side, rear) -> np.ndarray:
     n = len(lots)
     area = lots.copy()
     convex = shapely.area(lots) >= (1.0 - 1e-9) * shapely.area(shapely.convex_hull(lots)) if n else np.zeros(0, bool)
-    for kind, dist in ((FRONT, front), (SIDE, side), (REAR, rear)):
-        area = _minus(area, edges.lines(kind, n), np.broadcast_to(np.asarray(dist, np.float64), (n,)), convex)
+
+    def per_lot(v):
+        return np.broadcast_to(np.asarray(v, np.float64), (n,))
+
+    for kind, dist in ((FRONT, front), (REAR, rear)):
+        area = _minus(area, edges.lines(kind, n), per_lot(dist), convex)
+    if party is None:
+        return polygonal(_minus(area, edges.lines(SIDE, n), per_lot(side), convex))
+    party = np.asarray(party)
+    for hand in ("left", "right"):
+        area = _minus(area, side_lines(edges, n, hand), np.where(party == hand, 0.0, per_lot(side)), convex)
     return polygonal(area)
 
 
@@ -308,23 +321,30 @@ def band(area, lines: Lines, depth) -> np.ndarray:
     return polygonal(out)
 
 
-def side_lines(edges: LotEdges, n: int, which: str) -> Lines:
-    """The side lines on one hand of each lot, seen from the street: ``"left"`` or ``"right"``.
+def left_hand(edges: LotEdges, n: int) -> np.ndarray:
+    """Whether each segment lies on its lot's left, seen from the street.
 
-    A side segment is on the left when its midpoint lies before the middle
-    of the lot's corners along the front axis.
+    A segment is on the left when its midpoint lies before the middle of the
+    lot's corners along the front axis.
     """
+    if not len(edges.lot):
+        return np.zeros(0, bool)
+    ax = edges.axis[edges.lot]
+    t = np.einsum("ij,ij->i", 0.5 * (edges.p0 + edges.p1), ax)
+    t0 = np.einsum("ij,ij->i", edges.p0, ax)
+    lo = np.full(n, np.inf)
+    hi = np.full(n, -np.inf)
+    np.minimum.at(lo, edges.lot, t0)
+    np.maximum.at(hi, edges.lot, t0)
+    return t < 0.5 * (lo + hi)[edges.lot]
+
+
+def side_lines(edges: LotEdges, n: int, which: str) -> Lines:
+    """The side lines on one hand of each lot, seen from the street: ``"left"`` or ``"right"`` (:func:`left_hand`)."""
     mask = edges.kind == SIDE
     if mask.any():
-        ax = edges.axis[edges.lot]
-        t = np.einsum("ij,ij->i", 0.5 * (edges.p0 + edges.p1), ax)
-        t0 = np.einsum("ij,ij->i", edges.p0, ax)
-        lo = np.full(n, np.inf)
-        hi = np.full(n, -np.inf)
-        np.minimum.at(lo, edges.lot, t0)
-        np.maximum.at(hi, edges.lot, t0)
-        centre = 0.5 * (lo + hi)[edges.lot]
-        mask &= (t < centre) if which == "left" else (t >= centre)
+        left = left_hand(edges, n)
+        mask &= left if which == "left" else ~left
     return edges.lines(SIDE, n, mask)
 
 
