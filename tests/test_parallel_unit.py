@@ -22,7 +22,8 @@ from sengine import parallel
 from sengine.errors import InputDataError
 from sengine.parallel import Background, available_cores, can_fork, in_dask_task, in_worker, kill_workers
 
-pytestmark = pytest.mark.skipif(not can_fork(), reason="forking is not safe on this system")
+# the platform test itself, not can_fork(): a wrong can_fork() must fail here, not skip every test
+pytestmark = pytest.mark.skipif(not hasattr(os, "fork") or sys.platform == "darwin", reason="forking is not safe here")
 
 
 def _in_child(fn) -> tuple[int, str]:
@@ -55,6 +56,15 @@ def test_cores_fork_and_worker_flags():
     assert in_dask_task() is ("distributed" in sys.modules and in_dask_task())
 
 
+def test_cores_without_an_affinity_call(monkeypatch):
+    """macOS and Windows have no sched_getaffinity: the cores count, or 1 when it is unknown."""
+    monkeypatch.delattr(os, "sched_getaffinity")
+    monkeypatch.setattr(os, "cpu_count", lambda: 6)
+    assert available_cores() == 6
+    monkeypatch.setattr(os, "cpu_count", lambda: None)
+    assert available_cores() == 1
+
+
 def test_worker_setup_marks_the_process_and_sets_its_signals():
     def child():
         parallel.worker_setup(os.getppid())
@@ -75,22 +85,34 @@ def test_worker_dies_with_its_parent():
     if not sys.platform.startswith("linux"):
         pytest.skip("Linux only")
     r, w = os.pipe()
-
-    def child():
-        pid = os.fork()
-        if pid == 0:  # the grandchild: a worker of the child
-            parallel.worker_setup(os.getppid())
-            os.write(w, f"{os.getpid()}\n".encode())
-            time.sleep(30)
-            os._exit(0)
-        time.sleep(0.3)
-        return pid
-
-    code, out = _in_child(child)
-    os.close(w)
-    grandchild = int(os.read(r, 100).split()[0])
+    child = os.fork()
+    if child == 0:  # the child: it starts a worker, tells its pid and ends
+        code = 0
+        try:
+            pid = os.fork()
+            if pid == 0:  # the grandchild: a worker of the child
+                parallel.worker_setup(os.getppid())
+                os.write(w, b"set\n")
+                time.sleep(30)
+                os._exit(0)
+            os.write(w, f"{pid}\n".encode())
+            time.sleep(0.3)
+        except BaseException:  # noqa: BLE001 (the parent sees no pid)
+            code = 9
+        finally:
+            os._exit(code)
+    os.close(w)  # the grandchild holds the pipe open too: read lines, not to the end
+    _, status = os.waitpid(child, 0)
+    lines = b""
+    while lines.count(b"\n") < 2:
+        chunk = os.read(r, 100)
+        if not chunk:
+            break
+        lines += chunk
     os.close(r)
-    assert code == 0 and int(out) == grandchild
+    words = lines.split()
+    assert os.waitstatus_to_exitcode(status) == 0 and len(words) == 2 and b"set" in words
+    grandchild = int(next(x for x in words if x != b"set"))
     deadline = time.monotonic() + 5
     while time.monotonic() < deadline:
         try:
