@@ -65,6 +65,15 @@ def test_cores_without_an_affinity_call(monkeypatch):
     assert available_cores() == 1
 
 
+def test_can_fork_is_false_on_macos_and_without_fork(monkeypatch):
+    with monkeypatch.context() as m:
+        m.setattr(sys, "platform", "darwin")  # macOS lists fork, but its libraries are not fork-safe
+        assert can_fork() is False
+    assert can_fork() is True
+    monkeypatch.delattr(os, "fork")  # Windows
+    assert can_fork() is False
+
+
 def test_worker_setup_marks_the_process_and_sets_its_signals():
     def child():
         parallel.worker_setup(os.getppid())
@@ -163,6 +172,10 @@ def test_kill_workers_stops_the_pool_processes_at_once():
         for p in procs:  # whatever kill_workers did: no sleeping worker is left behind
             p.kill()
         pool.shutdown(wait=True, cancel_futures=True)
+    # Python 3.14's pool kills its own workers: only that is called
+    called = []
+    kill_workers(SimpleNamespace(kill_workers=lambda: called.append("pool"), _processes={1: None}))
+    assert called == ["pool"]
     kill_workers(SimpleNamespace())  # a pool without processes: nothing to do
     kill_workers(SimpleNamespace(_processes=None))
 

@@ -133,6 +133,45 @@ def test_local_processes_run_tasks_in_set_up_workers():
     assert LocalProcesses(0).slots == 1 and LocalProcesses("3").slots == 3
 
 
+_MARK = {"value": "as imported"}
+
+
+def _mark(_):
+    return _MARK["value"], parallel.in_worker()
+
+
+def test_local_processes_fork_here_and_spawn_where_forking_is_unsafe(monkeypatch):
+    """Forked workers see this process's memory as it is now; spawned ones import the modules afresh."""
+    monkeypatch.setitem(_MARK, "value", "changed here")
+    with LocalProcesses(3) as sched:
+        assert sched._pool._max_workers == 3  # the pool has as many processes as slots
+        assert [v for _, _, v in sched.run(_mark, [0])] == [("changed here", True)]
+    monkeypatch.setattr(parallel, "can_fork", lambda: False)  # as on macOS
+    with LocalProcesses(1) as sched:
+        assert sched.inherits is False and sched._pool._max_workers == 1
+        assert [v for _, _, v in sched.run(_mark, [0])] == [("as imported", True)]
+    assert multiprocessing.active_children() == []
+
+
+def _writes(arg):
+    folder, i = arg
+    time.sleep(0.02)
+    (folder / f"{i}.txt").write_text(str(i))
+    return i
+
+
+def test_local_processes_close_cancels_the_tasks_not_started(tmp_path):
+    """A caller that stops reading (its own error) leaves the waiting tasks unrun: close cancels them."""
+    sched = LocalProcesses(1)
+    gen = sched.run(_writes, [(tmp_path, i) for i in range(30)])
+    with pytest.raises(ValueError), sched:
+        assert next(gen) == (0, True, 0)
+        raise ValueError("the caller's own error")
+    written = len(list(tmp_path.iterdir()))
+    assert 1 <= written < 30  # the tasks already handed to the worker, not all 30
+    assert multiprocessing.active_children() == []
+
+
 def test_local_processes_a_dead_worker_is_an_error():
     with LocalProcesses(1) as sched:
         outcomes = _by_index(sched.run(_dies, [0, 1]))
