@@ -246,7 +246,8 @@ def _handlers(_=None):
     return signal.getsignal(signal.SIGINT) == signal.SIG_IGN, signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
 
 
-def test_dask_local_cluster(distributed):
+def test_dask_local_cluster(distributed, monkeypatch):
+    monkeypatch.setitem(_MARK, "value", "changed here")
     with make_scheduler("dask", 3, 1) as sched:  # min(workers, tasks): one process
         assert type(sched) is DaskScheduler and (sched.name, sched.slots, sched.inherits) == ("dask", 1, True)
         assert len(sched._client.scheduler_info()["workers"]) == 1
@@ -257,12 +258,39 @@ def test_dask_local_cluster(distributed):
         assert outcomes[0][2][1] != os.getpid() and outcomes[0][2][2] is True  # a Dask task: in_worker
         assert outcomes[0][2][3:] == (True, True)  # worker_signals ran on the forked worker
         assert [v[0] for _, _, v in _by_index(sched.run(_task, [1, 2], shared={"add": 10}))] == [121, 144]
+        # the LocalCluster's settings reach its worker, forked from this process as it was when it started
+        [(_, _, seen)] = list(sched.run(_dask_view, [0]))
+        assert seen == ("changed here", True, False, "500ms", "fork")
         cluster, client = sched._cluster, sched._client
     assert sched._cluster is None and client.status == "closed" and cluster.status.name == "closed"
     with make_scheduler("dask", 2, 0) as sched:  # no task: still one process
         assert sched.slots == 1
     with DaskScheduler(0) as sched:
         assert sched.slots == 1
+
+
+def _dask_view(_):
+    import dask
+
+    return (
+        _MARK["value"],
+        parallel.in_worker(),
+        dask.config.get("distributed.worker.profile.enabled"),
+        dask.config.get("distributed.admin.tick.interval"),
+        dask.config.get("distributed.worker.multiprocessing-method"),
+    )
+
+
+def test_dask_local_cluster_spawned_where_forking_is_unsafe(distributed, monkeypatch):
+    """Without fork, the LocalCluster's workers start as Dask's configuration says (spawn): they import afresh."""
+    import dask
+
+    monkeypatch.setattr(parallel, "can_fork", lambda: False)
+    monkeypatch.setitem(_MARK, "value", "changed here")
+    with dask.config.set({"distributed.worker.multiprocessing-method": "spawn"}), DaskScheduler(1) as sched:
+        assert sched.inherits is False and sched.slots == 1
+        [(_, ok, seen)] = list(sched.run(_dask_view, [0]))
+    assert ok and seen[:2] == ("as imported", True)
 
 
 def test_dask_local_cluster_stop(distributed):
