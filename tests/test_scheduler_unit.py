@@ -8,6 +8,7 @@ process standing for a remote cluster).
 
 from __future__ import annotations
 
+import logging
 import multiprocessing
 import os
 import signal
@@ -250,7 +251,13 @@ def test_dask_local_cluster(distributed, monkeypatch):
     monkeypatch.setitem(_MARK, "value", "changed here")
     with make_scheduler("dask", 3, 1) as sched:  # min(workers, tasks): one process
         assert type(sched) is DaskScheduler and (sched.name, sched.slots, sched.inherits) == ("dask", 1, True)
-        assert len(sched._client.scheduler_info()["workers"]) == 1
+        workers = sched._client.scheduler_info()["workers"].values()
+        assert [w["nthreads"] for w in workers] == [1]  # one task at a time per process
+        # no dashboard: the scheduler's plain HTTP routes listen on the loopback only, not on every interface
+        http = sched._cluster.scheduler.http_server
+        assert {sock.getsockname()[0] for sock in http._sockets.values()} == {"127.0.0.1"}
+        # Dask's own log lines in the workers are silenced (sengine's logger is not at debug level)
+        assert [v for _, _, v in sched.run(_nanny_log_level, [0])] == [logging.CRITICAL]
         outcomes = _by_index(sched.run(_task, [2, 3, 4]))
         assert [(i, ok) for i, ok, _ in outcomes] == [(0, True), (1, False), (2, True)]
         assert isinstance(outcomes[1][2], ValueError) and str(outcomes[1][2]) == "three"
@@ -293,14 +300,18 @@ def test_dask_local_cluster_spawned_where_forking_is_unsafe(distributed, monkeyp
     assert ok and seen[:2] == ("as imported", True)
 
 
-def test_dask_local_cluster_stop(distributed):
+def _nanny_log_level(_):
+    return logging.getLogger("distributed.nanny").getEffectiveLevel()
+
+
+def test_dask_local_cluster_stop(distributed, caplog):
+    caplog.set_level(logging.DEBUG, logger="sengine.scheduler")  # sengine at debug level: Dask's lines shown
     sched = DaskScheduler(1)
+    assert [v for _, _, v in sched.run(_nanny_log_level, [0])] == [logging.DEBUG]
     cluster, client = sched._cluster, sched._client
     with pytest.raises(KeyboardInterrupt), sched:
         raise KeyboardInterrupt
     assert sched._cluster is None and cluster.status.name == "closed" and client.status == "closed"
-    import logging
-
     assert logging.root.manager.disable == logging.NOTSET  # logging is back on after the stop
 
 
