@@ -340,6 +340,9 @@ def test_dask_scheduler_at_an_address(distributed):
             assert sched._client.status == "closed" and cluster.status.name == "running"
         finally:
             _release.set()
+    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=None) as empty:
+        with DaskScheduler(3, address=empty.scheduler_address) as sched:
+            assert sched.slots == 1  # no worker yet: still one slot
     with pytest.raises(SEngineError) as err:
         DaskScheduler(1, address="inproc://nowhere/1/2")
     assert str(err.value).startswith("cannot reach the Dask scheduler at inproc://nowhere/1/2: ")
