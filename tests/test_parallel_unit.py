@@ -270,6 +270,44 @@ def test_a_worker_failure_stops_the_jobs_not_yet_taken(tmp_path):
     assert multiprocessing.active_children() == []
 
 
+def _first_waits_for(mark):
+    def run():  # job 0, here: until the worker has finished job 1 (and its future is marked done)
+        deadline = time.monotonic() + 5
+        while not mark.exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        time.sleep(0.3)
+        return 0, os.getpid()
+
+    return run
+
+
+def _second_marks(mark):
+    def run():  # job 1, taken by the worker while job 0 runs here
+        mark.write_text("")
+        return 1, os.getpid()
+
+    return run
+
+
+def _quick_here(i):
+    def run():  # slow in a worker, instant here: this process takes some of them
+        if parallel.in_worker():
+            time.sleep(0.2)
+        return i, os.getpid()
+
+    return run
+
+
+def test_this_process_goes_on_taking_jobs_after_a_worker_finished_one(tmp_path):
+    """A worker's success neither stops this process taking jobs nor makes it wait for the workers."""
+    mark = tmp_path / "job1"
+    jobs = [_first_waits_for(mark), _second_marks(mark)] + [_quick_here(i) for i in range(2, 10)]
+    out = parallel.run_jobs(jobs, 2)
+    assert [i for i, _ in out] == list(range(10))
+    assert out[0][1] == os.getpid() and mark.exists()
+    assert sum(pid == os.getpid() for _, pid in out[2:]) >= 1  # not all left to the busy worker
+
+
 def test_in_a_dask_task_jobs_run_in_turn():
     distributed = pytest.importorskip("distributed")
     assert parallel.in_dask_task() is False  # imported, but not in a task
