@@ -328,6 +328,23 @@ def test_dask_scheduler_at_an_address(distributed):
             assert outcomes[1][:2] == (1, False) and str(outcomes[1][2]) == "three"
             client = sched._client
         assert client.status == "closed" and cluster.status.name == "running"  # not ours: left running
+        with DaskScheduler(1, address=address) as sched:
+            # the same task twice is run twice (pure=False), each outcome under its own index
+            assert sorted(i for i, _, _ in sched.run(_task, [2, 2])) == [0, 1]
+            # the shared object is on every worker once, under a key of this run's own (not its hash)
+            keys = []
+            for _ in range(2):
+                gen = sched.run(_task, [1], shared={"add": 10})
+                assert next(gen)[2][0] == 121
+                holders = {}
+                for worker, held in sched._client.has_what().items():
+                    for key in held:
+                        if str(key).startswith("dict-"):
+                            holders.setdefault(key, set()).add(worker)
+                assert len(holders) == 1 and len(next(iter(holders.values()))) == 2
+                keys += list(holders)
+                gen.close()
+            assert keys[0] != keys[1]
         # an interrupt on a shared cluster cancels this scheduler's tasks, and leaves the cluster up
         sched = DaskScheduler(1, address=address)
         gen = sched.run(_waits, [0, 1])
