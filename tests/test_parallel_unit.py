@@ -308,6 +308,45 @@ def test_this_process_goes_on_taking_jobs_after_a_worker_finished_one(tmp_path):
     assert sum(pid == os.getpid() for _, pid in out[2:]) >= 1  # not all left to the busy worker
 
 
+class _Seen:
+    def __init__(self, finished):
+        self.finished = finished
+        self.advances = []
+
+    def start(self, i, n, node_id, type_):
+        pass
+
+    def advance(self, done, total, unit):
+        self.advances.append((done, self.finished.exists()))
+
+
+def _counts_later(finished):
+    def run():  # in the worker (or here, if this process took it): counts after a while, then ends
+        from sengine import progress
+
+        time.sleep(0.8)  # after the first polls of the wait (0.2 s apart)
+        progress.advance(5)  # counted in the shared integer the parent reads
+        time.sleep(0.6)
+        finished.write_text("")
+        return 2, os.getpid()
+
+    return run
+
+
+def test_while_waiting_for_the_workers_their_counts_are_reported(tmp_path):
+    """run_jobs polls the running step's count as it waits: a worker's count shows before its job ends."""
+    from sengine import progress
+
+    seen = _Seen(tmp_path / "finished")
+    with progress.step(progress.as_progress(seen), 1, 1, "n", "t"):
+        # job 1 ends at once in the worker; the wait goes on polling for job 2 after it
+        mark = tmp_path / "job1"
+        jobs = [_first_waits_for(mark), _second_marks(mark), _counts_later(seen.finished)]
+        pids = [pid for _, pid in parallel.run_jobs(jobs, 2)]
+    assert pids[0] == os.getpid() and pids[1] != os.getpid() and pids[2] == pids[1]
+    assert seen.advances[0] == (5, False)  # reported while job 2 still ran
+
+
 def test_in_a_dask_task_jobs_run_in_turn():
     distributed = pytest.importorskip("distributed")
     assert parallel.in_dask_task() is False  # imported, but not in a task
