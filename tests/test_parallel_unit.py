@@ -214,6 +214,16 @@ def test_background_errors_and_death():
     assert multiprocessing.active_children() == []
 
 
+def _set_up():
+    return in_worker(), signal.getsignal(signal.SIGINT) == signal.SIG_IGN, os.getppid()
+
+
+def test_background_runs_in_one_set_up_worker():
+    job = Background(_set_up)
+    assert len(job._pool._processes) == 1  # one process, not one per core
+    assert job.result() == (True, True, os.getpid())  # worker_setup ran in it
+
+
 def test_background_close_stops_a_running_job():
     job = Background(_sleeps)
     time.sleep(0.2)
