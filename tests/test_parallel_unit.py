@@ -166,7 +166,10 @@ def test_kill_workers_stops_the_pool_processes_at_once():
         deadline = time.monotonic() + 10
         while any(p.exitcode is None for p in procs) and time.monotonic() < deadline:
             time.sleep(0.01)
-        assert [(p.is_alive(), p.exitcode) for p in procs] == [(False, -signal.SIGKILL)] * 2
+        # the first kill breaks the pool, whose thread may terminate (SIGTERM) the other before we kill it
+        codes = [(p.is_alive(), p.exitcode) for p in procs]
+        assert codes[0] == (False, -signal.SIGKILL)
+        assert codes[1] in ((False, -signal.SIGKILL), (False, -signal.SIGTERM))
         assert all(f.exception() is not None for f in futures)
     finally:
         for p in procs:  # whatever kill_workers did: no sleeping worker is left behind
