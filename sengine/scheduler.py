@@ -218,8 +218,10 @@ class DaskScheduler(Scheduler):
         """Run ``fn(arg)`` for each of ``args``; yield ``(index, ok, result or error)`` as each finishes."""
         from distributed import as_completed
 
-        # the shared object goes to every worker once; each task gets it from its worker's memory
-        extra = () if shared is None else (self._client.scatter(shared, broadcast=True, hash=False),)
+        # the shared object goes to every worker once; each task gets it from its worker's memory.  It is
+        # scattered as the one item of a list: Dask scatters a list's items apart and a dict's values under
+        # the dict's own keys (names two runs on a shared cluster could both use)
+        extra = () if shared is None else tuple(self._client.scatter([shared], broadcast=True, hash=False))
         self._futures = [self._client.submit(fn, arg, *extra, pure=False) for arg in args]
         index = {f.key: i for i, f in enumerate(self._futures)}
         for f in as_completed(self._futures):
