@@ -192,6 +192,9 @@ def run_jobs(jobs: Sequence[Callable[[], Any]], workers: int) -> list[Any]:
             kill_workers(pool)
             pool.shutdown(wait=False, cancel_futures=True)
             return [job() for job in jobs]
+        except BrokenProcessPool:  # a worker died on its first job before every job was handed out
+            kill_workers(pool)
+            raise RuntimeError("a worker process died before every job was handed out") from None
         outcomes: dict[int, tuple[bool, Any]] = {}  # the jobs run here: index -> (ok, result or error)
         _running = True
         try:
