@@ -264,5 +264,9 @@ def test_semi_detached_houses_share_one_wall_and_keep_the_other_setback():
     pair_ids = set(map(tuple, np.sort(np.c_[i[i != j], j[i != j]], axis=1).tolist()))
     assert all(abs(int(b["lot"][x]) - int(b["lot"][y])) == 1 for x, y in pair_ids)
     assert len(pair_ids) == 6
+    # a pair is built as one: one roof kind (and so one height), while the pairs draw theirs apart
+    roof = np.asarray(b["roof"]).astype(str)
+    assert all(roof[x] == roof[y] for x, y in pair_ids) and len({roof[x] for x, _ in pair_ids}) > 1
+    np.testing.assert_allclose([b["height"][x] - b["height"][y] for x, y in pair_ids], 0.0, atol=1e-9)
     none = Massing("buildings", {**params, "semi_detached": "0"}, Context(seed=1)).run(lots=lots, blocks=blocks)
     assert none.report["semi_detached"] == 0 and (party_walls(none["buildings"].geometry) == 0).all()

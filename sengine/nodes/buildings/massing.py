@@ -316,11 +316,14 @@ class _Massing(SENode):
             report_attached = 0
         # semi-detached: neighbouring houses paired off, each standing on the line it shares with its partner
         party = np.full(n, "", dtype="<U5")
+        pair = np.full(n, -1, np.int64)  # the lot id of each pair's left house: a pair is built as one
         cand = (typ == TYPOLOGIES.index("house")) & (ss >= side) & ~edges.corner  # a corner house faces two streets
         if p.semi_detached > 0 and cand.sum() > 1:
             left, right = side_neighbours(L.geometry, edges)
             u = uniform(self.context.seed, f"{self.id}/semi", ids)
             party = semi_pairs(left, right, cand, u, p.semi_detached)
+            first = np.flatnonzero(party == "right")
+            pair[first] = pair[right[first]] = ids[first]
             for hand in ("left", "right"):
                 on = party == hand
                 if on.any():
@@ -392,7 +395,7 @@ class _Massing(SENode):
             report["far_converged"] += int(res["converged"].sum())
             report["far_capped_by_height"] += int(res["short"].sum())
         g, row, role = parts.final(build)
-        out = self._layer(L, g, row, role, typ, use, loc, floors, r, edges, lot_area, siting)
+        out = self._layer(L, g, row, role, typ, use, loc, floors, r, edges, lot_area, siting, pair)
         if custom_lot.any():
             out = Layer.concat([out, self._custom(lots, custom, custom_lot)], renumber=False).with_meta(**lots.meta)
         report = {
@@ -417,7 +420,7 @@ class _Massing(SENode):
 
         return far_to_building(target, sub, depth=depth, max_floors=max_floors, first=first)
 
-    def _layer(self, L, g, row, role, typ, use, loc, floors, r, edges, lot_area, siting) -> Layer:
+    def _layer(self, L, g, row, role, typ, use, loc, floors, r, edges, lot_area, siting, pair) -> Layer:
         p = self.p
         fh = p.floor_height
         m = len(g)
@@ -430,12 +433,13 @@ class _Massing(SENode):
         f = np.where(role == MAIN, floors[row], np.minimum(p.podium_floors, floors[row]))
         f = np.maximum(f, 1)
         typology = np.array(TYPOLOGIES, dtype=object)[typ[row]] if m else np.empty(0, object)
-        # a terrace is built as one: the attached houses of a block of rows (blocks.grain) share their roof kind
-        terrace = np.zeros(m, bool)
+        # a terrace is built as one: the attached houses of a block of rows (blocks.grain) share their roof
+        # kind, drawn by block; so do the two houses of a semi-detached pair, drawn by its left lot
+        group = np.full(m, -1, np.int64)
         if m and "fabric" in L and "block" in L:
             terrace = (np.asarray(L["fabric"]).astype(str)[row] == "rows") & (siting[row] == "attached")
-        block = np.asarray(L["block"], np.int64)[row] if terrace.any() else None
-        roof = self._roofs(use[row], typology, role, lot_ids * PARTS + rank, r["roof"][row], terrace, block)
+            group[terrace] = np.asarray(L["block"], np.int64)[row][terrace]
+        roof = self._roofs(use[row], typology, role, lot_ids * PARTS + rank, r["roof"][row], group, pair[row])
         roof_h = roof_heights(roof, g, fh) if m else np.zeros(0)
         area = shapely.area(g) if m else np.zeros(0)
         gfa = area * f
@@ -469,11 +473,13 @@ class _Massing(SENode):
             dict(L.meta),
         )
 
-    def _roofs(self, use, typology, role, ids, rule_roof, terrace=None, block=None) -> np.ndarray:
+    def _roofs(self, use, typology, role, ids, rule_roof, terrace, pair) -> np.ndarray:
+        """Roof kind of each part: drawn per part, per block for ``terrace`` (block id or -1), per ``pair`` (-1: none)."""
         out = roof_kinds(use, typology, role, self.context.seed, f"{self.id}/roof", ids)
-        if terrace is not None and terrace.any():  # one draw per block for its terraces
-            t = np.flatnonzero(terrace)
-            out[t] = roof_kinds(use[t], typology[t], role[t], self.context.seed, f"{self.id}/terrace-roof", block[t])
+        for key, group in (("terrace-roof", terrace), ("pair-roof", pair)):
+            t = np.flatnonzero(group >= 0)
+            if len(t):
+                out[t] = roof_kinds(use[t], typology[t], role[t], self.context.seed, f"{self.id}/{key}", group[t])
         texts = np.asarray(rule_roof).astype(str)
         given = ~np.isin(texts, ("auto", "None", "")) & (np.asarray(role) == MAIN)
         if given.any():
