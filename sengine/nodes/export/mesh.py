@@ -275,14 +275,18 @@ def triangulate(rings: Rings) -> np.ndarray:
 
 #: Rings of at most this many vertices are tried as stars before earcut.
 STAR_MAX = 16
+#: Apexes tried together in one pass of :func:`_star_fans`.
+STAR_STAGE = 3
 
 
 def _star_fans(xy: np.ndarray, start: np.ndarray, n: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
     """Fans of the rings ``start[i] .. start[i] + n[i]`` from the first vertex whose fan has only left turns.
 
-    Rings are taken by vertex count, each count in one numpy pass over every
-    apex.  Returns the triangles of the rings that have such a vertex and
-    which rings do.
+    Rings are taken by vertex count; the apexes are tried in stages of
+    :data:`STAR_STAGE` (each stage one numpy pass over the rings still without
+    one), so a ring seen whole from its first vertices (most) costs a few
+    apexes, not all of them.  Returns the triangles of the rings that have
+    such a vertex and which rings do.
     """
     ok = np.zeros(len(start), bool)
     out = []
@@ -290,21 +294,31 @@ def _star_fans(xy: np.ndarray, start: np.ndarray, n: np.ndarray) -> tuple[np.nda
         sel = np.flatnonzero(n == nn)
         st = start[sel]
         pts = xy[st[:, None] + np.arange(nn)] - xy[st][:, None, :]  # (p, nn, 2), relative to the first vertex
-        a = np.arange(nn)[:, None]
+        ext2 = (np.abs(pts).max(axis=(1, 2)) ** 2)[:, None]
         j = np.arange(1, nn - 1)[None, :]
-        ib, ic = (a + j) % nn, (a + j + 1) % nn  # (apex, k)
-        d1 = pts[:, ib] - pts[:, :, None, :]
-        d2 = pts[:, ic] - pts[:, :, None, :]
-        area2 = d1[..., 0] * d2[..., 1] - d1[..., 1] * d2[..., 0]
-        ext = np.abs(pts).max(axis=(1, 2))
-        good = (area2 > 1e-12 * (ext**2)[:, None, None]).all(axis=2)
-        has = good.any(axis=1)
+        best = np.full(len(sel), -1)
+        left = np.arange(len(sel))
+        for a0 in range(0, nn, STAR_STAGE):
+            a = np.arange(a0, min(a0 + STAR_STAGE, nn))[:, None]
+            ib, ic = (a + j) % nn, (a + j + 1) % nn  # (apex, k)
+            p = pts[left]
+            d1 = p[:, ib] - p[:, a[:, 0], None, :]
+            d2 = p[:, ic] - p[:, a[:, 0], None, :]
+            area2 = d1[..., 0] * d2[..., 1] - d1[..., 1] * d2[..., 0]
+            good = (area2 > 1e-12 * ext2[left, :, None]).all(axis=2)
+            has = good.any(axis=1)
+            best[left[has]] = a0 + np.argmax(good[has], axis=1)
+            left = left[~has]
+            if not left.size:
+                break
+        has = best >= 0
         if not has.any():
             continue
         ok[sel[has]] = True
-        best = np.argmax(good[has], axis=1)
+        best = best[has]
+        k = np.arange(1, nn - 1)[None, :]
         apex = np.broadcast_to(best[:, None], (len(best), nn - 2))
-        out.append(np.stack([apex, ib[best], ic[best]], axis=2) + st[has, None, None])
+        out.append(np.stack([apex, (best[:, None] + k) % nn, (best[:, None] + k + 1) % nn], axis=2) + st[has, None, None])
     if not out:
         return None, ok
     tri = np.concatenate([t.reshape(-1, 3) for t in out])
