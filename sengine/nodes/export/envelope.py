@@ -118,7 +118,7 @@ def envelope_solids(
             rel = allxy - origin[allpoly]
             s = line[allpoly, 0] * rel[:, 0] + line[allpoly, 1] * rel[:, 1] + line[allpoly, 2]
             s[~use[allpoly]] = 0.0
-            sg = np.where(s > ON_LINE, 1, np.where(s < -ON_LINE, -1, 0)).astype(np.int8)
+            sg = (s > ON_LINE).view(np.int8) - (s < -ON_LINE).view(np.int8)
             tri, bnd, borig, new_xy, new_poly = _cut(tri, bnd, borig, allxy, allpoly, s, sg, nverts)
             if len(new_xy):
                 xy.append(new_xy)
@@ -189,16 +189,14 @@ def _lowest_somewhere(planes, valid, bounds, line, i: int, j: int) -> np.ndarray
 
 def _cut(tri, bnd, borig, xy, vpoly, s, sg, nverts):
     """Cut triangles and boundary edges by the zero line of ``s``; return them and the new vertices."""
-    st = sg[tri]
-    pos = (st > 0).any(axis=1)
-    neg = (st < 0).any(axis=1)
-    cross = pos & neg
-    bs = sg[bnd]
-    bcross = bs[:, 0] * bs[:, 1] < 0
+    # side bits of each vertex (1 above the line, 2 below): a triangle crosses when its three have both
+    bit = (sg > 0).view(np.uint8) | ((sg < 0).view(np.uint8) << 1)
+    cross = (bit[tri[:, 0]] | bit[tri[:, 1]] | bit[tri[:, 2]]) == 3
+    bcross = (bit[bnd[:, 0]] | bit[bnd[:, 1]]) == 3
     if not cross.any() and not bcross.any():
         return tri, bnd, borig, np.empty((0, 2)), np.empty(0, np.int64)
     ct = tri[cross]
-    cs = st[cross]
+    cs = sg[ct]
     zero = cs == 0
     one_zero = zero.sum(axis=1) == 1
     # the special corner: the vertex on the line (one_zero), else the one alone on its side

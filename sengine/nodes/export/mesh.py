@@ -116,7 +116,7 @@ def ring_arrays(geoms: np.ndarray) -> Rings:
     keep &= shapely.area(parts) > 0.0
     parts, feature = parts[keep], feature[keep]
     coords, vpoly = shapely.get_coordinates(parts, return_index=True)
-    dup = (vpoly[1:] == vpoly[:-1]) & (coords[1:] == coords[:-1]).all(axis=1)
+    dup = (vpoly[1:] == vpoly[:-1]) & (coords[1:, 0] == coords[:-1, 0]) & (coords[1:, 1] == coords[:-1, 1])
     if dup.any():  # only the polygons with repeated vertices are rebuilt
         hit = np.unique(vpoly[1:][dup])
         parts = parts.copy()
@@ -142,7 +142,7 @@ def ring_arrays(geoms: np.ndarray) -> Rings:
     starts = np.concatenate([[0], np.cumsum(counts)])
     mask = np.ones(len(coords), bool)
     mask[starts[1:] - 1] = False  # the closing vertex of every ring
-    xy = coords[mask]
+    xy = coords.compress(mask, axis=0)  # not coords[mask]: NumPy's row masks and gathers are slow
     ring_start = np.concatenate([[0], np.cumsum(counts - 1)]).astype(np.int64)
     poly_ring = np.concatenate([[0], np.cumsum(np.bincount(ring_poly, minlength=len(parts)))]).astype(np.int64)
     xy = _orient(xy, ring_start, poly_ring)
@@ -158,14 +158,14 @@ def _orient(xy: np.ndarray, ring_start: np.ndarray, poly_ring: np.ndarray) -> np
     s, e = ring_start[vr], ring_start[vr + 1]
     i = np.arange(len(xy))
     nxt = np.where(i + 1 < e, i + 1, s)
-    d = xy - xy[s]  # relative to the ring's first vertex: exact enough in a UTM frame
+    d = xy - xy.take(s, axis=0)  # relative to the ring's first vertex: exact enough in a UTM frame
     area2 = np.bincount(vr, weights=d[:, 0] * d[nxt, 1] - d[nxt, 0] * d[:, 1], minlength=n_rings)
     exterior = np.zeros(n_rings, bool)
     exterior[poly_ring[:-1]] = True
     flip = np.where(exterior, area2 < 0, area2 > 0)
     if not flip.any():
         return xy
-    return xy[np.where(flip[vr], s + e - 1 - i, i)]
+    return xy.take(np.where(flip[vr], s + e - 1 - i, i), axis=0)
 
 
 def triangulate(rings: Rings) -> np.ndarray:
@@ -189,8 +189,8 @@ def triangulate(rings: Rings) -> np.ndarray:
     nxt = rings.next_vertex()
     prev = np.empty_like(nxt)
     prev[nxt] = np.arange(len(nxt))
-    e0 = xy - xy[prev]
-    e1 = xy[nxt] - xy
+    e0 = xy - xy.take(prev, axis=0)
+    e1 = xy.take(nxt, axis=0) - xy
     cross = e0[:, 0] * e1[:, 1] - e0[:, 1] * e1[:, 0]
     scale = np.hypot(*e0.T) * np.hypot(*e1.T)
     right_turn = cross < -1e-9 * scale
@@ -249,7 +249,9 @@ def triangulate(rings: Rings) -> np.ndarray:
             tri = np.concatenate(got).astype(np.int64).reshape(-1, 3)
             tp = np.repeat(np.arange(len(rest)), cnt)
             tri += v0[tp][:, None]
-            a, b, c = (xy[tri[:, k]] - xy[v0[tp]] for k in range(3))  # relative to the polygon's first vertex
+            a, b, c = (
+                xy.take(tri[:, k], axis=0) - xy.take(v0[tp], axis=0) for k in range(3)
+            )  # relative to the polygon's first vertex
             area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
             flip = (np.bincount(tp, weights=area2, minlength=len(rest)) < 0)[tp]
             tri[flip] = tri[flip][:, [0, 2, 1]]
@@ -258,7 +260,7 @@ def triangulate(rings: Rings) -> np.ndarray:
         return np.empty((0, 3), np.int64)
     tri = np.concatenate(parts)
     # flat triangles over collinear ring vertices stay: dropping one would open a crack beside a wall
-    tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])]
+    tri = tri.compress((tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0]), axis=0)
     unused = np.bincount(tri.ravel(), minlength=len(xy)) == 0
     if unused.any():  # collinear ring vertices skipped or in a dropped flat triangle: the walls need them
         tri = _refill(rings, tri, np.unique(rings.vertex_poly()[unused]))
@@ -318,7 +320,9 @@ def _star_fans(xy: np.ndarray, start: np.ndarray, n: np.ndarray) -> tuple[np.nda
         best = best[has]
         k = np.arange(1, nn - 1)[None, :]
         apex = np.broadcast_to(best[:, None], (len(best), nn - 2))
-        out.append(np.stack([apex, (best[:, None] + k) % nn, (best[:, None] + k + 1) % nn], axis=2) + st[has, None, None])
+        out.append(
+            np.stack([apex, (best[:, None] + k) % nn, (best[:, None] + k + 1) % nn], axis=2) + st[has, None, None]
+        )
     if not out:
         return None, ok
     tri = np.concatenate([t.reshape(-1, 3) for t in out])
@@ -628,7 +632,7 @@ def weld(vertices: np.ndarray, faces: np.ndarray, owner: np.ndarray, *, return_m
         h ^= h >> np.uint64(31)
     owner = np.asarray(owner)
     order = np.argsort(h)  # not stable (4x faster): each group's first input vertex is found below
-    hs, vs, o = h[order], v[order], owner[order]
+    hs, vs, o = h[order], v.take(order, axis=0), owner[order]
     new = np.ones(len(order), bool)
     new[1:] = (hs[1:] != hs[:-1]) | (o[1:] != o[:-1]) | (vs[1:] != vs[:-1]).any(axis=1)
     if (~new[1:] != (hs[1:] == hs[:-1])).any():  # a hash shared by two keys (round coordinates): exact order
@@ -639,7 +643,7 @@ def weld(vertices: np.ndarray, faces: np.ndarray, owner: np.ndarray, *, return_m
     remap = np.empty(len(order), np.int64)
     remap[order] = group
     first = np.minimum.reduceat(order, np.flatnonzero(new)) if len(order) else order  # as a stable sort's
-    out = vertices[first], remap[faces], o[new]
+    out = np.asarray(vertices).take(first, axis=0), remap.take(faces), o[new]
     if return_merged:
         return (*out, np.bincount(group, minlength=int(new.sum())) > 1)
     return out

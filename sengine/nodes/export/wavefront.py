@@ -198,7 +198,8 @@ def _wavefront(qk, kstart, poly_ring, todo):
         te = np.where(gone, tn, te)
         te = np.maximum(te, tn)
         # split events: reflex vertices against the other edges of their polygon
-        reflex = free[(D[EL[free]][:, 0] * D[ER[free]][:, 1] - D[EL[free]][:, 1] * D[ER[free]][:, 0]) < 0]
+        fl, fr = EL[free], ER[free]
+        reflex = free[(Dx[fl] * Dy[fr] - Dy[fl] * Dx[fr]) < 0]
         best_t = np.full(len(todo), np.inf)
         np.minimum.at(best_t, POLY[v], te)
         ts_v = ts_w = np.empty(0, np.int64)
