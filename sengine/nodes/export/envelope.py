@@ -93,6 +93,7 @@ def envelope_solids(
     borig = np.arange(m)
     xy = [rings.xy]
     vpoly = [vpoly0]
+    rels = [rings.xy - origin.take(vpoly0, axis=0)]  # relative to the polygon's first vertex, kept as they grow
     tri = tri0.copy()
     k = planes.shape[1]
     valid = np.isfinite(planes[:, :, 2])
@@ -114,23 +115,26 @@ def envelope_solids(
                     continue
             allxy = np.concatenate(xy) if len(xy) > 1 else xy[0]
             allpoly = np.concatenate(vpoly) if len(vpoly) > 1 else vpoly[0]
-            xy, vpoly = [allxy], [allpoly]
-            rel = allxy - origin[allpoly]
-            s = line[allpoly, 0] * rel[:, 0] + line[allpoly, 1] * rel[:, 1] + line[allpoly, 2]
+            rel = np.concatenate(rels) if len(rels) > 1 else rels[0]
+            xy, vpoly, rels = [allxy], [allpoly], [rel]
+            s = line[:, 0].take(allpoly) * rel[:, 0] + line[:, 1].take(allpoly) * rel[:, 1] + line[:, 2].take(allpoly)
             s[~use[allpoly]] = 0.0
             sg = (s > ON_LINE).view(np.int8) - (s < -ON_LINE).view(np.int8)
             tri, bnd, borig, new_xy, new_poly = _cut(tri, bnd, borig, allxy, allpoly, s, sg, nverts)
             if len(new_xy):
                 xy.append(new_xy)
                 vpoly.append(new_poly)
+                rels.append(new_xy - origin.take(new_poly, axis=0))
                 nverts += len(new_xy)
     allxy = np.concatenate(xy)
     allpoly = np.concatenate(vpoly)
-    # lift: the lowest plane, scaled so the roof rises from eave to eave + rise
-    rel = allxy - origin[allpoly]
-    pl = planes[allpoly]
-    h = np.where(valid[allpoly], pl[:, :, 0] * rel[:, 0, None] + pl[:, :, 1] * rel[:, 1, None] + pl[:, :, 2], np.inf)
-    h = h.min(axis=1)
+    # lift: the lowest plane, scaled so the roof rises from eave to eave + rise (one plane at a time)
+    rel = np.concatenate(rels)
+    h = np.full(len(allpoly), np.inf)
+    for i in range(k):
+        pl = planes[:, i].take(allpoly, axis=0)
+        hi_ = pl[:, 0] * rel[:, 0] + pl[:, 1] * rel[:, 1] + pl[:, 2]
+        np.minimum(h, np.where(valid[:, i].take(allpoly), hi_, np.inf), out=h)
     n_poly = rings.n_polys
     lo = np.full(n_poly, np.inf)
     hi = np.full(n_poly, -np.inf)
@@ -195,7 +199,7 @@ def _cut(tri, bnd, borig, xy, vpoly, s, sg, nverts):
     bcross = (bit[bnd[:, 0]] | bit[bnd[:, 1]]) == 3
     if not cross.any() and not bcross.any():
         return tri, bnd, borig, np.empty((0, 2)), np.empty(0, np.int64)
-    ct = tri[cross]
+    ct = tri.compress(cross, axis=0)
     cs = sg[ct]
     zero = cs == 0
     one_zero = zero.sum(axis=1) == 1
@@ -211,14 +215,16 @@ def _cut(tri, bnd, borig, xy, vpoly, s, sg, nverts):
     v0, v1, v2 = r[:, 0], r[:, 1], r[:, 2]
     # crossing edges: (v1, v2) for one_zero; (v0, v1) and (v2, v0) otherwise; and the boundary's
     oz, tz = one_zero, ~one_zero
-    ea = np.concatenate([v1[oz], v0[tz], v2[tz], bnd[bcross, 0]])
-    eb = np.concatenate([v2[oz], v1[tz], v0[tz], bnd[bcross, 1]])
+    bc = bnd.compress(bcross, axis=0)
+    ea = np.concatenate([v1[oz], v0[tz], v2[tz], bc[:, 0]])
+    eb = np.concatenate([v2[oz], v1[tz], v0[tz], bc[:, 1]])
     lo_, hi_ = np.minimum(ea, eb), np.maximum(ea, eb)
     key = lo_ * (1 << 31) + hi_
     ukey, inv = unique_int(key, return_inverse=True)
     p, q = ukey // (1 << 31), ukey % (1 << 31)
     t = s[p] / (s[p] - s[q])
-    new_xy = xy[p] + t[:, None] * (xy[q] - xy[p])
+    xp = xy.take(p, axis=0)
+    new_xy = xp + t[:, None] * (xy.take(q, axis=0) - xp)
     new_poly = vpoly[p]
     ids = nverts + inv
     n1, n2 = int(oz.sum()), int(tz.sum())
@@ -229,7 +235,7 @@ def _cut(tri, bnd, borig, xy, vpoly, s, sg, nverts):
     a0, a1, a2 = v0[oz], v1[oz], v2[oz]
     b0, b1, b2 = v0[tz], v1[tz], v2[tz]
     pieces = [
-        tri[~cross],
+        tri.compress(~cross, axis=0),
         np.column_stack([a0, a1, m_oz]),
         np.column_stack([a0, m_oz, a2]),
         np.column_stack([b0, m01, m20]),

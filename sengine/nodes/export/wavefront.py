@@ -73,14 +73,14 @@ def _wavefront(qk, kstart, poly_ring, todo):
         return np.empty((0, 2)), e, np.empty((0, 2), np.int64), np.empty(0, np.int8), cnt, ecnt, todo[:0]
     # the outline: edge i runs from vertex i to the next, all polygons in one array
     vid = np.repeat(kstart[r] - np.concatenate([[0], np.cumsum(ln)[:-1]]), ln) + np.arange(nv)
-    xy = qk[vid].astype(np.float64)
+    xy = qk.take(vid, axis=0).astype(np.float64)
     vp = np.repeat(np.arange(len(todo)), ln)
     first = np.concatenate([[0], np.cumsum(ln)[:-1]])
     nxt = np.arange(1, nv + 1)
     nxt[first + ln - 1] = first
     prv = np.empty_like(nxt)
     prv[nxt] = np.arange(nv)
-    d = xy[nxt] - xy
+    d = xy.take(nxt, axis=0) - xy
     dl = np.hypot(d[:, 0], d[:, 1])
     D = d / np.where(dl > 0, dl, 1.0)[:, None]
     N = np.column_stack([-D[:, 1], D[:, 0]])
@@ -109,7 +109,7 @@ def _wavefront(qk, kstart, poly_ring, todo):
     failed[vp[dl == 0]] = True  # a repeated vertex: no edge line
 
     def velocity(el, er):
-        n1, n2 = N[el], N[er]
+        n1, n2 = N.take(el, axis=0), N.take(er, axis=0)
         den = 1.0 + (n1 * n2).sum(axis=1)
         ok = den > SPIKE
         return np.where(ok[:, None], (n1 + n2) / np.where(ok, den, 1.0)[:, None], 0.0), ~ok
@@ -119,7 +119,7 @@ def _wavefront(qk, kstart, poly_ring, todo):
     SPIKY[:nv] = spike0
 
     def pos(v, t):
-        return P0[v] + V[v] * (t - T0[v])[:, None]
+        return P0.take(v, axis=0) + V.take(v, axis=0) * (t - T0[v])[:, None]
 
     def new_nodes(p, polys):
         nonlocal n_nodes
@@ -143,7 +143,9 @@ def _wavefront(qk, kstart, poly_ring, todo):
         NX[pv] = z
         PV[nx] = z
         V[z], SPIKY[z] = velocity(el, er)
-        P0[z] = _meet(N[el], N[er], C[el] + t, C[er] + t, p)  # on both lines: no drift from event to event
+        P0[z] = _meet(
+            N.take(el, axis=0), N.take(er, axis=0), C[el] + t, C[er] + t, p
+        )  # on both lines: no drift from event to event
 
     steps = 0
     limit = 6 * int(ln.max()) + 10
