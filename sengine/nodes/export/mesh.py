@@ -463,7 +463,12 @@ def fill_skipped(rings: list[list[int]], tris: list[list[int]]) -> list[list[int
 
 
 def extrude(
-    geoms: np.ndarray, heights: np.ndarray, *, base: float | np.ndarray = 0.0, bottom: bool = True
+    geoms: np.ndarray,
+    heights: np.ndarray,
+    *,
+    base: float | np.ndarray = 0.0,
+    bottom: bool = True,
+    rings: Rings | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Prisms over many footprints, as one mesh.
 
@@ -477,6 +482,9 @@ def extrude(
         Ground elevation of each feature (m).
     bottom : bool
         Close the solid with a downward-facing floor.
+    rings : Rings, optional
+        ``ring_arrays(geoms)`` when the caller has it already (its polygon
+        features index ``geoms``).
 
     Returns
     -------
@@ -487,7 +495,7 @@ def extrude(
     vertex_feature : numpy.ndarray of int64, shape (v,)
         Input feature index of each vertex.
     """
-    rings = ring_arrays(geoms)
+    rings = ring_arrays(geoms) if rings is None else rings
     heights = np.broadcast_to(np.asarray(heights, np.float64), (len(geoms),))
     bases = np.broadcast_to(np.asarray(base, np.float64), (len(geoms),))
     m = len(rings.xy)
@@ -688,7 +696,7 @@ def subset_rings(rings: Rings, sel: np.ndarray) -> Rings:
     starts = rings.ring_start[ring_ids]
     vid = np.repeat(starts - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(lens.sum())
     return Rings(
-        rings.xy[vid],
+        rings.xy.take(vid, axis=0),
         np.concatenate([[0], np.cumsum(lens)]).astype(np.int64),
         np.concatenate([[0], np.cumsum(nr)]).astype(np.int64),
         np.asarray(sel, np.int64),

@@ -286,7 +286,7 @@ def building_solids(geoms, height, *, roof=None, roof_height=None, roof_directio
                 flat[bad] = True
     sel = np.flatnonzero(flat)
     if sel.size:
-        v, f, vp = mesh.extrude(parts[sel], H[sel], base=B[sel])
+        v, f, vp = mesh.extrude(parts[sel], H[sel], base=B[sel], rings=_own(rings, sel))
         out.append((v, f, sel[vp], _prism_kinds(len(v) // 2, len(f))))
     if not out:
         return Solids(np.empty((0, 3)), np.empty((0, 3), np.int64), np.empty(0, np.int64), np.empty(0, np.uint8), notes)
@@ -460,12 +460,14 @@ def _terrace(parts, rings: Rings, sel: np.ndarray, kind: int, top, rh, base):
     ring_z = top[sel] if kind == PARAPET else top[sel] - rh[sel]  # the ring (parapet top or terrace)
     pieces = []
     # outer prism without its top: floor and walls up to the ring
-    v, f, vf = _topped(mesh.extrude(parts[sel], ring_z - base[sel], base=base[sel]), ring_z)
+    outer = _own(rings, sel)  # the footprints' rings (as ring_arrays(parts[sel]) would make them again)
+    inner_rings = ring_arrays(inner)
+    v, f, vf = _topped(mesh.extrude(parts[sel], ring_z - base[sel], base=base[sel], rings=outer), ring_z)
     fk = _prism_kinds(len(v) // 2, len(f))
     keep = fk != 2
     pieces.append((v, f[keep], vf, fk[keep]))
     # the ring, facing up: a strip of trapezoids where the inset is the outline moved in, else earcut
-    strip = _strips(parts[sel], inner, d)
+    strip = _strips(parts[sel], inner, d, outer, inner_rings)
     v, f, vf = strip[0]
     rest = np.flatnonzero(~strip[1])
     if rest.size:
@@ -476,13 +478,13 @@ def _terrace(parts, rings: Rings, sel: np.ndarray, kind: int, top, rh, base):
     pieces.append((v, f, vf, np.full(len(f), 2, np.uint8)))
     if kind == PARAPET:  # the well: walls facing in, the deck facing up
         deck = ring_z - rh[sel]
-        v, f, vf = _topped(mesh.extrude(inner, ring_z - deck, base=deck), ring_z)
+        v, f, vf = _topped(mesh.extrude(inner, ring_z - deck, base=deck, rings=inner_rings), ring_z)
         fk = _prism_kinds(len(v) // 2, len(f))
         keep = fk != 2
         f, fk = f[keep][:, [0, 2, 1]], fk[keep]
         fk[fk == 0] = 2
     else:  # the recessed storey: walls out, its roof up
-        v, f, vf = mesh.extrude(inner, top[sel] - ring_z, base=ring_z, bottom=False)
+        v, f, vf = mesh.extrude(inner, top[sel] - ring_z, base=ring_z, bottom=False, rings=inner_rings)
         fk = _prism_kinds_open(len(v) // 2, len(f))
     pieces.append((v, f, vf, fk))
     vs, fs, vps, fks, off = [], [], [], [], 0
@@ -509,7 +511,13 @@ def _topped(solid, z: np.ndarray):
     return v, f, vf
 
 
-def _strips(outer: np.ndarray, inner: np.ndarray, d: float):
+def _own(rings: Rings, sel: np.ndarray) -> Rings:
+    """Polygons ``sel`` of ``rings`` as their own :class:`Rings`, polygon ``i`` of feature ``i``."""
+    sub = subset_rings(rings, sel)
+    return Rings(sub.xy, sub.ring_start, sub.poly_ring, np.arange(len(sel), dtype=np.int64))
+
+
+def _strips(outer: np.ndarray, inner: np.ndarray, d: float, outer_rings: Rings, inner_rings: Rings):
     """The ring between footprints ``outer`` and their mitred insets ``inner`` by ``d`` (m), as strips.
 
     Where the inset is a one-ring polygon of as many vertices as the
@@ -517,6 +525,15 @@ def _strips(outer: np.ndarray, inner: np.ndarray, d: float):
     its left (no edge vanished, the outline only moved in), the ring is the
     trapezoids between corresponding edges, two triangles each, for all
     footprints at once.  The others are left to earcut.
+
+    Parameters
+    ----------
+    outer, inner : numpy.ndarray of shapely geometries
+        Footprints and their insets.
+    d : float
+        Inset distance (m).
+    outer_rings, inner_rings : Rings
+        ``ring_arrays`` of ``outer`` and of ``inner`` (made once by the caller).
 
     Returns
     -------
@@ -536,7 +553,9 @@ def _strips(outer: np.ndarray, inner: np.ndarray, d: float):
     )
     if not cand.size:
         return empty, done
-    ro, ri = ring_arrays(outer[cand]), ring_arrays(inner[cand])
+    # their rings, taken from those of all footprints and insets (a one-part inset is one polygon of them)
+    ro = _own(outer_rings, cand)
+    ri = _own(inner_rings, np.searchsorted(inner_rings.feature, cand))
     if ro.n_polys != len(cand) or ri.n_polys != len(cand) or len(ro.xy) != len(ri.xy):
         return empty, done  # a ring lost a repeated vertex: too rare to sort out here
     k = np.diff(ro.ring_start)
