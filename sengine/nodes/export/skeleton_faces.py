@@ -258,11 +258,18 @@ def hip_solids(
         e = np.empty(0, np.int64)
         return np.empty((0, 3)), np.empty((0, 3), np.int64), e, np.empty(0, np.uint8), np.arange(n_poly)
     K = int(fsize.max())
-    cyc = np.empty((len(faces), K), np.int64)
-    cur = start.copy()
+    # the faces' vertices, k-th column at step k, on the faces that long only (largest first; most have 3-5)
+    by_size = np.argsort(-fsize, kind="stable")
+    longer = np.searchsorted(-fsize[by_size], -np.arange(K), side="left")  # faces with more than k vertices
+    cyc_s = np.zeros((len(faces), K), np.int64)
+    cur = start[by_size]
     for k in range(K):
-        cyc[:, k] = out_id[hu[cur]]
-        cur = hnext[cur]
+        c = cur[: longer[k]]
+        cyc_s[: longer[k], k] = out_id[hu[c]]
+        cur = hnext[c]
+    back = np.empty_like(by_size)
+    back[by_size] = np.arange(len(by_size))
+    cyc = cyc_s.take(back, axis=0)
     oa, ob = cyc[:, 0], cyc[:, 1]
     ring_len = np.diff(rings.ring_start)[vring[oa]]
     run = (ob - oa) % ring_len  # ring vertices from a to b, b included
@@ -409,13 +416,13 @@ def _drop_flat(q: np.ndarray, vring: np.ndarray, ring_start: np.ndarray):
         is_last = np.zeros(len(idx), bool)
         is_last[last] = True
         nx = np.where(is_last, fs[g], k + 1)
-        p = q[idx]
-        d1 = p[nx] - p
-        repeat = (d1 == 0).all(axis=1)
+        p = q.take(idx, axis=0)
+        d1 = p.take(nx, axis=0) - p
+        repeat = (d1[:, 0] == 0) & (d1[:, 1] == 0)
         if step < 4:
             pv = np.empty_like(nx)
             pv[nx] = k
-            d0 = p - p[pv]
+            d0 = p - p.take(pv, axis=0)
             cross = d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]
             dot = (d0 * d1).sum(axis=1)
             cand = repeat | (np.abs(np.arctan2(cross, dot)) <= FLAT_TURN)
