@@ -183,16 +183,18 @@ def _wavefront(qk, kstart, poly_ring, todo):
         if not free.size:
             continue
         tnow = np.zeros(len(todo))
-        np.maximum.at(tnow, POLY[free], T0[free])
+        pf = POLY[free]
+        np.maximum.at(tnow, pf, T0[free])
         v, w = free, NX[free]
         ev_e = ER[v]
         dx, dy = Dx[ev_e], Dy[ev_e]
         T0v, T0w = T0[v], T0[w]
-        A = (dx * (P0[w, 0] - V[w, 0] * T0w) + dy * (P0[w, 1] - V[w, 1] * T0w)) - (
-            dx * (P0[v, 0] - V[v, 0] * T0v) + dy * (P0[v, 1] - V[v, 1] * T0v)
+        Pv, Pw, Vv, Vw = P0.take(v, axis=0), P0.take(w, axis=0), V.take(v, axis=0), V.take(w, axis=0)
+        A = (dx * (Pw[:, 0] - Vw[:, 0] * T0w) + dy * (Pw[:, 1] - Vw[:, 1] * T0w)) - (
+            dx * (Pv[:, 0] - Vv[:, 0] * T0v) + dy * (Pv[:, 1] - Vv[:, 1] * T0v)
         )
-        B = dx * (V[w, 0] - V[v, 0]) + dy * (V[w, 1] - V[v, 1])
-        tn = tv = tnow[POLY[v]]
+        B = dx * (Vw[:, 0] - Vv[:, 0]) + dy * (Vw[:, 1] - Vv[:, 1])
+        tn = tv = tnow[pf]
         # when and where the edge's line and its neighbours' meet: three lines, no drift
         xe, ye, t3 = _concurrent(EL[v], ev_e, ER[w], Nx, Ny, C)
         te = np.where((B < -1e-12) & np.isfinite(t3), t3, np.inf)
@@ -203,7 +205,7 @@ def _wavefront(qk, kstart, poly_ring, todo):
         fl, fr = EL[free], ER[free]
         reflex = free[(Dx[fl] * Dy[fr] - Dy[fl] * Dx[fr]) < 0]
         best_t = np.full(len(todo), np.inf)
-        np.minimum.at(best_t, POLY[v], te)
+        np.minimum.at(best_t, pf, te)
         ts_v = ts_w = np.empty(0, np.int64)
         ts, tsx = np.empty(0), np.empty((0, 2))
         if reflex.size:
@@ -232,8 +234,10 @@ def _wavefront(qk, kstart, poly_ring, todo):
             dx, dy = Dx[e], Dy[e]
             s = dx * x + dy * y
             w2 = NX[rw]
-            s0 = dx * (P0[rw, 0] + V[rw, 0] * (t - T0[rw])) + dy * (P0[rw, 1] + V[rw, 1] * (t - T0[rw]))
-            s1 = dx * (P0[w2, 0] + V[w2, 0] * (t - T0[w2])) + dy * (P0[w2, 1] + V[w2, 1] * (t - T0[w2]))
+            P, Q, dt = P0.take(rw, axis=0), V.take(rw, axis=0), t - T0[rw]
+            s0 = dx * (P[:, 0] + Q[:, 0] * dt) + dy * (P[:, 1] + Q[:, 1] * dt)
+            P, Q, dt = P0.take(w2, axis=0), V.take(w2, axis=0), t - T0[w2]
+            s1 = dx * (P[:, 0] + Q[:, 0] * dt) + dy * (P[:, 1] + Q[:, 1] * dt)
             ok = (s >= s0 - TOL) & (s <= s1 + TOL)
             ts_v, ts_w, ts, tsx = rv[ok], rw[ok], t[ok], np.column_stack([x[ok], y[ok]])
             split_best = np.full(len(todo), np.inf)
@@ -242,8 +246,8 @@ def _wavefront(qk, kstart, poly_ring, todo):
             split_best = np.full(len(todo), np.inf)
         # each polygon: its earliest edge event, unless a split comes strictly earlier
         use_split = split_best < best_t - TOL
-        ev = np.flatnonzero((te <= best_t[POLY[v]]) & ~use_split[POLY[v]])
-        ev = ev[~_dup(POLY[v[ev]])]
+        ev = np.flatnonzero((te <= best_t[pf]) & ~use_split[pf])
+        ev = ev[~_dup(pf[ev])]
         ev_x = np.column_stack([xe[ev], ye[ev]])
         g = ev[gone[ev]]
         if g.size:
@@ -253,7 +257,9 @@ def _wavefront(qk, kstart, poly_ring, todo):
         sv_, sw_, st_, sx_ = ts_v[pick], ts_w[pick], ts[pick], tsx[pick]
         first_s = ~_dup(POLY[sv_])
         sv_, sw_, st_, sx_ = sv_[first_s], sw_[first_s], st_[first_s], sx_[first_s]
-        stuck = np.isin(np.arange(len(todo)), POLY[free]) & ~np.isfinite(np.minimum(best_t, split_best))
+        stuck = np.zeros(len(todo), bool)
+        stuck[pf] = True
+        stuck &= ~np.isfinite(np.minimum(best_t, split_best))
         failed |= stuck
         ok = ~failed[POLY[ev]]
         ev, ev_x = ev[ok], ev_x[ok]
