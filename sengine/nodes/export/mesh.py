@@ -412,15 +412,21 @@ def _refill(rings: Rings, tri: np.ndarray, polys: np.ndarray) -> np.ndarray:
     """Triangles of ``polys`` redone with :func:`fill_skipped` so that every ring vertex is used."""
     vpoly = rings.vertex_poly()
     tpoly = vpoly[tri[:, 0]]
-    keep = ~np.isin(tpoly, polys)
-    redone = [tri[keep]]
-    for p in polys.tolist():
+    hit = np.zeros(rings.n_polys, bool)
+    hit[polys] = True
+    mine = hit[tpoly]
+    redone = [tri.compress(~mine, axis=0)]
+    # each polygon's triangles, in their order, as one slice of the polygons' triangles sorted by polygon
+    own = np.flatnonzero(mine)
+    own = own[stable_argsort(tpoly[own])]
+    at = np.searchsorted(tpoly[own], np.concatenate([polys, [rings.n_polys]]))
+    for k, p in enumerate(polys.tolist()):
         r0, r1 = rings.poly_ring[p], rings.poly_ring[p + 1]
         ring_ids = [list(range(rings.ring_start[r], rings.ring_start[r + 1])) for r in range(r0, r1)]
-        fixed = fill_skipped(ring_ids, tri[tpoly == p].tolist())
+        fixed = fill_skipped(ring_ids, tri.take(own[at[k] : at[k + 1]], axis=0).tolist())
         redone.append(np.asarray(fixed, np.int64).reshape(-1, 3))
     tri = np.concatenate(redone)
-    return tri[np.argsort(vpoly[tri[:, 0]], kind="stable")]
+    return tri.take(np.argsort(vpoly[tri[:, 0]], kind="stable"), axis=0)
 
 
 def fill_skipped(rings: list[list[int]], tris: list[list[int]]) -> list[list[int]]:

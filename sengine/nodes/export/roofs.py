@@ -133,7 +133,12 @@ def roof_kinds(values, n: int) -> tuple[np.ndarray, int]:
     """Codes (index into :data:`ROOF_KINDS`) of a ``roof`` column; unknown names count and become flat."""
     if values is None:
         return np.zeros(n, np.int8), 0
-    text = np.array([str(v).strip().lower() if isinstance(v, str) else "" for v in values], dtype=object)
+    values = np.asarray(values, dtype=object).reshape(n)
+    try:  # a few distinct values: each read once, then looked up
+        name = {v: str(v).strip().lower() if isinstance(v, str) else "" for v in set(values.tolist())}
+        text = np.array([name[v] for v in values.tolist()], dtype=object)
+    except (TypeError, KeyError):  # unhashable values, or NaNs that are not one object
+        text = np.array([str(v).strip().lower() if isinstance(v, str) else "" for v in values], dtype=object)
     codes = np.zeros(n, np.int8)
     known = np.zeros(n, bool)
     for k, name in enumerate(ROOF_KINDS):
@@ -355,8 +360,8 @@ def _convex(rings: Rings) -> np.ndarray:
     nxt = rings.next_vertex()
     prev = np.empty_like(nxt)
     prev[nxt] = np.arange(len(nxt))
-    e0 = xy - xy[prev]
-    e1 = xy[nxt] - xy
+    e0 = xy - xy.take(prev, axis=0)
+    e1 = xy.take(nxt, axis=0) - xy
     cross = e0[:, 0] * e1[:, 1] - e0[:, 1] * e1[:, 0]
     scale = np.hypot(*e0.T) * np.hypot(*e1.T)
     right = cross < -1e-6 * scale
@@ -517,7 +522,7 @@ def _own(rings: Rings, sel: np.ndarray) -> Rings:
     return Rings(sub.xy, sub.ring_start, sub.poly_ring, np.arange(len(sel), dtype=np.int64))
 
 
-def _strips(outer: np.ndarray, inner: np.ndarray, d: float, outer_rings: Rings, inner_rings: Rings):
+def _strips(outer: np.ndarray, inner: np.ndarray, d: float, outer_rings: Rings | None = None, inner_rings=None):
     """The ring between footprints ``outer`` and their mitred insets ``inner`` by ``d`` (m), as strips.
 
     Where the inset is a one-ring polygon of as many vertices as the
@@ -532,8 +537,8 @@ def _strips(outer: np.ndarray, inner: np.ndarray, d: float, outer_rings: Rings, 
         Footprints and their insets.
     d : float
         Inset distance (m).
-    outer_rings, inner_rings : Rings
-        ``ring_arrays`` of ``outer`` and of ``inner`` (made once by the caller).
+    outer_rings, inner_rings : Rings, optional
+        ``ring_arrays`` of ``outer`` and of ``inner`` when the caller has them.
 
     Returns
     -------
@@ -554,7 +559,9 @@ def _strips(outer: np.ndarray, inner: np.ndarray, d: float, outer_rings: Rings, 
     if not cand.size:
         return empty, done
     # their rings, taken from those of all footprints and insets (a one-part inset is one polygon of them)
-    ro = _own(outer_rings, cand)
+    outer_rings = ring_arrays(outer) if outer_rings is None else outer_rings
+    inner_rings = ring_arrays(inner) if inner_rings is None else inner_rings
+    ro = _own(outer_rings, np.searchsorted(outer_rings.feature, cand))
     ri = _own(inner_rings, np.searchsorted(inner_rings.feature, cand))
     if ro.n_polys != len(cand) or ri.n_polys != len(cand) or len(ro.xy) != len(ri.xy):
         return empty, done  # a ring lost a repeated vertex: too rare to sort out here
