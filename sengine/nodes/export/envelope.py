@@ -98,6 +98,8 @@ def envelope_solids(
     k = planes.shape[1]
     valid = np.isfinite(planes[:, :, 2])
     nverts = m
+    if bounds is not None:  # the footprint's half-planes, unused slots zero: the same for every line
+        bounds = np.where(np.isfinite(bounds[:, :, 2])[:, :, None], bounds, 0.0)
     for i in range(k):
         for j in range(i + 1, k):
             both = valid[:, i] & valid[:, j]
@@ -171,6 +173,7 @@ def _lowest_somewhere(planes, valid, bounds, line, i: int, j: int) -> np.ndarray
 
     A one-dimensional linear programme along the line ``x(t) = x0 + t d``:
     every other plane stays above plane i, every bound stays non-negative.
+    ``bounds``: the half-planes with their unused slots zero.
     """
     a, b, c = line[:, 0], line[:, 1], line[:, 2]
     x0 = np.column_stack([-a * c, -b * c])  # the line's point nearest the origin (|(a, b)| = 1)
@@ -178,7 +181,7 @@ def _lowest_somewhere(planes, valid, bounds, line, i: int, j: int) -> np.ndarray
     pi = planes[:, i]
     diff = planes - pi[:, None, :]  # h_k - h_i >= 0
     cons = [np.where(valid[:, :, None], diff, 0.0)]
-    cons.append(np.where(np.isfinite(bounds[:, :, 2])[:, :, None], bounds, 0.0))
+    cons.append(bounds)
     g = np.concatenate(cons, axis=1)
     alpha = g[:, :, 0] * d[:, None, 0] + g[:, :, 1] * d[:, None, 1]
     beta = g[:, :, 0] * x0[:, None, 0] + g[:, :, 1] * x0[:, None, 1] + g[:, :, 2]

@@ -308,6 +308,7 @@ def hip_solids(
         wall[cand[go]] = True
 
     # 5. triangles
+    px, py = plan[:, 0].copy(), plan[:, 1].copy()
     f_of = fid
     nxt_s = np.where(j + 1 < flen[fid], np.arange(len(seq)) + 1, fo[fid])
     prv_s = np.empty_like(nxt_s)
@@ -335,7 +336,7 @@ def hip_solids(
     roof_tri = np.column_stack([rot[fo[tf]], rot[fo[tf] + tk], rot[fo[tf] + tk + 1]])
     # a face convex within CONVEX_TOL may still fold a fan triangle (a round footprint's faces turn right
     # by a hair at many vertices): such faces go with the others
-    folded = _folded(plan.take(roof_tri, axis=0))
+    folded = _folded_xy(px, py, roof_tri)
     fold = np.bincount(tf[folded], minlength=len(faces)) > 0
     fold &= ~wall
     if fold.any():
@@ -351,7 +352,7 @@ def hip_solids(
         more = rot[sidx][triangulate(sub)]
         roof_tri = np.concatenate([roof_tri, more])
         roof_kind = np.concatenate([roof_kind, np.full(len(more), 2, np.uint8)])
-        folded = np.concatenate([folded, _folded(plan.take(more, axis=0))])
+        folded = np.concatenate([folded, _folded_xy(px, py, more)])
 
     # no roof triangle folds over (a skeleton that came out wrong): every one turns left in plan
     folded &= roof_kind == 2
@@ -570,6 +571,15 @@ def _folded(tp: np.ndarray) -> np.ndarray:
     """Per triangle ``tp`` (t, 3, 2): it turns right in plan, beyond the slivers between nodes a hair apart."""
     e2 = ((tp[:, 1] - tp[:, 0]) ** 2).sum(1) + ((tp[:, 2] - tp[:, 1]) ** 2).sum(1)
     return _area2(tp) < -1e-3 * e2
+
+
+def _folded_xy(px: np.ndarray, py: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """:func:`_folded` of the triangles ``tri`` (t, 3) of the points ``(px, py)``, gathered by component."""
+    ax, ay = px.take(tri[:, 0]), py.take(tri[:, 0])
+    bx, by = px.take(tri[:, 1]), py.take(tri[:, 1])
+    cx, cy = px.take(tri[:, 2]), py.take(tri[:, 2])
+    e2 = ((bx - ax) ** 2 + (by - ay) ** 2) + ((cx - bx) ** 2 + (cy - by) ** 2)
+    return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax) < -1e-3 * e2
 
 
 def _area2(t: np.ndarray) -> np.ndarray:
