@@ -313,11 +313,11 @@ def hip_solids(
     nxt_s = np.where(j + 1 < flen[fid], np.arange(len(seq)) + 1, fo[fid])
     prv_s = np.empty_like(nxt_s)
     prv_s[nxt_s] = np.arange(len(seq))
-    p_seq = plan.take(seq, axis=0)
-    e0 = p_seq - p_seq.take(prv_s, axis=0)
-    e1 = p_seq.take(nxt_s, axis=0) - p_seq
-    cross = e0[:, 0] * e1[:, 1] - e0[:, 1] * e1[:, 0]
-    reflex = cross < -CONVEX_TOL * np.hypot(*e0.T) * np.hypot(*e1.T)
+    sx, sy = px.take(seq), py.take(seq)
+    e0x, e0y = sx - sx.take(prv_s), sy - sy.take(prv_s)
+    e1x, e1y = sx.take(nxt_s) - sx, sy.take(nxt_s) - sy
+    cross = e0x * e1y - e0y * e1x
+    reflex = cross < -CONVEX_TOL * np.hypot(e0x, e0y) * np.hypot(e1x, e1y)
     n_reflex = np.bincount(f_of, weights=reflex, minlength=len(faces))
     # convex faces and gable walls: fanned from the first skeleton node (index run + 1); one reflex
     # vertex: fanned from it (two convex pieces); the others, all at once, by mesh.triangulate (fans
