@@ -93,10 +93,13 @@ def envelope_solids(
     borig = np.arange(m)
     xy = [rings.xy]
     vpoly = [vpoly0]
+    rels = [rings.xy - origin.take(vpoly0, axis=0)]  # relative to the polygon's first vertex, kept as they grow
     tri = tri0.copy()
     k = planes.shape[1]
     valid = np.isfinite(planes[:, :, 2])
     nverts = m
+    if bounds is not None:  # the footprint's half-planes, unused slots zero: the same for every line
+        bounds = np.where(np.isfinite(bounds[:, :, 2])[:, :, None], bounds, 0.0)
     for i in range(k):
         for j in range(i + 1, k):
             both = valid[:, i] & valid[:, j]
@@ -114,23 +117,26 @@ def envelope_solids(
                     continue
             allxy = np.concatenate(xy) if len(xy) > 1 else xy[0]
             allpoly = np.concatenate(vpoly) if len(vpoly) > 1 else vpoly[0]
-            xy, vpoly = [allxy], [allpoly]
-            rel = allxy - origin[allpoly]
-            s = line[allpoly, 0] * rel[:, 0] + line[allpoly, 1] * rel[:, 1] + line[allpoly, 2]
+            rel = np.concatenate(rels) if len(rels) > 1 else rels[0]
+            xy, vpoly, rels = [allxy], [allpoly], [rel]
+            s = line[:, 0].take(allpoly) * rel[:, 0] + line[:, 1].take(allpoly) * rel[:, 1] + line[:, 2].take(allpoly)
             s[~use[allpoly]] = 0.0
-            sg = np.where(s > ON_LINE, 1, np.where(s < -ON_LINE, -1, 0)).astype(np.int8)
+            sg = (s > ON_LINE).view(np.int8) - (s < -ON_LINE).view(np.int8)
             tri, bnd, borig, new_xy, new_poly = _cut(tri, bnd, borig, allxy, allpoly, s, sg, nverts)
             if len(new_xy):
                 xy.append(new_xy)
                 vpoly.append(new_poly)
+                rels.append(new_xy - origin.take(new_poly, axis=0))
                 nverts += len(new_xy)
     allxy = np.concatenate(xy)
     allpoly = np.concatenate(vpoly)
-    # lift: the lowest plane, scaled so the roof rises from eave to eave + rise
-    rel = allxy - origin[allpoly]
-    pl = planes[allpoly]
-    h = np.where(valid[allpoly], pl[:, :, 0] * rel[:, 0, None] + pl[:, :, 1] * rel[:, 1, None] + pl[:, :, 2], np.inf)
-    h = h.min(axis=1)
+    # lift: the lowest plane, scaled so the roof rises from eave to eave + rise (one plane at a time)
+    rel = np.concatenate(rels)
+    h = np.full(len(allpoly), np.inf)
+    for i in range(k):
+        pl = planes[:, i].take(allpoly, axis=0)
+        hi_ = pl[:, 0] * rel[:, 0] + pl[:, 1] * rel[:, 1] + pl[:, 2]
+        np.minimum(h, np.where(valid[:, i].take(allpoly), hi_, np.inf), out=h)
     n_poly = rings.n_polys
     lo = np.full(n_poly, np.inf)
     hi = np.full(n_poly, -np.inf)
@@ -167,6 +173,7 @@ def _lowest_somewhere(planes, valid, bounds, line, i: int, j: int) -> np.ndarray
 
     A one-dimensional linear programme along the line ``x(t) = x0 + t d``:
     every other plane stays above plane i, every bound stays non-negative.
+    ``bounds``: the half-planes with their unused slots zero.
     """
     a, b, c = line[:, 0], line[:, 1], line[:, 2]
     x0 = np.column_stack([-a * c, -b * c])  # the line's point nearest the origin (|(a, b)| = 1)
@@ -174,7 +181,7 @@ def _lowest_somewhere(planes, valid, bounds, line, i: int, j: int) -> np.ndarray
     pi = planes[:, i]
     diff = planes - pi[:, None, :]  # h_k - h_i >= 0
     cons = [np.where(valid[:, :, None], diff, 0.0)]
-    cons.append(np.where(np.isfinite(bounds[:, :, 2])[:, :, None], bounds, 0.0))
+    cons.append(bounds)
     g = np.concatenate(cons, axis=1)
     alpha = g[:, :, 0] * d[:, None, 0] + g[:, :, 1] * d[:, None, 1]
     beta = g[:, :, 0] * x0[:, None, 0] + g[:, :, 1] * x0[:, None, 1] + g[:, :, 2]
@@ -189,16 +196,14 @@ def _lowest_somewhere(planes, valid, bounds, line, i: int, j: int) -> np.ndarray
 
 def _cut(tri, bnd, borig, xy, vpoly, s, sg, nverts):
     """Cut triangles and boundary edges by the zero line of ``s``; return them and the new vertices."""
-    st = sg[tri]
-    pos = (st > 0).any(axis=1)
-    neg = (st < 0).any(axis=1)
-    cross = pos & neg
-    bs = sg[bnd]
-    bcross = bs[:, 0] * bs[:, 1] < 0
+    # side bits of each vertex (1 above the line, 2 below): a triangle crosses when its three have both
+    bit = (sg > 0).view(np.uint8) | ((sg < 0).view(np.uint8) << 1)
+    cross = (bit[tri[:, 0]] | bit[tri[:, 1]] | bit[tri[:, 2]]) == 3
+    bcross = (bit[bnd[:, 0]] | bit[bnd[:, 1]]) == 3
     if not cross.any() and not bcross.any():
         return tri, bnd, borig, np.empty((0, 2)), np.empty(0, np.int64)
-    ct = tri[cross]
-    cs = st[cross]
+    ct = tri.compress(cross, axis=0)
+    cs = sg[ct]
     zero = cs == 0
     one_zero = zero.sum(axis=1) == 1
     # the special corner: the vertex on the line (one_zero), else the one alone on its side
@@ -213,14 +218,16 @@ def _cut(tri, bnd, borig, xy, vpoly, s, sg, nverts):
     v0, v1, v2 = r[:, 0], r[:, 1], r[:, 2]
     # crossing edges: (v1, v2) for one_zero; (v0, v1) and (v2, v0) otherwise; and the boundary's
     oz, tz = one_zero, ~one_zero
-    ea = np.concatenate([v1[oz], v0[tz], v2[tz], bnd[bcross, 0]])
-    eb = np.concatenate([v2[oz], v1[tz], v0[tz], bnd[bcross, 1]])
+    bc = bnd.compress(bcross, axis=0)
+    ea = np.concatenate([v1[oz], v0[tz], v2[tz], bc[:, 0]])
+    eb = np.concatenate([v2[oz], v1[tz], v0[tz], bc[:, 1]])
     lo_, hi_ = np.minimum(ea, eb), np.maximum(ea, eb)
     key = lo_ * (1 << 31) + hi_
     ukey, inv = unique_int(key, return_inverse=True)
     p, q = ukey // (1 << 31), ukey % (1 << 31)
     t = s[p] / (s[p] - s[q])
-    new_xy = xy[p] + t[:, None] * (xy[q] - xy[p])
+    xp = xy.take(p, axis=0)
+    new_xy = xp + t[:, None] * (xy.take(q, axis=0) - xp)
     new_poly = vpoly[p]
     ids = nverts + inv
     n1, n2 = int(oz.sum()), int(tz.sum())
@@ -231,7 +238,7 @@ def _cut(tri, bnd, borig, xy, vpoly, s, sg, nverts):
     a0, a1, a2 = v0[oz], v1[oz], v2[oz]
     b0, b1, b2 = v0[tz], v1[tz], v2[tz]
     pieces = [
-        tri[~cross],
+        tri.compress(~cross, axis=0),
         np.column_stack([a0, a1, m_oz]),
         np.column_stack([a0, m_oz, a2]),
         np.column_stack([b0, m01, m20]),

@@ -116,7 +116,7 @@ def ring_arrays(geoms: np.ndarray) -> Rings:
     keep &= shapely.area(parts) > 0.0
     parts, feature = parts[keep], feature[keep]
     coords, vpoly = shapely.get_coordinates(parts, return_index=True)
-    dup = (vpoly[1:] == vpoly[:-1]) & (coords[1:] == coords[:-1]).all(axis=1)
+    dup = (vpoly[1:] == vpoly[:-1]) & (coords[1:, 0] == coords[:-1, 0]) & (coords[1:, 1] == coords[:-1, 1])
     if dup.any():  # only the polygons with repeated vertices are rebuilt
         hit = np.unique(vpoly[1:][dup])
         parts = parts.copy()
@@ -142,7 +142,7 @@ def ring_arrays(geoms: np.ndarray) -> Rings:
     starts = np.concatenate([[0], np.cumsum(counts)])
     mask = np.ones(len(coords), bool)
     mask[starts[1:] - 1] = False  # the closing vertex of every ring
-    xy = coords[mask]
+    xy = coords.compress(mask, axis=0)  # not coords[mask]: NumPy's row masks and gathers are slow
     ring_start = np.concatenate([[0], np.cumsum(counts - 1)]).astype(np.int64)
     poly_ring = np.concatenate([[0], np.cumsum(np.bincount(ring_poly, minlength=len(parts)))]).astype(np.int64)
     xy = _orient(xy, ring_start, poly_ring)
@@ -158,14 +158,14 @@ def _orient(xy: np.ndarray, ring_start: np.ndarray, poly_ring: np.ndarray) -> np
     s, e = ring_start[vr], ring_start[vr + 1]
     i = np.arange(len(xy))
     nxt = np.where(i + 1 < e, i + 1, s)
-    d = xy - xy[s]  # relative to the ring's first vertex: exact enough in a UTM frame
+    d = xy - xy.take(s, axis=0)  # relative to the ring's first vertex: exact enough in a UTM frame
     area2 = np.bincount(vr, weights=d[:, 0] * d[nxt, 1] - d[nxt, 0] * d[:, 1], minlength=n_rings)
     exterior = np.zeros(n_rings, bool)
     exterior[poly_ring[:-1]] = True
     flip = np.where(exterior, area2 < 0, area2 > 0)
     if not flip.any():
         return xy
-    return xy[np.where(flip[vr], s + e - 1 - i, i)]
+    return xy.take(np.where(flip[vr], s + e - 1 - i, i), axis=0)
 
 
 def triangulate(rings: Rings) -> np.ndarray:
@@ -189,8 +189,8 @@ def triangulate(rings: Rings) -> np.ndarray:
     nxt = rings.next_vertex()
     prev = np.empty_like(nxt)
     prev[nxt] = np.arange(len(nxt))
-    e0 = xy - xy[prev]
-    e1 = xy[nxt] - xy
+    e0 = xy - xy.take(prev, axis=0)
+    e1 = xy.take(nxt, axis=0) - xy
     cross = e0[:, 0] * e1[:, 1] - e0[:, 1] * e1[:, 0]
     scale = np.hypot(*e0.T) * np.hypot(*e1.T)
     right_turn = cross < -1e-9 * scale
@@ -249,7 +249,9 @@ def triangulate(rings: Rings) -> np.ndarray:
             tri = np.concatenate(got).astype(np.int64).reshape(-1, 3)
             tp = np.repeat(np.arange(len(rest)), cnt)
             tri += v0[tp][:, None]
-            a, b, c = (xy[tri[:, k]] - xy[v0[tp]] for k in range(3))  # relative to the polygon's first vertex
+            a, b, c = (
+                xy.take(tri[:, k], axis=0) - xy.take(v0[tp], axis=0) for k in range(3)
+            )  # relative to the polygon's first vertex
             area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
             flip = (np.bincount(tp, weights=area2, minlength=len(rest)) < 0)[tp]
             tri[flip] = tri[flip][:, [0, 2, 1]]
@@ -258,7 +260,7 @@ def triangulate(rings: Rings) -> np.ndarray:
         return np.empty((0, 3), np.int64)
     tri = np.concatenate(parts)
     # flat triangles over collinear ring vertices stay: dropping one would open a crack beside a wall
-    tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0])]
+    tri = tri.compress((tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 2] != tri[:, 0]), axis=0)
     unused = np.bincount(tri.ravel(), minlength=len(xy)) == 0
     if unused.any():  # collinear ring vertices skipped or in a dropped flat triangle: the walls need them
         tri = _refill(rings, tri, np.unique(rings.vertex_poly()[unused]))
@@ -275,14 +277,18 @@ def triangulate(rings: Rings) -> np.ndarray:
 
 #: Rings of at most this many vertices are tried as stars before earcut.
 STAR_MAX = 16
+#: Apexes tried together in one pass of :func:`_star_fans`.
+STAR_STAGE = 3
 
 
 def _star_fans(xy: np.ndarray, start: np.ndarray, n: np.ndarray) -> tuple[np.ndarray | None, np.ndarray]:
     """Fans of the rings ``start[i] .. start[i] + n[i]`` from the first vertex whose fan has only left turns.
 
-    Rings are taken by vertex count, each count in one numpy pass over every
-    apex.  Returns the triangles of the rings that have such a vertex and
-    which rings do.
+    Rings are taken by vertex count; the apexes are tried in stages of
+    :data:`STAR_STAGE` (each stage one numpy pass over the rings still without
+    one), so a ring seen whole from its first vertices (most) costs a few
+    apexes, not all of them.  Returns the triangles of the rings that have
+    such a vertex and which rings do.
     """
     ok = np.zeros(len(start), bool)
     out = []
@@ -290,21 +296,33 @@ def _star_fans(xy: np.ndarray, start: np.ndarray, n: np.ndarray) -> tuple[np.nda
         sel = np.flatnonzero(n == nn)
         st = start[sel]
         pts = xy[st[:, None] + np.arange(nn)] - xy[st][:, None, :]  # (p, nn, 2), relative to the first vertex
-        a = np.arange(nn)[:, None]
+        ext2 = (np.abs(pts).max(axis=(1, 2)) ** 2)[:, None]
         j = np.arange(1, nn - 1)[None, :]
-        ib, ic = (a + j) % nn, (a + j + 1) % nn  # (apex, k)
-        d1 = pts[:, ib] - pts[:, :, None, :]
-        d2 = pts[:, ic] - pts[:, :, None, :]
-        area2 = d1[..., 0] * d2[..., 1] - d1[..., 1] * d2[..., 0]
-        ext = np.abs(pts).max(axis=(1, 2))
-        good = (area2 > 1e-12 * (ext**2)[:, None, None]).all(axis=2)
-        has = good.any(axis=1)
+        best = np.full(len(sel), -1)
+        left = np.arange(len(sel))
+        for a0 in range(0, nn, STAR_STAGE):
+            a = np.arange(a0, min(a0 + STAR_STAGE, nn))[:, None]
+            ib, ic = (a + j) % nn, (a + j + 1) % nn  # (apex, k)
+            p = pts[left]
+            d1 = p[:, ib] - p[:, a[:, 0], None, :]
+            d2 = p[:, ic] - p[:, a[:, 0], None, :]
+            area2 = d1[..., 0] * d2[..., 1] - d1[..., 1] * d2[..., 0]
+            good = (area2 > 1e-12 * ext2[left, :, None]).all(axis=2)
+            has = good.any(axis=1)
+            best[left[has]] = a0 + np.argmax(good[has], axis=1)
+            left = left[~has]
+            if not left.size:
+                break
+        has = best >= 0
         if not has.any():
             continue
         ok[sel[has]] = True
-        best = np.argmax(good[has], axis=1)
+        best = best[has]
+        k = np.arange(1, nn - 1)[None, :]
         apex = np.broadcast_to(best[:, None], (len(best), nn - 2))
-        out.append(np.stack([apex, ib[best], ic[best]], axis=2) + st[has, None, None])
+        out.append(
+            np.stack([apex, (best[:, None] + k) % nn, (best[:, None] + k + 1) % nn], axis=2) + st[has, None, None]
+        )
     if not out:
         return None, ok
     tri = np.concatenate([t.reshape(-1, 3) for t in out])
@@ -394,15 +412,21 @@ def _refill(rings: Rings, tri: np.ndarray, polys: np.ndarray) -> np.ndarray:
     """Triangles of ``polys`` redone with :func:`fill_skipped` so that every ring vertex is used."""
     vpoly = rings.vertex_poly()
     tpoly = vpoly[tri[:, 0]]
-    keep = ~np.isin(tpoly, polys)
-    redone = [tri[keep]]
-    for p in polys.tolist():
+    hit = np.zeros(rings.n_polys, bool)
+    hit[polys] = True
+    mine = hit[tpoly]
+    redone = [tri.compress(~mine, axis=0)]
+    # each polygon's triangles, in their order, as one slice of the polygons' triangles sorted by polygon
+    own = np.flatnonzero(mine)
+    own = own[stable_argsort(tpoly[own])]
+    at = np.searchsorted(tpoly[own], np.concatenate([polys, [rings.n_polys]]))
+    for k, p in enumerate(polys.tolist()):
         r0, r1 = rings.poly_ring[p], rings.poly_ring[p + 1]
         ring_ids = [list(range(rings.ring_start[r], rings.ring_start[r + 1])) for r in range(r0, r1)]
-        fixed = fill_skipped(ring_ids, tri[tpoly == p].tolist())
+        fixed = fill_skipped(ring_ids, tri.take(own[at[k] : at[k + 1]], axis=0).tolist())
         redone.append(np.asarray(fixed, np.int64).reshape(-1, 3))
     tri = np.concatenate(redone)
-    return tri[np.argsort(vpoly[tri[:, 0]], kind="stable")]
+    return tri.take(np.argsort(vpoly[tri[:, 0]], kind="stable"), axis=0)
 
 
 def fill_skipped(rings: list[list[int]], tris: list[list[int]]) -> list[list[int]]:
@@ -445,7 +469,12 @@ def fill_skipped(rings: list[list[int]], tris: list[list[int]]) -> list[list[int
 
 
 def extrude(
-    geoms: np.ndarray, heights: np.ndarray, *, base: float | np.ndarray = 0.0, bottom: bool = True
+    geoms: np.ndarray,
+    heights: np.ndarray,
+    *,
+    base: float | np.ndarray = 0.0,
+    bottom: bool = True,
+    rings: Rings | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Prisms over many footprints, as one mesh.
 
@@ -459,6 +488,9 @@ def extrude(
         Ground elevation of each feature (m).
     bottom : bool
         Close the solid with a downward-facing floor.
+    rings : Rings, optional
+        ``ring_arrays(geoms)`` when the caller has it already (its polygon
+        features index ``geoms``).
 
     Returns
     -------
@@ -469,7 +501,7 @@ def extrude(
     vertex_feature : numpy.ndarray of int64, shape (v,)
         Input feature index of each vertex.
     """
-    rings = ring_arrays(geoms)
+    rings = ring_arrays(geoms) if rings is None else rings
     heights = np.broadcast_to(np.asarray(heights, np.float64), (len(geoms),))
     bases = np.broadcast_to(np.asarray(base, np.float64), (len(geoms),))
     m = len(rings.xy)
@@ -614,7 +646,7 @@ def weld(vertices: np.ndarray, faces: np.ndarray, owner: np.ndarray, *, return_m
         h ^= h >> np.uint64(31)
     owner = np.asarray(owner)
     order = np.argsort(h)  # not stable (4x faster): each group's first input vertex is found below
-    hs, vs, o = h[order], v[order], owner[order]
+    hs, vs, o = h[order], v.take(order, axis=0), owner[order]
     new = np.ones(len(order), bool)
     new[1:] = (hs[1:] != hs[:-1]) | (o[1:] != o[:-1]) | (vs[1:] != vs[:-1]).any(axis=1)
     if (~new[1:] != (hs[1:] == hs[:-1])).any():  # a hash shared by two keys (round coordinates): exact order
@@ -625,7 +657,7 @@ def weld(vertices: np.ndarray, faces: np.ndarray, owner: np.ndarray, *, return_m
     remap = np.empty(len(order), np.int64)
     remap[order] = group
     first = np.minimum.reduceat(order, np.flatnonzero(new)) if len(order) else order  # as a stable sort's
-    out = vertices[first], remap[faces], o[new]
+    out = np.asarray(vertices).take(first, axis=0), remap.take(faces), o[new]
     if return_merged:
         return (*out, np.bincount(group, minlength=int(new.sum())) > 1)
     return out
@@ -670,7 +702,7 @@ def subset_rings(rings: Rings, sel: np.ndarray) -> Rings:
     starts = rings.ring_start[ring_ids]
     vid = np.repeat(starts - np.concatenate([[0], np.cumsum(lens)[:-1]]), lens) + np.arange(lens.sum())
     return Rings(
-        rings.xy[vid],
+        rings.xy.take(vid, axis=0),
         np.concatenate([[0], np.cumsum(lens)]).astype(np.int64),
         np.concatenate([[0], np.cumsum(nr)]).astype(np.int64),
         np.asarray(sel, np.int64),

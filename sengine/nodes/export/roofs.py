@@ -133,7 +133,12 @@ def roof_kinds(values, n: int) -> tuple[np.ndarray, int]:
     """Codes (index into :data:`ROOF_KINDS`) of a ``roof`` column; unknown names count and become flat."""
     if values is None:
         return np.zeros(n, np.int8), 0
-    text = np.array([str(v).strip().lower() if isinstance(v, str) else "" for v in values], dtype=object)
+    values = np.asarray(values, dtype=object).reshape(n)
+    try:  # a few distinct values: each read once, then looked up
+        name = {v: str(v).strip().lower() if isinstance(v, str) else "" for v in set(values.tolist())}
+        text = np.array([name[v] for v in values.tolist()], dtype=object)
+    except (TypeError, KeyError):  # unhashable values, or NaNs that are not one object
+        text = np.array([str(v).strip().lower() if isinstance(v, str) else "" for v in values], dtype=object)
     codes = np.zeros(n, np.int8)
     known = np.zeros(n, bool)
     for k, name in enumerate(ROOF_KINDS):
@@ -286,7 +291,7 @@ def building_solids(geoms, height, *, roof=None, roof_height=None, roof_directio
                 flat[bad] = True
     sel = np.flatnonzero(flat)
     if sel.size:
-        v, f, vp = mesh.extrude(parts[sel], H[sel], base=B[sel])
+        v, f, vp = mesh.extrude(parts[sel], H[sel], base=B[sel], rings=_own(rings, sel))
         out.append((v, f, sel[vp], _prism_kinds(len(v) // 2, len(f))))
     if not out:
         return Solids(np.empty((0, 3)), np.empty((0, 3), np.int64), np.empty(0, np.int64), np.empty(0, np.uint8), notes)
@@ -303,7 +308,16 @@ def building_solids(geoms, height, *, roof=None, roof_height=None, roof_directio
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
     forder = stable_argsort(vp[f_all[:, 0]])
-    return Solids(np.concatenate(vs)[order], rank[f_all[forder]], pf[vp[order]], fk_all[forder], notes, vp[order])
+    # take(axis=0), not [ ]: NumPy's fancy index of rows is several times slower on these sizes
+    vpo = vp[order]
+    return Solids(
+        np.concatenate(vs).take(order, axis=0),
+        rank.take(f_all.take(forder, axis=0)),
+        pf[vpo],
+        fk_all[forder],
+        notes,
+        vpo,
+    )
 
 
 def layer_solids(layer, lod: int = 2) -> Solids:
@@ -346,8 +360,8 @@ def _convex(rings: Rings) -> np.ndarray:
     nxt = rings.next_vertex()
     prev = np.empty_like(nxt)
     prev[nxt] = np.arange(len(nxt))
-    e0 = xy - xy[prev]
-    e1 = xy[nxt] - xy
+    e0 = xy - xy.take(prev, axis=0)
+    e1 = xy.take(nxt, axis=0) - xy
     cross = e0[:, 0] * e1[:, 1] - e0[:, 1] * e1[:, 0]
     scale = np.hypot(*e0.T) * np.hypot(*e1.T)
     right = cross < -1e-6 * scale
@@ -451,12 +465,14 @@ def _terrace(parts, rings: Rings, sel: np.ndarray, kind: int, top, rh, base):
     ring_z = top[sel] if kind == PARAPET else top[sel] - rh[sel]  # the ring (parapet top or terrace)
     pieces = []
     # outer prism without its top: floor and walls up to the ring
-    v, f, vf = _topped(mesh.extrude(parts[sel], ring_z - base[sel], base=base[sel]), ring_z)
+    outer = _own(rings, sel)  # the footprints' rings (as ring_arrays(parts[sel]) would make them again)
+    inner_rings = ring_arrays(inner)
+    v, f, vf = _topped(mesh.extrude(parts[sel], ring_z - base[sel], base=base[sel], rings=outer), ring_z)
     fk = _prism_kinds(len(v) // 2, len(f))
     keep = fk != 2
     pieces.append((v, f[keep], vf, fk[keep]))
     # the ring, facing up: a strip of trapezoids where the inset is the outline moved in, else earcut
-    strip = _strips(parts[sel], inner, d)
+    strip = _strips(parts[sel], inner, d, outer, inner_rings)
     v, f, vf = strip[0]
     rest = np.flatnonzero(~strip[1])
     if rest.size:
@@ -467,13 +483,13 @@ def _terrace(parts, rings: Rings, sel: np.ndarray, kind: int, top, rh, base):
     pieces.append((v, f, vf, np.full(len(f), 2, np.uint8)))
     if kind == PARAPET:  # the well: walls facing in, the deck facing up
         deck = ring_z - rh[sel]
-        v, f, vf = _topped(mesh.extrude(inner, ring_z - deck, base=deck), ring_z)
+        v, f, vf = _topped(mesh.extrude(inner, ring_z - deck, base=deck, rings=inner_rings), ring_z)
         fk = _prism_kinds(len(v) // 2, len(f))
         keep = fk != 2
         f, fk = f[keep][:, [0, 2, 1]], fk[keep]
         fk[fk == 0] = 2
     else:  # the recessed storey: walls out, its roof up
-        v, f, vf = mesh.extrude(inner, top[sel] - ring_z, base=ring_z, bottom=False)
+        v, f, vf = mesh.extrude(inner, top[sel] - ring_z, base=ring_z, bottom=False, rings=inner_rings)
         fk = _prism_kinds_open(len(v) // 2, len(f))
     pieces.append((v, f, vf, fk))
     vs, fs, vps, fks, off = [], [], [], [], 0
@@ -500,7 +516,13 @@ def _topped(solid, z: np.ndarray):
     return v, f, vf
 
 
-def _strips(outer: np.ndarray, inner: np.ndarray, d: float):
+def _own(rings: Rings, sel: np.ndarray) -> Rings:
+    """Polygons ``sel`` of ``rings`` as their own :class:`Rings`, polygon ``i`` of feature ``i``."""
+    sub = subset_rings(rings, sel)
+    return Rings(sub.xy, sub.ring_start, sub.poly_ring, np.arange(len(sel), dtype=np.int64))
+
+
+def _strips(outer: np.ndarray, inner: np.ndarray, d: float, outer_rings: Rings | None = None, inner_rings=None):
     """The ring between footprints ``outer`` and their mitred insets ``inner`` by ``d`` (m), as strips.
 
     Where the inset is a one-ring polygon of as many vertices as the
@@ -508,6 +530,15 @@ def _strips(outer: np.ndarray, inner: np.ndarray, d: float):
     its left (no edge vanished, the outline only moved in), the ring is the
     trapezoids between corresponding edges, two triangles each, for all
     footprints at once.  The others are left to earcut.
+
+    Parameters
+    ----------
+    outer, inner : numpy.ndarray of shapely geometries
+        Footprints and their insets.
+    d : float
+        Inset distance (m).
+    outer_rings, inner_rings : Rings, optional
+        ``ring_arrays`` of ``outer`` and of ``inner`` when the caller has them.
 
     Returns
     -------
@@ -527,7 +558,11 @@ def _strips(outer: np.ndarray, inner: np.ndarray, d: float):
     )
     if not cand.size:
         return empty, done
-    ro, ri = ring_arrays(outer[cand]), ring_arrays(inner[cand])
+    # their rings, taken from those of all footprints and insets (a one-part inset is one polygon of them)
+    outer_rings = ring_arrays(outer) if outer_rings is None else outer_rings
+    inner_rings = ring_arrays(inner) if inner_rings is None else inner_rings
+    ro = _own(outer_rings, np.searchsorted(outer_rings.feature, cand))
+    ri = _own(inner_rings, np.searchsorted(inner_rings.feature, cand))
     if ro.n_polys != len(cand) or ri.n_polys != len(cand) or len(ro.xy) != len(ri.xy):
         return empty, done  # a ring lost a repeated vertex: too rare to sort out here
     k = np.diff(ro.ring_start)

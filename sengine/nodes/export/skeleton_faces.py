@@ -115,7 +115,7 @@ def hip_solids(
     short = np.diff(kstart) < 3
     ring_poly = np.repeat(np.arange(n_poly), np.diff(rings.poly_ring))
     bad[ring_poly[short]] = True
-    qk = np.ascontiguousarray(q[kidx])
+    qk = q.take(kidx, axis=0)
     bad |= ~_valid(qk, kstart, rings.poly_ring, bad)
     if engine == "wavefront":
         nk0 = kstart[rings.poly_ring[1:]] - kstart[rings.poly_ring[:-1]]
@@ -143,7 +143,7 @@ def hip_solids(
     # among the kept vertices by their coordinates (CGAL hands them back exactly); the wavefront's
     # are the kept vertices themselves, row k of a polygon its k-th
     contour = np.zeros(len(pts), bool)
-    contour[erow[etype == 2].ravel()] = True
+    contour[erow.compress(etype == 2, axis=0).ravel()] = True
     crow = np.flatnonzero(contour)
     kid = np.full(len(pts), -1)
     if engine == "wavefront":
@@ -185,7 +185,8 @@ def hip_solids(
     eu, ev = ek >> 32, ek & ((1 << 32) - 1)
     ne = len(eu)
     hu, hv = np.concatenate([eu, ev]), np.concatenate([ev, eu])
-    d = pts[hv] - pts[hu]
+    p_hu = pts.take(hu, axis=0)
+    d = pts.take(hv, axis=0) - p_hu
     ang = np.arctan2(d[:, 1], d[:, 0])
     srt = _sort_around(hu, ang)
     pos = np.empty_like(srt)
@@ -221,10 +222,11 @@ def hip_solids(
     estart[label[eave_h]] = np.flatnonzero(eave_h)
     fe = estart[label]
     inner_h = inner[label]
-    a_, b_ = pts[hu[np.maximum(fe, 0)]], pts[hv[np.maximum(fe, 0)]]
+    fe0 = np.maximum(fe, 0)
+    a_, b_ = pts.take(hu[fe0], axis=0), pts.take(hv[fe0], axis=0)
     dd = b_ - a_
     ln = np.hypot(dd[:, 0], dd[:, 1])
-    rel = pts[hu] - a_
+    rel = p_hu - a_
     t = np.where(inner_h, (dd[:, 0] * rel[:, 1] - dd[:, 1] * rel[:, 0]) / np.where(ln > 0, ln, 1.0), 0.0)
     tmax = np.full(len(pts), -np.inf)
     tmin = np.full(len(pts), np.inf)
@@ -244,7 +246,7 @@ def hip_solids(
     out_id = np.full(len(pts), -1)
     out_id[nodes] = m + np.arange(len(nodes))
     out_id[contour] = kidx[kid[contour]]
-    plan = np.concatenate([local, pts[nodes] * SNAP])  # plan coordinates, local to each polygon (m)
+    plan = np.concatenate([local, pts.take(nodes, axis=0) * SNAP])  # plan coordinates, local to each polygon (m)
     vpoly_plan = np.concatenate([vpoly, row_poly[nodes]])
 
     # 4. faces as vertex sequences starting at their eave, the left-out ring vertices put back
@@ -256,11 +258,18 @@ def hip_solids(
         e = np.empty(0, np.int64)
         return np.empty((0, 3)), np.empty((0, 3), np.int64), e, np.empty(0, np.uint8), np.arange(n_poly)
     K = int(fsize.max())
-    cyc = np.empty((len(faces), K), np.int64)
-    cur = start.copy()
+    # the faces' vertices, k-th column at step k, on the faces that long only (largest first; most have 3-5)
+    by_size = np.argsort(-fsize, kind="stable")
+    longer = np.searchsorted(-fsize[by_size], -np.arange(K), side="left")  # faces with more than k vertices
+    cyc_s = np.zeros((len(faces), K), np.int64)
+    cur = start[by_size]
     for k in range(K):
-        cyc[:, k] = out_id[hu[cur]]
-        cur = hnext[cur]
+        c = cur[: longer[k]]
+        cyc_s[: longer[k], k] = out_id[hu[c]]
+        cur = hnext[c]
+    back = np.empty_like(by_size)
+    back[by_size] = np.arange(len(by_size))
+    cyc = cyc_s.take(back, axis=0)
     oa, ob = cyc[:, 0], cyc[:, 1]
     ring_len = np.diff(rings.ring_start)[vring[oa]]
     run = (ob - oa) % ring_len  # ring vertices from a to b, b included
@@ -273,7 +282,7 @@ def hip_solids(
     seq = np.where(
         on_run,
         rs + (oa[fid] - rs + j) % ring_len[fid],
-        cyc[fid, np.minimum(np.maximum(j - run[fid] + 1, 0), K - 1)],
+        cyc.ravel()[fid * K + np.minimum(np.maximum(j - run[fid] + 1, 0), K - 1)],
     )
 
     # gables: lone end triangles over a wing's end become walls
@@ -299,14 +308,16 @@ def hip_solids(
         wall[cand[go]] = True
 
     # 5. triangles
+    px, py = plan[:, 0].copy(), plan[:, 1].copy()
     f_of = fid
     nxt_s = np.where(j + 1 < flen[fid], np.arange(len(seq)) + 1, fo[fid])
     prv_s = np.empty_like(nxt_s)
     prv_s[nxt_s] = np.arange(len(seq))
-    e0 = plan[seq] - plan[seq[prv_s]]
-    e1 = plan[seq[nxt_s]] - plan[seq]
-    cross = e0[:, 0] * e1[:, 1] - e0[:, 1] * e1[:, 0]
-    reflex = cross < -CONVEX_TOL * np.hypot(*e0.T) * np.hypot(*e1.T)
+    sx, sy = px.take(seq), py.take(seq)
+    e0x, e0y = sx - sx.take(prv_s), sy - sy.take(prv_s)
+    e1x, e1y = sx.take(nxt_s) - sx, sy.take(nxt_s) - sy
+    cross = e0x * e1y - e0y * e1x
+    reflex = cross < -CONVEX_TOL * np.hypot(e0x, e0y) * np.hypot(e1x, e1y)
     n_reflex = np.bincount(f_of, weights=reflex, minlength=len(faces))
     # convex faces and gable walls: fanned from the first skeleton node (index run + 1); one reflex
     # vertex: fanned from it (two convex pieces); the others, all at once, by mesh.triangulate (fans
@@ -325,13 +336,13 @@ def hip_solids(
     roof_tri = np.column_stack([rot[fo[tf]], rot[fo[tf] + tk], rot[fo[tf] + tk + 1]])
     # a face convex within CONVEX_TOL may still fold a fan triangle (a round footprint's faces turn right
     # by a hair at many vertices): such faces go with the others
-    folded = _folded(plan[roof_tri])
+    folded = _folded_xy(px, py, roof_tri)
     fold = np.bincount(tf[folded], minlength=len(faces)) > 0
     fold &= ~wall
     if fold.any():
         convex &= ~fold
         keep_t = convex[tf]
-        roof_tri, tf, folded = roof_tri[keep_t], tf[keep_t], folded[keep_t]
+        roof_tri, tf, folded = roof_tri.compress(keep_t, axis=0), tf[keep_t], folded[keep_t]
     roof_kind = np.where(wall[tf], 1, 2).astype(np.uint8)
     hard = np.flatnonzero(~convex)
     if hard.size:
@@ -341,7 +352,7 @@ def hip_solids(
         more = rot[sidx][triangulate(sub)]
         roof_tri = np.concatenate([roof_tri, more])
         roof_kind = np.concatenate([roof_kind, np.full(len(more), 2, np.uint8)])
-        folded = np.concatenate([folded, _folded(plan[more])])
+        folded = np.concatenate([folded, _folded_xy(px, py, more)])
 
     # no roof triangle folds over (a skeleton that came out wrong): every one turns left in plan
     folded &= roof_kind == 2
@@ -375,8 +386,8 @@ def hip_solids(
     order_f = np.flatnonzero(keep_f)
     order_f = order_f[stable_argsort(fp[order_f])]
     return (
-        vertices[keep_v],
-        remap[faces_all[order_f]],
+        vertices.compress(keep_v, axis=0),
+        remap.take(faces_all.take(order_f, axis=0)),
         vertex_poly[keep_v],
         kinds[order_f],
         np.flatnonzero(bad),
@@ -406,13 +417,13 @@ def _drop_flat(q: np.ndarray, vring: np.ndarray, ring_start: np.ndarray):
         is_last = np.zeros(len(idx), bool)
         is_last[last] = True
         nx = np.where(is_last, fs[g], k + 1)
-        p = q[idx]
-        d1 = p[nx] - p
-        repeat = (d1 == 0).all(axis=1)
+        p = q.take(idx, axis=0)
+        d1 = p.take(nx, axis=0) - p
+        repeat = (d1[:, 0] == 0) & (d1[:, 1] == 0)
         if step < 4:
             pv = np.empty_like(nx)
             pv[nx] = k
-            d0 = p - p[pv]
+            d0 = p - p.take(pv, axis=0)
             cross = d0[:, 0] * d1[:, 1] - d0[:, 1] * d1[:, 0]
             dot = (d0 * d1).sum(axis=1)
             cand = repeat | (np.abs(np.arctan2(cross, dot)) <= FLAT_TURN)
@@ -560,6 +571,15 @@ def _folded(tp: np.ndarray) -> np.ndarray:
     """Per triangle ``tp`` (t, 3, 2): it turns right in plan, beyond the slivers between nodes a hair apart."""
     e2 = ((tp[:, 1] - tp[:, 0]) ** 2).sum(1) + ((tp[:, 2] - tp[:, 1]) ** 2).sum(1)
     return _area2(tp) < -1e-3 * e2
+
+
+def _folded_xy(px: np.ndarray, py: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """:func:`_folded` of the triangles ``tri`` (t, 3) of the points ``(px, py)``, gathered by component."""
+    ax, ay = px.take(tri[:, 0]), py.take(tri[:, 0])
+    bx, by = px.take(tri[:, 1]), py.take(tri[:, 1])
+    cx, cy = px.take(tri[:, 2]), py.take(tri[:, 2])
+    e2 = ((bx - ax) ** 2 + (by - ay) ** 2) + ((cx - bx) ** 2 + (cy - by) ** 2)
+    return (bx - ax) * (cy - ay) - (by - ay) * (cx - ax) < -1e-3 * e2
 
 
 def _area2(t: np.ndarray) -> np.ndarray:

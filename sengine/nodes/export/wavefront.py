@@ -73,14 +73,14 @@ def _wavefront(qk, kstart, poly_ring, todo):
         return np.empty((0, 2)), e, np.empty((0, 2), np.int64), np.empty(0, np.int8), cnt, ecnt, todo[:0]
     # the outline: edge i runs from vertex i to the next, all polygons in one array
     vid = np.repeat(kstart[r] - np.concatenate([[0], np.cumsum(ln)[:-1]]), ln) + np.arange(nv)
-    xy = qk[vid].astype(np.float64)
+    xy = qk.take(vid, axis=0).astype(np.float64)
     vp = np.repeat(np.arange(len(todo)), ln)
     first = np.concatenate([[0], np.cumsum(ln)[:-1]])
     nxt = np.arange(1, nv + 1)
     nxt[first + ln - 1] = first
     prv = np.empty_like(nxt)
     prv[nxt] = np.arange(nv)
-    d = xy[nxt] - xy
+    d = xy.take(nxt, axis=0) - xy
     dl = np.hypot(d[:, 0], d[:, 1])
     D = d / np.where(dl > 0, dl, 1.0)[:, None]
     N = np.column_stack([-D[:, 1], D[:, 0]])
@@ -109,7 +109,7 @@ def _wavefront(qk, kstart, poly_ring, todo):
     failed[vp[dl == 0]] = True  # a repeated vertex: no edge line
 
     def velocity(el, er):
-        n1, n2 = N[el], N[er]
+        n1, n2 = N.take(el, axis=0), N.take(er, axis=0)
         den = 1.0 + (n1 * n2).sum(axis=1)
         ok = den > SPIKE
         return np.where(ok[:, None], (n1 + n2) / np.where(ok, den, 1.0)[:, None], 0.0), ~ok
@@ -119,7 +119,7 @@ def _wavefront(qk, kstart, poly_ring, todo):
     SPIKY[:nv] = spike0
 
     def pos(v, t):
-        return P0[v] + V[v] * (t - T0[v])[:, None]
+        return P0.take(v, axis=0) + V.take(v, axis=0) * (t - T0[v])[:, None]
 
     def new_nodes(p, polys):
         nonlocal n_nodes
@@ -143,7 +143,9 @@ def _wavefront(qk, kstart, poly_ring, todo):
         NX[pv] = z
         PV[nx] = z
         V[z], SPIKY[z] = velocity(el, er)
-        P0[z] = _meet(N[el], N[er], C[el] + t, C[er] + t, p)  # on both lines: no drift from event to event
+        P0[z] = _meet(
+            N.take(el, axis=0), N.take(er, axis=0), C[el] + t, C[er] + t, p
+        )  # on both lines: no drift from event to event
 
     steps = 0
     limit = 6 * int(ln.max()) + 10
@@ -181,16 +183,18 @@ def _wavefront(qk, kstart, poly_ring, todo):
         if not free.size:
             continue
         tnow = np.zeros(len(todo))
-        np.maximum.at(tnow, POLY[free], T0[free])
+        pf = POLY[free]
+        np.maximum.at(tnow, pf, T0[free])
         v, w = free, NX[free]
         ev_e = ER[v]
         dx, dy = Dx[ev_e], Dy[ev_e]
         T0v, T0w = T0[v], T0[w]
-        A = (dx * (P0[w, 0] - V[w, 0] * T0w) + dy * (P0[w, 1] - V[w, 1] * T0w)) - (
-            dx * (P0[v, 0] - V[v, 0] * T0v) + dy * (P0[v, 1] - V[v, 1] * T0v)
+        Pv, Pw, Vv, Vw = P0.take(v, axis=0), P0.take(w, axis=0), V.take(v, axis=0), V.take(w, axis=0)
+        A = (dx * (Pw[:, 0] - Vw[:, 0] * T0w) + dy * (Pw[:, 1] - Vw[:, 1] * T0w)) - (
+            dx * (Pv[:, 0] - Vv[:, 0] * T0v) + dy * (Pv[:, 1] - Vv[:, 1] * T0v)
         )
-        B = dx * (V[w, 0] - V[v, 0]) + dy * (V[w, 1] - V[v, 1])
-        tn = tv = tnow[POLY[v]]
+        B = dx * (Vw[:, 0] - Vv[:, 0]) + dy * (Vw[:, 1] - Vv[:, 1])
+        tn = tv = tnow[pf]
         # when and where the edge's line and its neighbours' meet: three lines, no drift
         xe, ye, t3 = _concurrent(EL[v], ev_e, ER[w], Nx, Ny, C)
         te = np.where((B < -1e-12) & np.isfinite(t3), t3, np.inf)
@@ -198,9 +202,10 @@ def _wavefront(qk, kstart, poly_ring, todo):
         te = np.where(gone, tn, te)
         te = np.maximum(te, tn)
         # split events: reflex vertices against the other edges of their polygon
-        reflex = free[(D[EL[free]][:, 0] * D[ER[free]][:, 1] - D[EL[free]][:, 1] * D[ER[free]][:, 0]) < 0]
+        fl, fr = EL[free], ER[free]
+        reflex = free[(Dx[fl] * Dy[fr] - Dy[fl] * Dx[fr]) < 0]
         best_t = np.full(len(todo), np.inf)
-        np.minimum.at(best_t, POLY[v], te)
+        np.minimum.at(best_t, pf, te)
         ts_v = ts_w = np.empty(0, np.int64)
         ts, tsx = np.empty(0), np.empty((0, 2))
         if reflex.size:
@@ -229,8 +234,10 @@ def _wavefront(qk, kstart, poly_ring, todo):
             dx, dy = Dx[e], Dy[e]
             s = dx * x + dy * y
             w2 = NX[rw]
-            s0 = dx * (P0[rw, 0] + V[rw, 0] * (t - T0[rw])) + dy * (P0[rw, 1] + V[rw, 1] * (t - T0[rw]))
-            s1 = dx * (P0[w2, 0] + V[w2, 0] * (t - T0[w2])) + dy * (P0[w2, 1] + V[w2, 1] * (t - T0[w2]))
+            P, Q, dt = P0.take(rw, axis=0), V.take(rw, axis=0), t - T0[rw]
+            s0 = dx * (P[:, 0] + Q[:, 0] * dt) + dy * (P[:, 1] + Q[:, 1] * dt)
+            P, Q, dt = P0.take(w2, axis=0), V.take(w2, axis=0), t - T0[w2]
+            s1 = dx * (P[:, 0] + Q[:, 0] * dt) + dy * (P[:, 1] + Q[:, 1] * dt)
             ok = (s >= s0 - TOL) & (s <= s1 + TOL)
             ts_v, ts_w, ts, tsx = rv[ok], rw[ok], t[ok], np.column_stack([x[ok], y[ok]])
             split_best = np.full(len(todo), np.inf)
@@ -239,8 +246,8 @@ def _wavefront(qk, kstart, poly_ring, todo):
             split_best = np.full(len(todo), np.inf)
         # each polygon: its earliest edge event, unless a split comes strictly earlier
         use_split = split_best < best_t - TOL
-        ev = np.flatnonzero((te <= best_t[POLY[v]]) & ~use_split[POLY[v]])
-        ev = ev[~_dup(POLY[v[ev]])]
+        ev = np.flatnonzero((te <= best_t[pf]) & ~use_split[pf])
+        ev = ev[~_dup(pf[ev])]
         ev_x = np.column_stack([xe[ev], ye[ev]])
         g = ev[gone[ev]]
         if g.size:
@@ -250,7 +257,9 @@ def _wavefront(qk, kstart, poly_ring, todo):
         sv_, sw_, st_, sx_ = ts_v[pick], ts_w[pick], ts[pick], tsx[pick]
         first_s = ~_dup(POLY[sv_])
         sv_, sw_, st_, sx_ = sv_[first_s], sw_[first_s], st_[first_s], sx_[first_s]
-        stuck = np.isin(np.arange(len(todo)), POLY[free]) & ~np.isfinite(np.minimum(best_t, split_best))
+        stuck = np.zeros(len(todo), bool)
+        stuck[pf] = True
+        stuck &= ~np.isfinite(np.minimum(best_t, split_best))
         failed |= stuck
         ok = ~failed[POLY[ev]]
         ev, ev_x = ev[ok], ev_x[ok]
