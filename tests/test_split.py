@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sengine.geom.boundary import ring_segments, segments_on_boundary
-from sengine.geom.split import RingSet, cut_lengths, split
+from sengine.geom.split import RingSet, _twice_on_line, cut_lengths, split
 
 SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -147,6 +147,37 @@ def test_a_cut_along_an_edge_leaves_pieces_without_spikes(p, k, angle):
     mid, normal = 0.5 * (a + b), np.array([b[1] - a[1], a[0] - b[0]])
     again, _, _, _ = split(pieces, np.repeat([mid], pieces.n, 0), np.repeat([normal], pieces.n, 0))
     assert shapely.is_valid(again.polygons()).all()
+
+
+def test_a_cut_along_an_edge_that_leaves_a_slit_is_refused():
+    """Hypothesis found it (a star with a hole, turned 1.5 deg, cut along its edge 9): the cut's chord
+    runs back over that edge 1e-15 m beside it, so one piece reaches out along the line and back, a slit
+    of zero width whose two sides do not meet at a spike tip. GEOS calls the piece valid; cut again
+    across the edge it gave invalid pieces. The cut is refused, as spikes are."""
+    star = shapely.from_wkt(
+        "POLYGON ((3.2306941928515083 -1.8708917706087425, 7.009780324065171 -6.972625824218541, "
+        "1.5345358883246913 -3.1126194806946383, -0.5643796399651579 -2.049499674048774, "
+        "-5.232245557863448 -6.49594338780483, -6.8270608496703895 -3.845571508465826, "
+        "-8.502883916868875 5.0357277030001155, -2.722962637711996 2.1066977703639624, "
+        "-3.230096224990159 7.90819342729302, -2.156465234647106 6.028935931497338, "
+        "-1.1012690837642811 4.855519315254112, 0.3558801145629624 9.026648443371561, "
+        "1.2827235065974794 7.367411461844836, 3.0236270056932057 9.123096714321052, "
+        "2.299012831840647 3.1951232904710833, 3.054948937436769 0.9680382497167094, "
+        "3.2306941928515083 -1.8708917706087425), (0.9923128813205065 1.0749145526617259, "
+        "-1.007001768630608 1.0225606560459797, -0.9546478720148616 -0.976753993905135, "
+        "1.0446667779362528 -0.9244000972893885, 0.9923128813205065 1.0749145526617259))"
+    )
+    ring = np.asarray(star.exterior.coords)
+    a, b = ring[9], ring[10]
+    pieces, parent, side, failed = split(RingSet.from_polygons([star]), [a], [b - a])
+    assert failed.tolist() == [True] and pieces.n == 0
+    # the slit test itself: a square with a slit along y = 0 is caught, a U touching the line twice is not
+    slit = RingSet.from_polygons(
+        [shapely.Polygon([(0, 0), (3, 0), (1, 1e-15), (0.5, 0), (0.5, -1), (4, -1), (4, 2), (0, 2)])]
+    )
+    u = RingSet.from_polygons([shapely.Polygon([(0, 0), (1, 0), (1, 1), (2, 1), (2, 0), (3, 0), (3, 2), (0, 2)])])
+    assert _twice_on_line(slit, [(0.0, 0.0)], [(1.0, 0.0)], 1e-9).tolist() == [True]
+    assert _twice_on_line(u, [(0.0, 0.0)], [(1.0, 0.0)], 1e-9).tolist() == [False]
 
 
 def test_a_cut_along_an_l_s_inner_side_is_refused():

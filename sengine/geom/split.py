@@ -200,13 +200,38 @@ def split(rs: RingSet, point, direction, *, chord_flag: bool = False, touch_tol:
     if len(check):
         sub = pieces.take(check)
         spiked = np.bincount(sub.vertex_poly(), weights=sub.spike_tips(touch_tol), minlength=sub.n) > 0
-        bad[parent[check[spiked | ~shapely.is_valid(sub.polygons())]]] = True
+        twice = _twice_on_line(sub, point[parent[check]], d[parent[check]], touch_tol)
+        bad[parent[check[spiked | twice | ~shapely.is_valid(sub.polygons())]]] = True
     if bad.any():
         keep = ~bad[parent]
         pieces = pieces.take(keep)
         parent, side = parent[keep], side[keep]
         failed |= bad
     return pieces, parent, side, failed
+
+
+def _twice_on_line(rs: RingSet, point, direction, tol: float) -> np.ndarray:
+    """Polygons whose boundary runs twice over some stretch of their line (n,) bool.
+
+    Edges within ``tol`` (m) of the line at both ends are projected onto it;
+    two of one polygon that overlap by more than ``tol`` make a slit of zero
+    width: a piece reaching out along the line and back.  GEOS calls it valid
+    when rounding leaves it 1e-15 m wide (a cut along an edge of a turned
+    polygon), but the next cut across it makes a piece that touches itself.
+    A spike (:meth:`RingSet.spike_tips`) is the slit whose two edges meet.
+    """
+    s, t, vp, _ = _signed(rs, point, direction)
+    nx = rs.next_vertex()
+    e = np.flatnonzero((np.abs(s) <= tol) & (np.abs(s[nx]) <= tol))
+    out = np.zeros(rs.n, bool)
+    many = np.flatnonzero(np.bincount(vp[e], minlength=rs.n) > 1)
+    for k in many:  # rare: polygons with two or more edges on their line
+        mine = e[vp[e] == k]
+        lo, hi = np.minimum(t[mine], t[nx[mine]]), np.maximum(t[mine], t[nx[mine]])
+        o = np.argsort(lo, kind="stable")
+        lo, reach = lo[o], np.maximum.accumulate(hi[o])
+        out[k] = bool((lo[1:] < reach[:-1] - tol).any())
+    return out
 
 
 def _side(rs, left, pos, cross_at, cxy, leaving, partner, chord_flag, general):
