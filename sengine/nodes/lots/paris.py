@@ -22,10 +22,17 @@ How it is computed, for all blocks at once and without polygon overlay:
    polygon they partition the block exactly: the winding numbers of the
    pieces add up to the block's and none is negative.  Vectorized
    ``is_valid`` calls check that.
-3. Candidates that are not simple, or overlap a neighbour (tested on windows
-   of three consecutive candidates, whose union must be simple too, where
-   the displaced line folds or bunches up), are
-   merged run by run into one corner lot closed by a straight back edge.
+3. Candidates that are not simple, or whose stretch of the displaced line
+   crosses (or touches) another stretch of it, are merged run by run into
+   one corner lot closed by a straight back edge; for a crossing, every
+   candidate between the two stretches, the shorter way round the contour
+   (up to ``SPAN`` candidates), joins the run.  Two candidates overlap only
+   where the displaced line crosses itself (the core through it would wind
+   negatively there), so this is decided on the line alone, in numpy,
+   before any polygon is built: neighbours where it folds, and also the two
+   sides of an acute tip, whose lots overlap farther apart than neighbours
+   and used to refuse the whole block (cut in two, again and again, at its
+   middle, far from the tip).
    Candidates with some street but less than ``min_frontage`` join such a
    run too (with their street-side neighbour).  Only candidates without
    street (along a cut edge, step 4) join the core, so the core, the inner
@@ -57,6 +64,7 @@ import numpy as np
 import shapely
 
 from sengine.geom.boundary import polygon_parts, street_edges
+from sengine.geom.grid import box_pairs
 from sengine.geom.merge import merge_small
 from sengine.geom.planar import star_simple
 from sengine.geom.polygons import threaded
@@ -79,7 +87,7 @@ def _normal(seed, key):
     return np.sqrt(-2.0 * np.log(np.maximum(u1, 1e-300))) * np.cos(2.0 * np.pi * u2)
 
 
-def _clean(geoms, area, star=True):
+def _clean(geoms, area):
     """Simple, counter-clockwise polygons (the partition certificate's test).
 
     ``geoms``: polygons, or their :class:`~.contour.Rings`, of which only
@@ -87,12 +95,10 @@ def _clean(geoms, area, star=True):
     their vertex mean (:func:`sengine.geom.planar.star_simple`, numpy: most
     candidate lots, which are nearly convex) are simple without building a
     polygon or asking GEOS; the others are built and GEOS tests them.
-    ``star=False``: GEOS tests them all (windows of three candidates, which
-    the jagged inner line makes star-shaped too seldom to pay the test).
     """
     ok = np.asarray(area) > 0
     if isinstance(geoms, Rings):
-        ask = ok & ~star_simple(geoms.xy, geoms.sizes) if star else ok
+        ask = ok & ~star_simple(geoms.xy, geoms.sizes)
         ok[ask] = threaded(shapely.is_valid, geoms.polygons(ask))  # GEOS runs without the GIL
         return ok
     ok[ok] = threaded(shapely.is_valid, np.asarray(geoms, dtype=object)[ok])
@@ -102,7 +108,6 @@ def _clean(geoms, area, star=True):
 # -- one pass over a set of polygons ------------------------------------------------------------
 
 REACH = 0.9  # lots reach at most this share of the way to the centre of the block's inscribed circle
-RISK = 0.5  # an inner segment shorter than this share of its contour segment (or reversed) is risky
 TOUCH = 1e-3  # m: less street than this is none (an inner lot may touch a street by less)
 
 
@@ -216,40 +221,6 @@ def _candidates(rs, C, min_frontage) -> _Candidates:
     return _Candidates(cp, ci, ja, q, qa, qm, merge, bad)
 
 
-def _overlapping_windows(C, cand: _Candidates) -> np.ndarray:
-    """Candidates of a window of three consecutive ones whose union is not simple (two of them overlap).
-
-    Tested only where the inner line folds or bunches up (elsewhere neighbours cannot meet), and
-    only windows with a candidate still good and on the street (the others' flags change nothing).
-    """
-    cp, ci, ja, nseg = cand.poly, cand.index, cand.start, C.nseg
-    w = np.minimum(3, nseg - 1)[cp]
-    di = C.inner[C.mstart[C.sp] + np.mod(C.sj + 1, C.m[C.sp])] - C.inner
-    dp = C.pts[C.mstart[C.sp] + np.mod(C.sj + 1, C.m[C.sp])] - C.pts
-    fold = np.einsum("ij,ij->i", di, dp) < RISK * np.einsum("ij,ij->i", dp, dp)
-    risky = np.bincount((cstart_of(C)[C.sp] + C.sj // 3)[fold], minlength=len(cp)) > 0
-    near = risky.copy()
-    # a window whose candidates are all bad or join the core already decides nothing: untested
-    settled = cand.bad | cand.core_part
-    open_ = ~settled
-    for k in (1, 2):  # a window starting at i covers i .. i + 2
-        at = cstart_of(C)[cp] + np.mod(ci + k, nseg[cp])
-        near |= risky[at]
-        open_ |= (k < w) & ~settled[at]
-    wsel = np.flatnonzero(near & open_)
-    bad_win = np.zeros(len(cp), bool)
-    if len(wsel):
-        one = np.ones(len(wsel), np.int64)
-        win, wa, _, _ = C.chains(cp[wsel], ja[wsel], ja[wsel] + 3 * w[wsel], one, lazy=True)
-        bad_win[wsel] = ~_clean(win, wa, star=False)
-    cstart = np.cumsum(nseg) - nseg
-    overlapping = np.zeros(len(cp), bool)
-    for k in range(3):
-        sel = bad_win & (k < w)
-        overlapping[cstart[cp[sel]] + np.mod(ci[sel] + k, nseg[cp[sel]])] = True
-    return overlapping
-
-
 def _corner_lots(C, cand: _Candidates, bad, min_frontage) -> tuple[_Corners, np.ndarray]:
     """Runs of bad candidates become corner lots; returns them and the final bad flags.
 
@@ -316,6 +287,69 @@ def _cores(rs, C, cand: _Candidates, good, corners: _Corners) -> _Cores:
     return _Cores(core_of, core_mark, Marks.concat([corem, whole_m]), done, all_merged, whole_inner)
 
 
+SPAN = 8  # candidates: two crossing edges of the inner line farther apart are not resolved (the polygon is cut)
+
+
+def _orient(p, q, r):
+    """Sign of the turn p -> q -> r (1 left, -1 right, 0 straight)."""
+    return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
+
+
+def _spans(C, cand, p, c1, c2):
+    """Flags of the candidates from ``c1`` to ``c2`` of polygons ``p``, the shorter way round, at most SPAN."""
+    fix = np.zeros(len(cand.poly), bool)
+    n = C.nseg[p]
+    fwd = np.mod(c2 - c1, n)
+    start = np.where(fwd <= n - fwd, c1, c2)
+    span = np.minimum(fwd, n - fwd) + 1
+    ok = span <= SPAN
+    p, n, start, span = p[ok], n[ok], start[ok], span[ok]
+    row = np.repeat(np.arange(len(p)), span)
+    fix[(cstart_of(C)[p])[row] + np.mod(start[row] + ramp(span), n[row])] = True
+    return fix & ~cand.core_part
+
+
+def _inner_crossings(C, cand: _Candidates) -> np.ndarray:
+    """Candidates between two edges of the inner line that cross (or touch), the shorter way round.
+
+    Numpy, no polygon built: the boxes of the candidates' inner chains (three
+    edges each) that meet are paired on a grid
+    (:func:`sengine.geom.grid.box_pairs`), then their edges are tested
+    pair by pair (edges that follow each other along the line share a vertex
+    and are not a crossing).
+    """
+    cp, ci = cand.poly, cand.index
+    if len(cp) == 0:
+        return np.zeros(0, bool)
+    m, ms = C.m[cp], C.mstart[cp]
+    at = ms[:, None] + np.mod(3 * ci[:, None] + np.arange(4), m[:, None])  # the chain's 4 inner points
+    pts = C.inner[at]
+    ia, ib = box_pairs(pts.min(axis=1), pts.max(axis=1), pts.min(axis=1), pts.max(axis=1), group_a=cp, group_b=cp)
+    keep = ib > ia
+    ia, ib = ia[keep], ib[keep]
+    # neighbours along the contour: their chains (7 inner points) strictly monotone along the
+    # contour's chord cannot cross
+    n = C.nseg[cp[ia]]
+    nb = np.mod(ci[ia] + 1, n) == ci[ib]
+    adj = nb | (np.mod(ci[ib] + 1, n) == ci[ia])
+    f = np.where(nb, ia, ib)[adj]
+    j7 = ms[f][:, None] + np.mod(3 * ci[f][:, None] + np.arange(7), m[f][:, None])
+    chord = C.pts[j7[:, 6]] - C.pts[j7[:, 0]]
+    step = np.diff(C.inner[j7], axis=1)
+    mono = (np.einsum("ikj,ij->ik", step, chord) > 0).all(axis=1)
+    keep = np.ones(len(ia), bool)
+    keep[np.flatnonzero(adj)[mono]] = False
+    ia, ib = np.repeat(ia[keep], 9), np.repeat(ib[keep], 9)
+    ka, kb = np.tile(np.repeat(np.arange(3), 3), len(ia) // 9), np.tile(np.arange(3), len(ia) // 3)
+    ea, eb = at[ia, ka], at[ib, kb]  # the edges' first points (global sample indices)
+    na, nb = at[ia, ka + 1], at[ib, kb + 1]
+    keep = (ea != nb) & (eb != na) & (ea != eb)
+    ea, eb, na, nb, ia, ib = ea[keep], eb[keep], na[keep], nb[keep], ia[keep], ib[keep]
+    a1, b1, a2, b2 = C.inner[ea], C.inner[na], C.inner[eb], C.inner[nb]
+    hit = (_orient(a1, b1, a2) * _orient(a1, b1, b2) <= 0) & (_orient(a2, b2, a1) * _orient(a2, b2, b1) <= 0)
+    return _spans(C, cand, cp[ia[hit]], ci[ia[hit]], ci[ib[hit]])
+
+
 def _pass(rs, depth, segment, min_frontage, C):
     """Paris lots of the polygons of ``rs`` that the certificate accepts.
 
@@ -325,7 +359,7 @@ def _pass(rs, depth, segment, min_frontage, C):
     """
     P = rs.n
     cand = _candidates(rs, C, min_frontage)
-    bad = (cand.bad | _overlapping_windows(C, cand)) & ~cand.core_part
+    bad = (cand.bad | _inner_crossings(C, cand)) & ~cand.core_part
     corners, bad = _corner_lots(C, cand, bad, min_frontage)
     good = ~bad & ~cand.core_part
     cores = _cores(rs, C, cand, good, corners)
