@@ -26,13 +26,16 @@ How it is computed, for all blocks at once and without polygon overlay:
    crosses (or touches) another stretch of it, are merged run by run into
    one corner lot closed by a straight back edge; for a crossing, every
    candidate between the two stretches, the shorter way round the contour
-   (up to ``SPAN`` candidates), joins the run.  Two candidates overlap only
-   where the displaced line crosses itself (the core through it would wind
-   negatively there), so this is decided on the line alone, in numpy,
-   before any polygon is built: neighbours where it folds, and also the two
-   sides of an acute tip, whose lots overlap farther apart than neighbours
-   and used to refuse the whole block (cut in two, again and again, at its
-   middle, far from the tip).
+   (up to ``SPAN`` candidates), joins the run.  Where two simple candidates
+   overlap, the core through the displaced line would wind negatively, so
+   the line crosses itself there (step 2 would refuse the polygon anyway):
+   the overlaps are found on the line alone, in numpy
+   (:func:`sengine.geom.planar.ring_crossings`), before any polygon is
+   built.  That finds neighbours where the line folds (what windows of
+   three candidates tested with GEOS found before) and also the two sides
+   of an acute tip, whose lots overlap farther apart than neighbours: the
+   tip becomes one corner lot instead of the whole block being refused and
+   cut in two, again and again, at its middle, far from the tip.
    Candidates with some street but less than ``min_frontage`` join such a
    run too (with their street-side neighbour).  Only candidates without
    street (along a cut edge, step 4) join the core, so the core, the inner
@@ -64,9 +67,8 @@ import numpy as np
 import shapely
 
 from sengine.geom.boundary import polygon_parts, street_edges
-from sengine.geom.grid import box_pairs
 from sengine.geom.merge import merge_small
-from sengine.geom.planar import star_simple
+from sengine.geom.planar import ring_crossings, star_simple
 from sengine.geom.polygons import threaded
 from sengine.geom.split import RingSet, split
 from sengine.random import hash01
@@ -287,12 +289,7 @@ def _cores(rs, C, cand: _Candidates, good, corners: _Corners) -> _Cores:
     return _Cores(core_of, core_mark, Marks.concat([corem, whole_m]), done, all_merged, whole_inner)
 
 
-SPAN = 8  # candidates: two crossing edges of the inner line farther apart are not resolved (the polygon is cut)
-
-
-def _orient(p, q, r):
-    """Sign of the turn p -> q -> r (1 left, -1 right, 0 straight)."""
-    return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
+SPAN = 16  # candidates (320 m of contour by default): crossings farther apart round the contour are left to the cut
 
 
 def _spans(C, cand, p, c1, c2):
@@ -310,44 +307,15 @@ def _spans(C, cand, p, c1, c2):
 
 
 def _inner_crossings(C, cand: _Candidates) -> np.ndarray:
-    """Candidates between two edges of the inner line that cross (or touch), the shorter way round.
+    """Candidates between two edges of the displaced line that cross (or touch), the shorter way round.
 
-    Numpy, no polygon built: the boxes of the candidates' inner chains (three
-    edges each) that meet are paired on a grid
-    (:func:`sengine.geom.grid.box_pairs`), then their edges are tested
-    pair by pair (edges that follow each other along the line share a vertex
-    and are not a crossing).
+    Numpy, no polygon built (:func:`sengine.geom.planar.ring_crossings`,
+    on runs of three edges: one candidate's stretch of the line each).
     """
-    cp, ci = cand.poly, cand.index
-    if len(cp) == 0:
+    if len(cand.poly) == 0:
         return np.zeros(0, bool)
-    m, ms = C.m[cp], C.mstart[cp]
-    at = ms[:, None] + np.mod(3 * ci[:, None] + np.arange(4), m[:, None])  # the chain's 4 inner points
-    pts = C.inner[at]
-    ia, ib = box_pairs(pts.min(axis=1), pts.max(axis=1), pts.min(axis=1), pts.max(axis=1), group_a=cp, group_b=cp)
-    keep = ib > ia
-    ia, ib = ia[keep], ib[keep]
-    # neighbours along the contour: their chains (7 inner points) strictly monotone along the
-    # contour's chord cannot cross
-    n = C.nseg[cp[ia]]
-    nb = np.mod(ci[ia] + 1, n) == ci[ib]
-    adj = nb | (np.mod(ci[ib] + 1, n) == ci[ia])
-    f = np.where(nb, ia, ib)[adj]
-    j7 = ms[f][:, None] + np.mod(3 * ci[f][:, None] + np.arange(7), m[f][:, None])
-    chord = C.pts[j7[:, 6]] - C.pts[j7[:, 0]]
-    step = np.diff(C.inner[j7], axis=1)
-    mono = (np.einsum("ikj,ij->ik", step, chord) > 0).all(axis=1)
-    keep = np.ones(len(ia), bool)
-    keep[np.flatnonzero(adj)[mono]] = False
-    ia, ib = np.repeat(ia[keep], 9), np.repeat(ib[keep], 9)
-    ka, kb = np.tile(np.repeat(np.arange(3), 3), len(ia) // 9), np.tile(np.arange(3), len(ia) // 3)
-    ea, eb = at[ia, ka], at[ib, kb]  # the edges' first points (global sample indices)
-    na, nb = at[ia, ka + 1], at[ib, kb + 1]
-    keep = (ea != nb) & (eb != na) & (ea != eb)
-    ea, eb, na, nb, ia, ib = ea[keep], eb[keep], na[keep], nb[keep], ia[keep], ib[keep]
-    a1, b1, a2, b2 = C.inner[ea], C.inner[na], C.inner[eb], C.inner[nb]
-    hit = (_orient(a1, b1, a2) * _orient(a1, b1, b2) <= 0) & (_orient(a2, b2, a1) * _orient(a2, b2, b1) <= 0)
-    return _spans(C, cand, cp[ia[hit]], ci[ia[hit]], ci[ib[hit]])
+    i, j = ring_crossings(C.inner, C.m, chain=3)
+    return _spans(C, cand, C.sp[i], C.sj[i] // 3, C.sj[j] // 3)
 
 
 def _pass(rs, depth, segment, min_frontage, C):
