@@ -330,10 +330,9 @@ def test_paris_thin_concave_and_holed_blocks():
 def test_paris_acute_tips_are_corner_lots_not_cuts():
     """Where a block narrows to an acute tip the lots of its two sides overlap many candidates apart: the
     candidates between are one corner lot across the tip (found on the displaced line, planar.ring_crossings),
-    the block is not cut in two (it was: 3 cuts for the quadrilateral, 5 for the 19 degree wedge with SPAN 8,
-    3 with windows of three)."""
+    the block is not cut in two (with windows of three candidates it was: 2 and 3 cuts)."""
     polys = [
-        shapely.Polygon([(0, 0), (300, -40), (300, 60)]),  # a wedge: 19 degrees at (0, 0)
+        shapely.Polygon([(0, 0), (300, -80), (300, 80)]),  # a wedge: 30 degrees at (0, 0)
         shapely.Polygon([(0, 0), (400, -30), (420, 80), (200, 120)]),  # 38 degrees at (0, 0)
     ]
     blocks = Layer.from_geoms(polys)

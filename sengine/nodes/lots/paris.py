@@ -289,7 +289,7 @@ def _cores(rs, C, cand: _Candidates, good, corners: _Corners) -> _Cores:
     return _Cores(core_of, core_mark, Marks.concat([corem, whole_m]), done, all_merged, whole_inner)
 
 
-SPAN = 16  # candidates (320 m of contour by default): crossings farther apart round the contour are left to the cut
+SPAN = 12  # candidates (240 m of contour by default): crossings farther apart round the contour are left to the cut
 
 
 def _spans(C, cand, p, c1, c2):
