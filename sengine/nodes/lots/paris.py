@@ -314,7 +314,16 @@ def _inner_crossings(C, cand: _Candidates) -> np.ndarray:
     """
     if len(cand.poly) == 0:
         return np.zeros(0, bool)
-    i, j = ring_crossings(C.inner, C.m, chain=3)
+    # a line strictly star-shaped round its mean crosses nowhere (planar.star_simple, O(n)): most blocks
+    closed = np.r_[C.inner, C.inner[C.mstart[C.m > 0]]]
+    ring = np.r_[C.sp, np.flatnonzero(C.m > 0)]
+    o = np.argsort(ring, kind="stable")
+    live = np.flatnonzero(C.m > 0)
+    sure = np.zeros(len(C.m), bool)
+    sure[live] = star_simple(closed[o], C.m[live] + 1)
+    sel = np.flatnonzero(~sure[C.sp])
+    i, j = ring_crossings(C.inner[sel], C.m[~sure & (C.m > 0)], chain=3)
+    i, j = sel[i], sel[j]
     return _spans(C, cand, C.sp[i], C.sj[i] // 3, C.sj[j] // 3)
 
 
