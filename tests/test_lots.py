@@ -327,6 +327,28 @@ def test_paris_thin_concave_and_holed_blocks():
     assert (per_block >= 0.6 * shapely.length(blocks.geometry) / 20.0 - 2).all()
 
 
+def test_paris_acute_tips_are_corner_lots_not_cuts():
+    """Where a block narrows to an acute tip the lots of its two sides overlap many candidates apart: the
+    candidates between are one corner lot across the tip (found on the displaced line, planar.ring_crossings),
+    the block is not cut in two (with windows of three candidates it was: 2 and 3 cuts)."""
+    polys = [
+        shapely.Polygon([(0, 0), (300, -80), (300, 80)]),  # a wedge: 30 degrees at (0, 0)
+        shapely.Polygon([(0, 0), (400, -30), (420, 80), (200, 120)]),  # 38 degrees at (0, 0)
+    ]
+    blocks = Layer.from_geoms(polys)
+    ran = get("lots.paris")("lots", {}, Context(seed=1)).run(blocks=blocks)
+    lots = ran["lots"]
+    check_lots(blocks, lots, "lots.paris")
+    assert ran.report["paris_cut"] == 0 and ran.report["paris_fallback"] == 0
+    assert np.bincount(lots["block"][lots["inner"]], minlength=2).tolist() == [1, 1]  # one courtyard each
+    tip = shapely.Point(0, 0)
+    for b in (0, 1):
+        mine = (lots["block"] == b) & shapely.intersects(lots.geometry, shapely.buffer(tip, 1e-6))
+        assert mine.sum() == 1  # one lot holds the tip, a street lot with frontage on both sides of it
+        (k,) = np.flatnonzero(mine)
+        assert not lots["inner"][k] and lots["frontage"][k] > 40.0
+
+
 def test_paris_small_refused_piece_is_one_lot(monaco_blocks):
     """A piece the partition test refuses that is under segment x depth is one lot, not cut into slivers."""
     polys = [

@@ -186,3 +186,48 @@ def test_star_simple_certifies_only_valid_counter_clockwise_rings(sizes, seed, f
     # convex counter-clockwise rings of distinct directions are certified (the test can say yes)
     distinct = np.array([len(np.unique(np.round(r[:-1], 9), axis=0)) >= 3 for r in rings])
     assert (sure[np.array(want) & ccw & distinct & shapely.is_valid(polys)]).all()
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.integers(3, 40), min_size=1, max_size=6),
+    st.integers(0, 2**32 - 1),
+    st.sampled_from([1, 2, 3, 5]),
+)
+def test_ring_crossings_are_the_edge_pairs_geos_sees_meet(sizes, seed, chain):
+    """planar.ring_crossings: exactly the pairs of non-consecutive edges of one ring that GEOS says intersect
+    (cross, touch at a vertex, or overlap collinearly), on integer coordinates (exact predicates): smooth
+    star-shaped rings (none), random walks (folds and crossings), rings with repeated vertices and collinear
+    runs, several rings in one call (pairs never span two rings), any run length."""
+    from sengine.geom.planar import ring_crossings
+
+    rng = np.random.default_rng(seed)
+    rings = []
+    for k in sizes:
+        kind = rng.integers(0, 3)
+        if kind == 0:  # star-shaped round its centre: simple
+            ang = np.sort(rng.choice(3600, k, replace=False)) * (2 * np.pi / 3600)
+            ring = np.round(np.c_[np.cos(ang), np.sin(ang)] * rng.uniform(200, 1000, (k, 1)))
+        elif kind == 1:  # a random walk on a small grid: crossings, touchings, collinear overlaps
+            ring = np.cumsum(rng.integers(-3, 4, (k, 2)), axis=0).astype(float)
+        else:  # a walk along the axes with repeated vertices
+            ring = np.cumsum(rng.integers(-2, 3, (k, 2)) * (rng.random((k, 1)) < [0.5, 0.5]), axis=0).astype(float)
+        rings.append(ring + rng.integers(-5, 5, 2) * 1000.0)
+    xy = np.concatenate(rings)
+    n = np.array([len(r) for r in rings])
+    i, j = ring_crossings(xy, n, chain=chain)
+    got = set(zip(i.tolist(), j.tolist()))
+    want = set()
+    start = np.cumsum(n) - n
+    for s, k in zip(start, n):
+        ends = [(xy[s + a], xy[s + (a + 1) % k]) for a in range(k)]
+        # an edge of zero length (a repeated vertex) is its point (GEOS sees no line there)
+        seg = [shapely.Point(p) if (p == q).all() else shapely.LineString([p, q]) for p, q in ends]
+        for a in range(k):
+            for b in range(a + 2, k):
+                if a == 0 and b == k - 1:
+                    continue  # consecutive round the ring's start
+                if shapely.intersects(seg[a], seg[b]):
+                    want.add((s + a, s + b))
+    assert got == want
+    assert (i < j).all()

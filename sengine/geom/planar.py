@@ -12,6 +12,7 @@ Public API
 holes; bridges (dead ends) removed; the outer face(s) returned apart.
 :func:`signed_area` -- shoelace area of rings given as grouped vertices.
 :func:`star_simple` -- closed rings certainly simple and counter-clockwise (strictly star-shaped), in numpy.
+:func:`ring_crossings` -- pairs of edges of a closed ring that cross or touch (not neighbours), in numpy.
 :func:`split_walks` -- closed walks that revisit vertices cut into simple cycles.
 :func:`spur_polygons` -- bounded faces with the dead-end trees inside them as spurs of their rings.
 
@@ -35,6 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
+from .grid import box_pairs
 from .segments import argsort_int
 from .sorting import unique_int
 
@@ -45,6 +47,7 @@ __all__ = [
     "PlanarFaces",
     "signed_area",
     "star_simple",
+    "ring_crossings",
     "split_walks",
     "spur_polygons",
 ]
@@ -478,6 +481,106 @@ def star_simple(xy: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     turns = np.add.reduceat(np.r_[up, False].astype(np.int64), start)
     edges = np.add.reduceat(np.r_[strict & ~same, False].astype(np.int64), start) - np.r_[np.ones(r - 1, np.int64), 0]
     return (fail == 0) & (turns == 1) & (edges >= 3)
+
+
+def _orient(p, q, r):
+    """Sign of the turn p -> q -> r (1 left, -1 right, 0 straight) for rows of points."""
+    return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
+
+
+def ring_crossings(xy: np.ndarray, sizes: np.ndarray, chain: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs of edges of the same closed ring that cross or touch, neighbours along the ring excepted.
+
+    Edge ``i`` of a ring runs from its vertex ``i`` to the next one (the
+    last back to the first).  Runs of ``chain`` consecutive edges are boxed
+    and the boxes that meet paired on a grid
+    (:func:`sengine.geom.grid.box_pairs`); two neighbouring runs whose
+    ``2 chain + 1`` vertices advance strictly along their chord cannot meet
+    (a strictly monotone line is simple) and are passed over; the edges of
+    the other pairs are tested two by two with the signs of their turns
+    (edges that share a vertex, or collinear edges that overlap, touch).
+    Numpy throughout; the sign test is in floating point, so a pair
+    touching within rounding may be reported or not.
+
+    Parameters
+    ----------
+    xy : ndarray (k, 2)
+        Vertices, ring after ring, not closed (no repeated first vertex).
+    sizes : ndarray of int (r,)
+        Vertices of each ring (at least 3 for any pair to be reported).
+    chain : int
+        Edges per box (sets the cost only).
+
+    Returns
+    -------
+    i, j : ndarray of int64
+        Edges (indices of their first vertex in ``xy``) with ``i < j``, of
+        one ring, not consecutive along it, that meet.
+    """
+    xy = np.asarray(xy, np.float64).reshape(-1, 2)
+    sizes = np.asarray(sizes, np.int64)
+    e64 = np.zeros(0, np.int64)
+    if len(xy) == 0:
+        return e64, e64
+    start = np.cumsum(sizes) - sizes
+    ring = np.repeat(np.arange(len(sizes)), sizes)
+    k = np.arange(len(xy)) - start[ring]
+    nxt = start[ring] + np.mod(k + 1, sizes[ring])
+    # runs of `chain` edges: run r of a ring covers its edges chain r .. chain r + chain - 1 (fewer at the end)
+    nrun = -(-sizes // chain)
+    rr = np.repeat(np.arange(len(sizes)), nrun)
+    rk = np.arange(int(nrun.sum())) - np.repeat(np.cumsum(nrun) - nrun, nrun)
+    cnt = np.minimum(chain, sizes[rr] - chain * rk)
+    off = np.arange(chain + 1)
+    pos = np.minimum(off[None, :], cnt[:, None])  # vertices of the run (the last repeated where shorter)
+    at = start[rr][:, None] + np.mod(chain * rk[:, None] + pos, sizes[rr][:, None])
+    pts = xy[at]
+    lo, hi = pts.min(axis=1), pts.max(axis=1)
+    ia, ib = box_pairs(lo, hi, lo, hi, group_a=rr, group_b=rr)
+    keep = ib >= ia
+    ia, ib = ia[keep], ib[keep]
+    # neighbouring runs (the next one round the ring) strictly monotone along their chord: no crossing
+    n = nrun[rr[ia]]
+    fwd = np.mod(rk[ia] + 1, n) == rk[ib]
+    adj = (ia != ib) & (fwd | (np.mod(rk[ib] + 1, n) == rk[ia])) & (n > 2)
+    f = np.where(fwd, ia, ib)[adj]
+    g = np.where(fwd, ib, ia)[adj]
+    line = np.concatenate([at[f], at[g][:, 1:]], axis=1)  # both runs' vertices in ring order
+    whole = (cnt[f] == chain) & (cnt[g] == chain)
+    step = np.diff(xy[line], axis=1)
+    chord = xy[line[:, -1]] - xy[line[:, 0]]
+    mono = whole & (np.einsum("ikj,ij->ik", step, chord) > 0).all(axis=1)
+    keep = np.ones(len(ia), bool)
+    keep[np.flatnonzero(adj)[mono]] = False
+    ia, ib = ia[keep], ib[keep]
+    # edge pairs of the remaining run pairs
+    ka = np.tile(np.repeat(np.arange(chain), chain), len(ia))
+    kb = np.tile(np.arange(chain), chain * len(ia))
+    ia, ib = np.repeat(ia, chain * chain), np.repeat(ib, chain * chain)
+    ok = (ka < cnt[ia]) & (kb < cnt[ib])
+    ea, eb = at[ia[ok], ka[ok]], at[ib[ok], kb[ok]]
+    i, j = np.minimum(ea, eb), np.maximum(ea, eb)
+    keep = (i != j) & (nxt[i] != j) & (nxt[j] != i)
+    i, j = i[keep], j[keep]
+    a1, b1, a2, b2 = xy[i], xy[nxt[i]], xy[j], xy[nxt[j]]
+    o1, o2 = _orient(a1, b1, a2), _orient(a1, b1, b2)
+    o3, o4 = _orient(a2, b2, a1), _orient(a2, b2, b1)
+    hit = (o1 * o2 <= 0) & (o3 * o4 <= 0)
+    # collinear pairs (all four signs 0) meet only where their extents along the line overlap
+    col = hit & (o1 == 0) & (o2 == 0)
+    if col.any():
+        c = np.flatnonzero(col)
+        d = b1[c] - a1[c]
+        d = np.where((d == 0).all(axis=1)[:, None], b2[c] - a2[c], d)
+        t = lambda p: np.einsum("ij,ij->i", p, d)  # noqa: E731
+        s1, s2 = np.sort(np.c_[t(a1[c]), t(b1[c])], axis=1), np.sort(np.c_[t(a2[c]), t(b2[c])], axis=1)
+        point = (d == 0).all(axis=1)  # both edges of zero length: they meet where they are one point
+        hit[c] = np.where(point, (a1[c] == a2[c]).all(axis=1), (s1[:, 0] <= s2[:, 1]) & (s2[:, 0] <= s1[:, 1]))
+    i, j = i[hit], j[hit]
+    o = np.lexsort((j, i))
+    i, j = i[o], j[o]
+    u = np.r_[True, (i[1:] != i[:-1]) | (j[1:] != j[:-1])] if len(i) else np.zeros(0, bool)
+    return i[u], j[u]
 
 
 @dataclass

@@ -22,10 +22,20 @@ How it is computed, for all blocks at once and without polygon overlay:
    polygon they partition the block exactly: the winding numbers of the
    pieces add up to the block's and none is negative.  Vectorized
    ``is_valid`` calls check that.
-3. Candidates that are not simple, or overlap a neighbour (tested on windows
-   of three consecutive candidates, whose union must be simple too, where
-   the displaced line folds or bunches up), are
-   merged run by run into one corner lot closed by a straight back edge.
+3. Candidates that are not simple, or whose stretch of the displaced line
+   crosses (or touches) another stretch of it, are merged run by run into
+   one corner lot closed by a straight back edge; for a crossing, every
+   candidate between the two stretches, the shorter way round the contour
+   (up to ``SPAN`` candidates), joins the run.  Where two simple candidates
+   overlap, the core through the displaced line would wind negatively, so
+   the line crosses itself there (step 2 would refuse the polygon anyway):
+   the overlaps are found on the line alone, in numpy
+   (:func:`sengine.geom.planar.ring_crossings`), before any polygon is
+   built.  That finds neighbours where the line folds (what windows of
+   three candidates tested with GEOS found before) and also the two sides
+   of an acute tip, whose lots overlap farther apart than neighbours: the
+   tip becomes one corner lot instead of the whole block being refused and
+   cut in two, again and again, at its middle, far from the tip.
    Candidates with some street but less than ``min_frontage`` join such a
    run too (with their street-side neighbour).  Only candidates without
    street (along a cut edge, step 4) join the core, so the core, the inner
@@ -58,7 +68,7 @@ import shapely
 
 from sengine.geom.boundary import polygon_parts, street_edges
 from sengine.geom.merge import merge_small
-from sengine.geom.planar import star_simple
+from sengine.geom.planar import ring_crossings, star_simple
 from sengine.geom.polygons import threaded
 from sengine.geom.split import RingSet, split
 from sengine.random import hash01
@@ -79,7 +89,7 @@ def _normal(seed, key):
     return np.sqrt(-2.0 * np.log(np.maximum(u1, 1e-300))) * np.cos(2.0 * np.pi * u2)
 
 
-def _clean(geoms, area, star=True):
+def _clean(geoms, area):
     """Simple, counter-clockwise polygons (the partition certificate's test).
 
     ``geoms``: polygons, or their :class:`~.contour.Rings`, of which only
@@ -87,12 +97,10 @@ def _clean(geoms, area, star=True):
     their vertex mean (:func:`sengine.geom.planar.star_simple`, numpy: most
     candidate lots, which are nearly convex) are simple without building a
     polygon or asking GEOS; the others are built and GEOS tests them.
-    ``star=False``: GEOS tests them all (windows of three candidates, which
-    the jagged inner line makes star-shaped too seldom to pay the test).
     """
     ok = np.asarray(area) > 0
     if isinstance(geoms, Rings):
-        ask = ok & ~star_simple(geoms.xy, geoms.sizes) if star else ok
+        ask = ok & ~star_simple(geoms.xy, geoms.sizes)
         ok[ask] = threaded(shapely.is_valid, geoms.polygons(ask))  # GEOS runs without the GIL
         return ok
     ok[ok] = threaded(shapely.is_valid, np.asarray(geoms, dtype=object)[ok])
@@ -102,7 +110,6 @@ def _clean(geoms, area, star=True):
 # -- one pass over a set of polygons ------------------------------------------------------------
 
 REACH = 0.9  # lots reach at most this share of the way to the centre of the block's inscribed circle
-RISK = 0.5  # an inner segment shorter than this share of its contour segment (or reversed) is risky
 TOUCH = 1e-3  # m: less street than this is none (an inner lot may touch a street by less)
 
 
@@ -216,40 +223,6 @@ def _candidates(rs, C, min_frontage) -> _Candidates:
     return _Candidates(cp, ci, ja, q, qa, qm, merge, bad)
 
 
-def _overlapping_windows(C, cand: _Candidates) -> np.ndarray:
-    """Candidates of a window of three consecutive ones whose union is not simple (two of them overlap).
-
-    Tested only where the inner line folds or bunches up (elsewhere neighbours cannot meet), and
-    only windows with a candidate still good and on the street (the others' flags change nothing).
-    """
-    cp, ci, ja, nseg = cand.poly, cand.index, cand.start, C.nseg
-    w = np.minimum(3, nseg - 1)[cp]
-    di = C.inner[C.mstart[C.sp] + np.mod(C.sj + 1, C.m[C.sp])] - C.inner
-    dp = C.pts[C.mstart[C.sp] + np.mod(C.sj + 1, C.m[C.sp])] - C.pts
-    fold = np.einsum("ij,ij->i", di, dp) < RISK * np.einsum("ij,ij->i", dp, dp)
-    risky = np.bincount((cstart_of(C)[C.sp] + C.sj // 3)[fold], minlength=len(cp)) > 0
-    near = risky.copy()
-    # a window whose candidates are all bad or join the core already decides nothing: untested
-    settled = cand.bad | cand.core_part
-    open_ = ~settled
-    for k in (1, 2):  # a window starting at i covers i .. i + 2
-        at = cstart_of(C)[cp] + np.mod(ci + k, nseg[cp])
-        near |= risky[at]
-        open_ |= (k < w) & ~settled[at]
-    wsel = np.flatnonzero(near & open_)
-    bad_win = np.zeros(len(cp), bool)
-    if len(wsel):
-        one = np.ones(len(wsel), np.int64)
-        win, wa, _, _ = C.chains(cp[wsel], ja[wsel], ja[wsel] + 3 * w[wsel], one, lazy=True)
-        bad_win[wsel] = ~_clean(win, wa, star=False)
-    cstart = np.cumsum(nseg) - nseg
-    overlapping = np.zeros(len(cp), bool)
-    for k in range(3):
-        sel = bad_win & (k < w)
-        overlapping[cstart[cp[sel]] + np.mod(ci[sel] + k, nseg[cp[sel]])] = True
-    return overlapping
-
-
 def _corner_lots(C, cand: _Candidates, bad, min_frontage) -> tuple[_Corners, np.ndarray]:
     """Runs of bad candidates become corner lots; returns them and the final bad flags.
 
@@ -316,6 +289,44 @@ def _cores(rs, C, cand: _Candidates, good, corners: _Corners) -> _Cores:
     return _Cores(core_of, core_mark, Marks.concat([corem, whole_m]), done, all_merged, whole_inner)
 
 
+SPAN = 12  # candidates (240 m of contour by default): crossings farther apart round the contour are left to the cut
+
+
+def _spans(C, cand, p, c1, c2):
+    """Flags of the candidates from ``c1`` to ``c2`` of polygons ``p``, the shorter way round, at most SPAN."""
+    fix = np.zeros(len(cand.poly), bool)
+    n = C.nseg[p]
+    fwd = np.mod(c2 - c1, n)
+    start = np.where(fwd <= n - fwd, c1, c2)
+    span = np.minimum(fwd, n - fwd) + 1
+    ok = span <= SPAN
+    p, n, start, span = p[ok], n[ok], start[ok], span[ok]
+    row = np.repeat(np.arange(len(p)), span)
+    fix[(cstart_of(C)[p])[row] + np.mod(start[row] + ramp(span), n[row])] = True
+    return fix & ~cand.core_part
+
+
+def _inner_crossings(C, cand: _Candidates) -> np.ndarray:
+    """Candidates between two edges of the displaced line that cross (or touch), the shorter way round.
+
+    Numpy, no polygon built (:func:`sengine.geom.planar.ring_crossings`,
+    on runs of three edges: one candidate's stretch of the line each).
+    """
+    if len(cand.poly) == 0:
+        return np.zeros(0, bool)
+    # a line strictly star-shaped round its mean crosses nowhere (planar.star_simple, O(n)): most blocks
+    closed = np.r_[C.inner, C.inner[C.mstart[C.m > 0]]]
+    ring = np.r_[C.sp, np.flatnonzero(C.m > 0)]
+    o = np.argsort(ring, kind="stable")
+    live = np.flatnonzero(C.m > 0)
+    sure = np.zeros(len(C.m), bool)
+    sure[live] = star_simple(closed[o], C.m[live] + 1)
+    sel = np.flatnonzero(~sure[C.sp])
+    i, j = ring_crossings(C.inner[sel], C.m[~sure & (C.m > 0)], chain=3)
+    i, j = sel[i], sel[j]
+    return _spans(C, cand, C.sp[i], C.sj[i] // 3, C.sj[j] // 3)
+
+
 def _pass(rs, depth, segment, min_frontage, C):
     """Paris lots of the polygons of ``rs`` that the certificate accepts.
 
@@ -325,7 +336,7 @@ def _pass(rs, depth, segment, min_frontage, C):
     """
     P = rs.n
     cand = _candidates(rs, C, min_frontage)
-    bad = (cand.bad | _overlapping_windows(C, cand)) & ~cand.core_part
+    bad = (cand.bad | _inner_crossings(C, cand)) & ~cand.core_part
     corners, bad = _corner_lots(C, cand, bad, min_frontage)
     good = ~bad & ~cand.core_part
     cores = _cores(rs, C, cand, good, corners)
