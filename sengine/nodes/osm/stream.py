@@ -279,8 +279,6 @@ def _ways_filter(osmium, select: frozenset[str] | None, sea: bool):
     return ways_filter
 
 
-#: One way of libosmium's OPL output without metadata: id, tags, nodes with their locations.
-_OPL_WAY = re.compile(rb"^w(-?\d+) T(\S*) N(\S*)$", re.M)
 _OPL_ESCAPE = re.compile(r"%([0-9a-fA-F]+)%")
 #: What stands in the OPL text for a node without a location (``n12xy``): far outside any valid one.
 _MISSING = 1e9
@@ -335,13 +333,31 @@ def _read_native(path: Path, select: frozenset[str] | None, *, node_ids: bool) -
     return _decode_opl(data, node_ids=node_ids)
 
 
+class _Lossy(Exception):
+    """OPL text that does not say which code point it escaped."""
+
+
+def _code_point(m: re.Match) -> str:
+    if len(m.group(1)) > 4:  # libosmium writes U+100000 as %10000% too: ambiguous
+        raise _Lossy  # (any escape of five or more digits goes to the pyosmium pass)
+    return chr(int(m.group(1), 16))
+
+
 def _unescape(text: bytes) -> str:
     """An OPL key or value: UTF-8 with ``%hex%`` escapes of the code points OPL reserves."""
     s = text.decode("utf-8")
-    return _OPL_ESCAPE.sub(lambda m: chr(int(m.group(1), 16)), s) if "%" in s else s
+    return _OPL_ESCAPE.sub(_code_point, s) if "%" in s else s
 
 
 def _decode_opl(data: bytes, *, node_ids: bool) -> _Ways | None:
+    """:func:`_decode_opl_ways`, or None for a tag OPL wrote ambiguously."""
+    try:
+        return _decode_opl_ways(data, node_ids=node_ids)
+    except _Lossy:  # a tag with a code point beyond U+FFFF escaped: read by the pyosmium pass
+        return None
+
+
+def _decode_opl_ways(data: bytes, *, node_ids: bool) -> _Ways | None:
     """The :class:`_Ways` of libosmium's OPL ways (see :func:`_read_native`); None for what it does not handle.
 
     Each line is ``w<id> T<tags> N<nodes>``, the tags escaped so that they
