@@ -281,7 +281,7 @@ def _ways_filter(osmium, select: frozenset[str] | None, sea: bool):
 
 _OPL_ESCAPE = re.compile(r"%([0-9a-fA-F]+)%")
 #: What stands in the OPL text for a node without a location (``n12xy``): far outside any valid one.
-_MISSING = 1e9
+_MISSING = 999_999_999
 
 
 def _read_native(path: Path, select: frozenset[str] | None, *, node_ids: bool) -> _Ways | None:
@@ -363,8 +363,11 @@ def _decode_opl_ways(data: bytes, *, node_ids: bool) -> _Ways | None:
     Each line is ``w<id> T<tags> N<nodes>``, the tags escaped so that they
     hold no space, and a node ``n<ref>x<lon>y<lat>`` (``n<ref>xy`` when its
     location is missing).  The lines' structure is found with numpy on the
-    bytes; ids and tags are blanked and every number left is parsed by one
-    ``numpy.fromstring``; only the tag text of a way goes through Python.
+    bytes (spaces, commas); the tag texts that hold digits are blanked, every
+    byte but the digits, ``-`` and ``.`` turns to a space, and the ids,
+    refs and coordinates left are parsed by one ``numpy.fromstring``.  Only
+    the distinct tag texts (a few classes) and the ways with more tags than
+    ``highway`` go through Python.
     """
     if not data:
         return _Ways(np.empty((0, 2), np.int32), np.empty(0, np.int64), np.empty(0, np.int64),
@@ -385,12 +388,37 @@ def _decode_opl_ways(data: bytes, *, node_ids: bool) -> _Ways | None:
         and np.all(buf[sp[:, 1] + 1] == ord("N"))
     ):
         return None  # not the layout asked for
-    # blank each line's tags (and the letters): what is left are the way's id, its nodes' refs and locations
-    head = sp[:, 1] + 2 - sp[:, 0]
-    blank = buf.copy()
-    blank[np.repeat(sp[:, 0] - (np.cumsum(head) - head), head) + np.arange(int(head.sum()))] = 32
-    npts = np.bincount(np.searchsorted(nl, np.flatnonzero(blank == ord("n"))), minlength=nlines)
-    text = blank.tobytes().replace(b"xy", b"x%gy%g" % (_MISSING, _MISSING)).translate(_OPL_SPACES)
+    # the lines' structure from their commas: between tags, or between nodes
+    commas = np.flatnonzero(buf == ord(","))
+    at = np.searchsorted(nl, commas)
+    in_tags = commas < sp[at, 1]
+    npts = np.bincount(at[~in_tags], minlength=nlines) + (nl - sp[:, 1] > 2)
+    ts, te = sp[:, 0] + 2, sp[:, 1]
+    several = np.zeros(nlines, bool)
+    several[at[in_tags]] = True
+    several |= te - ts > _TAG_WIDTH
+    # the distinct tag texts of one tag (highway=...), found by numpy
+    one = np.flatnonzero(~several)
+    distinct, inv = [], np.zeros(0, np.int64)
+    if len(one):
+        width = int((te[one] - ts[one]).max())
+        cols = ts[one, None] + np.arange(width)
+        mat = np.where(cols < te[one, None], buf[np.minimum(cols, len(buf) - 1)], 0).astype(np.uint8)
+        values, inv = np.unique(mat.view(f"S{width}").ravel(), return_inverse=True)
+        distinct, inv = values.tolist(), inv.ravel()
+    # the tag texts that could read as numbers are blanked; the others turn to spaces with the letters
+    blank = several.copy()
+    blank[one] = np.array([_NUMBERS.search(t) is not None for t in distinct], bool)[inv]
+    rows = np.flatnonzero(blank)
+    text = data
+    if len(rows):
+        head = te[rows] + 2 - sp[rows, 0]
+        arr = buf.copy()
+        arr[np.repeat(sp[rows, 0] - (np.cumsum(head) - head), head) + np.arange(int(head.sum()))] = 32
+        text = arr.tobytes()
+    if b"xy" in text:
+        text = text.replace(b"xy", b"x%dy%d" % (_MISSING, _MISSING))
+    text = text.translate(_OPL_NUMBERS)
     vals = np.fromstring(text, sep=" ")
     if vals.size != nlines + 3 * int(npts.sum()):
         return None
@@ -418,32 +446,22 @@ def _decode_opl_ways(data: bytes, *, node_ids: bool) -> _Ways | None:
     size = np.bincount(line[keep_pt], minlength=nlines)
     kept = size >= 2
     keep_pt &= kept[line]
-    # the class of each kept way (the distinct tag texts of one tag found by numpy), the other tags of the
-    # ways with more than highway (most street tables carry highway only)
-    kept_idx = np.flatnonzero(kept)
-    ts, te = sp[kept_idx, 0] + 2, sp[kept_idx, 1]
-    commas = np.flatnonzero(buf == ord(","))
-    at = np.searchsorted(nl, commas)
-    several = np.zeros(nlines, bool)
-    several[at[commas < sp[at, 1]]] = True
-    several = several[kept_idx] | (te - ts > _TAG_WIDTH)
-    one = np.flatnonzero(~several)
-    code_of = np.empty(len(kept_idx), np.int64)
+    # the class of each way, the other tags of the kept ways with more than highway
     codes: dict = {}
-    more = []
+    code_all = np.empty(nlines, np.int64)
     if len(one):
-        width = int((te[one] - ts[one]).max())
-        cols = ts[one, None] + np.arange(width)
-        mat = np.where(cols < te[one, None], buf[np.minimum(cols, len(buf) - 1)], 0).astype(np.uint8)
-        distinct, inv = np.unique(mat.view(f"S{width}").ravel(), return_inverse=True)
-        hw = [codes.setdefault(_unescape(t.partition(b"=")[2]), len(codes)) for t in distinct.tolist()]
-        code_of[one] = np.asarray(hw, np.int64)[inv.ravel()]
-    for k in np.flatnonzero(several).tolist():
-        tags = dict(tuple(_unescape(x) for x in kv.split(b"=", 1)) for kv in data[ts[k] : te[k]].split(b","))
-        code_of[k] = codes.setdefault(tags["highway"], len(codes))
-        if len(tags) > 1:
-            more.append((k, tags.get("name"), tags.get("layer"), tags.get("bridge"),
+        hw = [codes.setdefault(_unescape(t.partition(b"=")[2]), len(codes)) for t in distinct]
+        code_all[one] = np.asarray(hw, np.int64)[inv]
+    kept_idx = np.flatnonzero(kept)
+    rank = np.cumsum(kept) - 1
+    more = []
+    for i in np.flatnonzero(several).tolist():
+        tags = dict(tuple(_unescape(x) for x in kv.split(b"=", 1)) for kv in data[ts[i] : te[i]].split(b","))
+        code_all[i] = codes.setdefault(tags["highway"], len(codes))
+        if kept[i] and len(tags) > 1:
+            more.append((int(rank[i]), tags.get("name"), tags.get("layer"), tags.get("bridge"),
                          tags.get("tunnel") or tags.get("covered"), tags.get("oneway")))  # fmt: skip
+    code_of = code_all[kept_idx]
     return _Ways(
         np.rint(lonlat[keep_pt] * 1e7).astype(np.int32),
         size[kept],
@@ -458,7 +476,10 @@ def _decode_opl_ways(data: bytes, *, node_ids: bool) -> _Ways | None:
     )
 
 
-_OPL_SPACES = bytes.maketrans(b"wnxy,\n", b"      ")
+#: Every byte but the digits, the minus sign and the decimal point turned to a space.
+_OPL_NUMBERS = bytes(c if chr(c) in "0123456789-." else 32 for c in range(256))
+#: Tag text that would leave numbers behind (``xy`` turns into the missing location's).
+_NUMBERS = re.compile(rb"[0-9.-]|xy")
 #: Tag texts longer than this (bytes) are read by Python (a highway=* tag alone is shorter).
 _TAG_WIDTH = 40
 
