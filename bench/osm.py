@@ -27,7 +27,7 @@ blocks / the library route plus a vectorized ``shapely.buffer`` inset of its
 faces by :data:`INSET`, as issue 13 restates it like for like).  Results go to ``bench/results/osm.json``: seconds (best
 of ``--repeat``, wall clock; the runs alternate between the routes, so
 that background load hits both alike) and the CPU seconds of that run (all
-the route's processes: sengine reads on two cores), peak resident memory,
+the route's processes, should a stage fork), peak resident memory,
 ways per second, face counts.
 
 Usage::
@@ -116,7 +116,7 @@ def route_sengine(path: str) -> dict:
             "faces >= min_area": t3 - t2,
             "blocks.circuits (node: faces taken over + sidewalk inset + street polygons)": t4 - t3,
         },
-        # CPU seconds of the same stages (the reader's second process included): on a busy machine the wall
+        # CPU seconds of the same stages (forked processes included): on a busy machine the wall
         # clock of a stage counts the time the others' processes held the cores
         "stages_cpu": {"osm.read": c1 - c0, "roads.clean": c2 - c1, "blocks.circuits": c4 - c3},
         "circuits": int(len(circuits)),

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from sengine.errors import InputDataError
 
@@ -87,3 +89,64 @@ def test_an_error_in_the_forked_share_is_raised_here(stream, tmp_path):
     for workers in (1, 2):
         with pytest.raises(InputDataError, match="outside"):
             stream.read_osm(path, classes=KEEP, workers=workers)
+
+
+def _passes(stream, path, classes, node_ids):
+    """The extracts of the OPL route (read_osm when it declines) and of the per-way pass; whether it took the file."""
+    native = stream._read_native(path, classes, node_ids=node_ids)
+    legacy = stream._read_pass(path, classes, extras=frozenset(), node_ids=node_ids, where=None)
+    if native is None:  # what the OPL route leaves to the pass: read_osm takes the pass
+        a, b = stream.read_osm(path, classes=classes, node_ids=node_ids), stream.OsmExtract()
+        stream._merge(b, [legacy], node_ids=node_ids)
+        return a, b, False
+    a, b = stream.OsmExtract(), stream.OsmExtract()
+    stream._merge(a, [native], node_ids=node_ids)
+    stream._merge(b, [legacy], node_ids=node_ids)
+    return a, b, True
+
+
+@pytest.mark.parametrize("name", ["helsinki_centre.osm.pbf", "monaco.osm.pbf", "west_oakland.osm.bz2"])
+def test_libosmium_route_reads_what_the_per_way_pass_reads(stream, name):
+    for classes in (KEEP, None):
+        a, b, native = _passes(stream, DATA / name, classes, True)
+        assert native and len(a.way_id) > 10
+        _same(a, b)
+    if name.startswith("helsinki"):  # an extract cut by its box: ways keep their longest located run
+        assert a.clipped > 50
+
+
+_TEXT = st.text(st.characters(codec="utf-8", exclude_categories=("Cs", "Cc")), max_size=12)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    ways=st.lists(
+        st.tuples(
+            st.lists(st.integers(1, 12), min_size=0, max_size=6),  # node refs; 10-12 are not in the file
+            st.sampled_from(["residential", "primary", "footway", "tertiary_link"]),
+            st.dictionaries(st.sampled_from(["name", "layer", "bridge", "tunnel", "covered", "oneway"]), _TEXT),
+        ),
+        min_size=1,
+        max_size=12,
+    )
+)
+def test_libosmium_route_on_tags_to_escape_and_clipped_ways(stream, tmp_path_factory, ways):
+    """Names with commas, equals signs, spaces, percent signs and any script; ways cut by the extract."""
+    path = tmp_path_factory.mktemp("opl") / "ways.osm.pbf"
+    nodes = [(i, 7.40 + 0.001 * i, 43.70 - 0.0003 * i) for i in range(1, 10)]
+    _write(path, nodes, [(100 + k, refs, {"highway": hw, **tags}) for k, (refs, hw, tags) in enumerate(ways)])
+    a, b, native = _passes(stream, path, KEEP | {"tertiary_link"}, True)
+    # a code point beyond U+FFFF is escaped in five hex digits, which OPL makes ambiguous: left to the pass
+    assert native or any(ord(c) > 0xFFFF for _, _, tags in ways for t in tags.values() for c in t)
+    _same(a, b)
+
+
+def test_what_the_libosmium_route_does_not_take_goes_to_the_pass(stream, tmp_path):
+    """New objects (negative ids) and a node out of range: None, and read_osm gives the pass's answer."""
+    path = tmp_path / "new.osm.pbf"
+    _write(path, [(-1, 7.4, 43.7), (-2, 7.41, 43.7)], [(-5, [-1, -2], {"highway": "residential"})])
+    assert stream._read_native(path, KEEP, node_ids=False) is None
+    assert stream.read_osm(path, classes=KEEP).fixed.tolist() == [[74000000, 437000000], [74100000, 437000000]]
+    wild = tmp_path / "wild.osm.pbf"
+    _write(wild, [(1, 7.4, 95.0), (2, 7.41, 43.7)], [(10, [1, 2], {"highway": "residential"})])
+    assert stream._read_native(wild, KEEP, node_ids=False) is None
