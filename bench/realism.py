@@ -91,11 +91,16 @@ def lot_figures(lots) -> dict:
     }
 
 
+def _generated(buildings) -> np.ndarray:
+    """Which buildings the engine made (``source`` is not ``osm``)."""
+    if "source" not in buildings:
+        return np.ones(len(buildings), bool)
+    return np.asarray(buildings["source"]).astype(str) != "osm"
+
+
 def building_figures(buildings, blocks) -> dict:
     """Party walls and street walls of the generated buildings."""
-    gen = np.ones(len(buildings), bool)
-    if "source" in buildings:
-        gen = np.asarray(buildings["source"]).astype(str) != "osm"
+    gen = _generated(buildings)
     geoms = buildings.geometry[gen]
     n = len(geoms)
     if n == 0:
@@ -137,9 +142,7 @@ def house_types(buildings) -> dict:
     :data:`PARTY_TOL`): none ``open`` (detached), one ``semi`` (semi-detached
     or end of terrace), two or more ``closed`` (terraced).
     """
-    gen = np.ones(len(buildings), bool)
-    if "source" in buildings:
-        gen = np.asarray(buildings["source"]).astype(str) != "osm"
+    gen = _generated(buildings)
     geoms = buildings.geometry[gen]
     n = len(geoms)
     if n == 0:

@@ -72,7 +72,7 @@ from sengine.errors import ParameterError
 from sengine.geom.grain import street_density
 from sengine.random import uniform
 
-__all__ = ["FABRICS", "NO_FRONTAGE", "fabric_of", "BlocksGrain"]
+__all__ = ["FABRICS", "GRAIN_PARAMS", "NO_FRONTAGE", "check_bands", "fabric_of", "BlocksGrain"]
 
 log = logging.getLogger(__name__)
 
@@ -80,6 +80,34 @@ log = logging.getLogger(__name__)
 FABRICS = ("rural", "houses", "rows", "urban")
 #: Road classes no building fronts: left out of the street grain.
 NO_FRONTAGE = ("motorway", "motorway_link", "trunk", "trunk_link")
+
+
+#: The street grain's measure and bands, shared with ``buildings.context``.
+GRAIN_PARAMS = {
+    "grain_radius": Param(
+        "float",
+        500.0,
+        min=50.0,
+        max=5000.0,
+        unit="m",
+        doc="half the side of the square the street grain is measured in",
+    ),
+    "rural_grain": Param(
+        "float", 8.0, min=0.0, max=200.0, unit="km/km2", doc="street grain under which the land is rural (houses)"
+    ),
+    "urban_grain": Param(
+        "float", 14.0, min=0.0, max=200.0, unit="km/km2", doc="street grain from which the land is urban"
+    ),
+}
+
+
+def check_bands(p, where):
+    """``p`` (checked parameters with ``rural_grain`` and ``urban_grain``), or a one-line error if they cross."""
+    if p.rural_grain > p.urban_grain:
+        raise ParameterError(
+            f"rural_grain ({p.rural_grain:g}) must not exceed urban_grain ({p.urban_grain:g})", where=where
+        )
+    return p
 
 
 def fabric_of(grain: np.ndarray, u: np.ndarray, rural_grain: float, urban_grain: float) -> np.ndarray:
@@ -120,20 +148,7 @@ class BlocksGrain(SENode):
     }
     outputs = {"blocks": Port("blocks", "the blocks with 'grain' (km/km2), 'fabric' and 'lot_area' (m2) columns")}
     params = {
-        "grain_radius": Param(
-            "float",
-            500.0,
-            min=50.0,
-            max=5000.0,
-            unit="m",
-            doc="half the side of the square the street grain is measured in",
-        ),
-        "rural_grain": Param(
-            "float", 8.0, min=0.0, max=200.0, unit="km/km2", doc="street grain under which blocks are rural"
-        ),
-        "urban_grain": Param(
-            "float", 14.0, min=0.0, max=200.0, unit="km/km2", doc="street grain from which blocks are urban"
-        ),
+        **GRAIN_PARAMS,
         "rural_lot_area": Param(
             "float", 1200.0, min=0.0, max=1e7, unit="m2", doc="largest lot of a rural block (0: the lot node's own)"
         ),
@@ -151,12 +166,7 @@ class BlocksGrain(SENode):
     @classmethod
     def check_params(cls, values, where):
         """The declared checks, and the bands in order."""
-        p = super().check_params(values, where)
-        if p.rural_grain > p.urban_grain:
-            raise ParameterError(
-                f"rural_grain ({p.rural_grain:g}) must not exceed urban_grain ({p.urban_grain:g})", where=where
-            )
-        return p
+        return check_bands(super().check_params(values, where), where)
 
     def run(self, *, blocks: Layer, roads: Layer) -> NodeResult:
         p = self.p

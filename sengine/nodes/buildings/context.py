@@ -77,7 +77,7 @@ from sengine.errors import InputDataError, ParameterError
 from sengine.geom.grain import street_density
 from sengine.random import uniform
 
-from ..blocks.grain import FABRICS, NO_FRONTAGE, fabric_of
+from ..blocks.grain import FABRICS, GRAIN_PARAMS, NO_FRONTAGE, check_bands, fabric_of
 from .typology import TYPOLOGIES, parse_choices
 
 __all__ = ["neighbour_floors", "open_land", "BuildingsContext"]
@@ -186,20 +186,7 @@ class BuildingsContext(SENode):
             doc="at most this many storeys around: low-rise typologies only (0: off)",
         ),
         "low_rise_typology": Param("str", "I:3,L", doc="typologies of lots in a low-rise neighbourhood"),
-        "grain_radius": Param(
-            "float",
-            500.0,
-            min=50.0,
-            max=5000.0,
-            unit="m",
-            doc="half the side of the square the street grain is measured in",
-        ),
-        "urban_grain": Param(
-            "float", 14.0, min=0.0, max=200.0, unit="km/km2", doc="street grain from which a lot is left to the massing"
-        ),
-        "rural_grain": Param(
-            "float", 8.0, min=0.0, max=200.0, unit="km/km2", doc="street grain under which lots get detached houses"
-        ),
+        **GRAIN_PARAMS,
         "town_floors": Param(
             "int", 2, min=1, max=300, unit="1", doc="storeys of the rows between rural_grain and urban_grain"
         ),
@@ -227,11 +214,7 @@ class BuildingsContext(SENode):
                 parse_choices(getattr(p, name), TYPOLOGIES, what="typology")
             except ValueError as exc:
                 raise ParameterError(f"{name}: {exc}", where=where) from None
-        if p.rural_grain > p.urban_grain:
-            raise ParameterError(
-                f"rural_grain ({p.rural_grain:g}) must not exceed urban_grain ({p.urban_grain:g})", where=where
-            )
-        return p
+        return check_bands(p, where)
 
     def run(self, *, lots: Layer, existing: Layer | None = None, roads: Layer | None = None) -> NodeResult:
         p = self.p
