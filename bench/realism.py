@@ -167,8 +167,11 @@ def by_fabric(lots, buildings, blocks) -> dict:
     if "fabric" not in lots:
         return {}
     fabric = np.asarray(lots["fabric"]).astype(str)
-    of = dict(zip(np.asarray(lots.ids).tolist(), fabric.tolist()))
-    bf = np.array([of.get(int(k), "") for k in np.asarray(buildings["lot"])]) if len(buildings) else np.zeros(0, str)
+    ids = np.asarray(lots.ids, np.int64)
+    order = np.argsort(ids, kind="stable")
+    lot = np.asarray(buildings["lot"], np.int64) if len(buildings) else np.zeros(0, np.int64)
+    at = order[np.minimum(np.searchsorted(ids, lot, sorter=order), len(ids) - 1)] if len(ids) else lot
+    bf = np.where((len(ids) > 0) & (ids[at] == lot), fabric[at], "") if len(ids) else np.full(len(lot), "")
     out = {}
     for f in np.unique(fabric):
         b = buildings.take(np.flatnonzero(bf == f))
