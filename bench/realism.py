@@ -15,7 +15,8 @@ and generated buildings are measured:
   perimeter block's wing is as deep as that); the share of each block's land
   that generated buildings cover (median over blocks with one);
 * the generated buildings by Statbel's types of houses (:func:`house_types`:
-  detached, semi-detached, terraced, flats);
+  detached, semi-detached, terraced, flats), and each type's footprints in
+  Statbel's classes of ground area beside Wallonia's houses (:func:`ground_areas`);
 * where the lots carry ``blocks.grain``'s ``fabric``, all of the above per fabric;
 * the ``planning`` node's city figures: FAR, coverage, GFA and residents.
 
@@ -134,6 +135,25 @@ def building_figures(buildings, blocks) -> dict:
     return out
 
 
+def _house_kinds(buildings) -> tuple[np.ndarray, dict]:
+    """The generated buildings and, for each Statbel type, which of them are of it (see :func:`house_types`)."""
+    gen = _generated(buildings)
+    geoms = buildings.geometry[gen]
+    n = len(geoms)
+    a, b = shapely.STRtree(geoms).query(geoms, predicate="dwithin", distance=PARTY_TOL)
+    keep = a != b
+    a, b = a[keep], b[keep]
+    shared = shapely.length(shapely.intersection(shapely.boundary(geoms[a]), shapely.buffer(geoms[b], PARTY_TOL)))
+    neighbours = np.bincount(a[shared > 1.0], minlength=n)
+    flats = np.asarray(buildings["floors"])[gen] >= 3
+    return geoms, {
+        "open": ~flats & (neighbours == 0),
+        "semi": ~flats & (neighbours == 1),
+        "closed": ~flats & (neighbours >= 2),
+        "flats": flats,
+    }
+
+
 def house_types(buildings) -> dict:
     """Shares of the generated buildings as Statbel types its building stock.
 
@@ -142,24 +162,38 @@ def house_types(buildings) -> dict:
     :data:`PARTY_TOL`): none ``open`` (detached), one ``semi`` (semi-detached
     or end of terrace), two or more ``closed`` (terraced).
     """
-    gen = _generated(buildings)
-    geoms = buildings.geometry[gen]
-    n = len(geoms)
-    if n == 0:
+    if not _generated(buildings).any():
         return {}
-    a, b = shapely.STRtree(geoms).query(geoms, predicate="dwithin", distance=PARTY_TOL)
-    keep = a != b
-    a, b = a[keep], b[keep]
-    shared = shapely.length(shapely.intersection(shapely.boundary(geoms[a]), shapely.buffer(geoms[b], PARTY_TOL)))
-    neighbours = np.bincount(a[shared > 1.0], minlength=n)
-    flats = np.asarray(buildings["floors"])[gen] >= 3
-    kinds = {
-        "open": ~flats & (neighbours == 0),
-        "semi": ~flats & (neighbours == 1),
-        "closed": ~flats & (neighbours >= 2),
-        "flats": flats,
-    }
+    _, kinds = _house_kinds(buildings)
     return {k: round(float(v.mean()), 4) for k, v in kinds.items()}
+
+
+#: Statbel's classes of built ground area (m2) and Wallonia's houses in them on 1 January 2018
+#: (Statbel, building stock by type and ground area: terraced, semi-detached, detached incl. farms).
+GROUND_CLASSES = (45.0, 65.0, 105.0)
+WALLONIA_2018 = {
+    "closed": (30_166, 102_501, 190_335, 95_589),
+    "semi": (10_193, 48_602, 142_577, 166_919),
+    "open": (1_638, 6_263, 97_232, 400_878),
+}
+
+
+def ground_areas(buildings) -> dict:
+    """Each house type's footprints: median (m2) and shares in Statbel's classes beside Wallonia's (2018)."""
+    if not _generated(buildings).any():
+        return {}
+    geoms, kinds = _house_kinds(buildings)
+    area = shapely.area(geoms)
+    out = {}
+    for k, real in WALLONIA_2018.items():
+        a = area[kinds[k]]
+        counts = np.bincount(np.searchsorted(GROUND_CLASSES, a, side="right"), minlength=4)
+        out[k] = {
+            "median_m2": round(float(np.median(a)), 1) if len(a) else 0.0,
+            "classes": [round(float(c / max(len(a), 1)), 4) for c in counts],
+            "wallonia_2018": [round(c / sum(real), 4) for c in real],
+        }
+    return out
 
 
 def by_fabric(lots, buildings, blocks) -> dict:
@@ -180,6 +214,7 @@ def by_fabric(lots, buildings, blocks) -> dict:
             "lots": lot_figures(lots.take(np.flatnonzero(fabric == f))),
             "buildings": building_figures(b, blocks),
             "types": house_types(b),
+            "ground_areas": ground_areas(b),
             "median_floors": float(np.median(b["floors"])) if len(b) else 0.0,
             "gfa_per_building_m2": round(gfa / max(len(b), 1), 1),
         }
@@ -200,6 +235,7 @@ def measure(case: str, sets: list[str]) -> dict:
         "lots": lot_figures(lots),
         "buildings": building_figures(buildings, blocks),
         "types": house_types(buildings),
+        "ground_areas": ground_areas(buildings),
         "by_fabric": by_fabric(lots, buildings, blocks),
         "planning": city,
     }

@@ -120,10 +120,18 @@ def test_the_context_builds_what_the_blocks_fabric_says():
     lots = _fabric_lots(["rural", "houses", "rows", "urban"])
     out = Context_("context", {}, Context(seed=1)).run(lots=lots)
     got = out["lots"]
-    assert np.asarray(got["floors"])[:3].tolist() == [2.0, 2.0, 2.0] and np.isnan(got["floors"][3])
-    assert got["typology"].tolist() == ["house", "house", "I:3,L", ""]
+    assert np.asarray(got["floors"]).tolist() == [2.0, 2.0, 2.0, 3.0]  # a town centre of three storeys
+    assert got["typology"].tolist() == ["house", "house", "I:3,L", "I:4,L,U"]  # no towers on the streets' word
     assert got["siting"].tolist() == ["detached", "detached", "", ""]  # houses stand apart
+    depth = np.asarray(got["building_depth"])  # houses and terraces 10 m deep, flats the massing's
+    assert depth[:3].tolist() == [10.0, 10.0, 10.0] and np.isnan(depth[3])
+    off = Context_("context", {"urban_floors": "0", "urban_typology": "", "house_depth": "0"}, Context(seed=1))
+    got = off.run(lots=lots)["lots"]
+    assert np.isnan(got["floors"][3]) and got["typology"][3] == "" and "building_depth" not in got
     assert out.report["rural_lots"] == 1 and out.report["town_lots"] == 2 and out.report["town_houses"] == 1
+    with pytest.raises(ParameterError, match="urban_typology") as err:
+        Context_("context", {"urban_typology": "I,castle"}, Context(seed=1))
+    assert "\n" not in str(err.value)
     with pytest.raises(InputDataError, match="fabric 'suburb'") as err:
         Context_("context", {}, Context(seed=1)).run(lots=_fabric_lots(["rural", "suburb"]))
     assert "\n" not in str(err.value)
@@ -148,6 +156,23 @@ def test_a_house_on_a_plot_too_narrow_to_stand_free_is_a_terrace_with_party_wall
     out = node.run(lots=wide, blocks=wide_blocks)
     assert out.report["attached_narrow"] == 0 and set(out["buildings"]["typology"]) == {"house"}
     assert len(out["buildings"]) == 6 and (party_walls(out["buildings"].geometry) == 0).all()
+
+
+def test_a_lots_building_depth_sets_how_deep_its_house_or_terrace_is():
+    lots, blocks = row_block(7.0, depth=30.0, count=8, rows=2, angle=23.0)  # terraces, rotated
+    node = Massing("buildings", {"typology": "I", "siting": "attached", "floors": "2"}, Context(seed=1))
+    deep = node.run(lots=lots, blocks=blocks)["buildings"]
+    shallow = node.run(lots=lots.with_columns(building_depth=np.full(16, 10.0)), blocks=blocks)["buildings"]
+    assert len(deep) == len(shallow) == 16
+    mid = ~np.isin(np.asarray(deep["lot"]) % 8, (0, 7))  # the end houses turn the corner
+    np.testing.assert_allclose(shapely.area(deep.geometry[mid]), 7.0 * 14.0, rtol=1e-6)  # the massing's depth
+    np.testing.assert_allclose(shapely.area(shallow.geometry[mid]), 7.0 * 10.0, rtol=1e-6)
+    # a lot with no depth of its own (NaN) keeps the node's
+    mixed = lots.with_columns(building_depth=np.where(np.arange(16) < 8, 10.0, np.nan))
+    got = node.run(lots=mixed, blocks=blocks)["buildings"]
+    lot = np.asarray(got["lot"])
+    inner = ~np.isin(lot % 8, (0, 7))
+    np.testing.assert_allclose(shapely.area(got.geometry[inner]), np.where(lot[inner] < 8, 70.0, 98.0), rtol=1e-6)
 
 
 def test_a_terrace_shares_its_roof_kind_and_lots_elsewhere_draw_their_own():

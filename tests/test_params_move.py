@@ -325,6 +325,10 @@ def _floors_sum(out):
     return float(np.nansum(out["lots"]["floors"]))
 
 
+def _building_depth_sum(out):
+    return float(np.nansum(out["lots"]["building_depth"]))
+
+
 def _bars_only(out):
     return int((np.asarray(out["lots"]["typology"]).astype(str) == "I").sum())
 
@@ -517,6 +521,36 @@ CASES: list[Case] = [
         "house",
         "I",
         _bars_only,
+        +1,
+        on_grain,
+        base=(("rural_grain", 200.0), ("urban_grain", 200.0)),
+    ),
+    Case(
+        "buildings.context",
+        "urban_floors",
+        1,
+        6,
+        _floors_sum,
+        +1,
+        on_grain,
+        base=(("rural_grain", 0.0), ("urban_grain", 0.0)),
+    ),
+    Case(
+        "buildings.context",
+        "urban_typology",
+        "I",
+        "I,L,tower",
+        _bars_only,
+        -1,
+        on_grain,
+        base=(("rural_grain", 0.0), ("urban_grain", 0.0)),
+    ),
+    Case(
+        "buildings.context",
+        "house_depth",
+        8.0,
+        12.0,
+        _building_depth_sum,
         +1,
         on_grain,
         base=(("rural_grain", 200.0), ("urban_grain", 200.0)),

@@ -34,7 +34,15 @@ rows) or, with a chance falling linearly from one at ``rural_grain`` to
 none at ``urban_grain`` (drawn per lot from the seed, the node id and the
 lot id), a house as under ``rural_grain``: suburbs of detached and
 semi-detached houses run into the rows of a town centre; from
-``urban_grain`` up, the node's parameters and the height map, as before.  The lots carry the grain as a ``grain`` column (km/km²).
+``urban_grain`` up, ``urban_floors`` and ``urban_typology`` (a town centre
+of three-storey town houses and small blocks of flats in perimeter blocks:
+bars, L's and U courts, no towers; 0 and empty leave the node's parameters
+and the height map).  Houses and terraces are shallower than blocks of
+flats: ``house_depth`` (10 m) becomes their lots' ``building_depth`` rule
+column.  Wallonia's houses (Statbel, 1 January 2018) stand on a median
+ground area of about 81 m² terraced, 99 m² semi-detached and over 104 m²
+detached [4]_; a 14 m deep terrace on an 8 m plot (112 m²) is a third too
+large.  The lots carry the grain as a ``grain`` column (km/km²).
 Nor is every rural road lined with houses: villages cluster round the
 streets they live on, and the roads between them cross fields.  OpenStreetMap
 says which is which: ``highway=residential`` (with ``living_street`` and
@@ -47,12 +55,13 @@ such street (untagged or generated roads) builds every lot, as before.
 The defaults were read off the shipped extracts: the six- to eight-storey
 perimeter blocks of Helsinki's centre have a median grain of 17 and Monaco
 16, whole Liège's lots a median of 8 (quartiles 5.7 and 11.4;
-its villages about 4); so 14 and 8.  With them whole Liège's street network
-(no buildings) houses 1.44 million in the planning report instead of 5.3
-million (every lot built), where its streets serve about 530 km², about
+its villages about 4); so 14 and 8.  With them, the fabrics of
+``blocks.grain``, the house depth and the urban storeys, whole Liège's street
+network (no buildings) houses 1.06 million in the planning report instead of
+5.3 million (every lot built), where its streets serve about 530 km², about
 the size of the arrondissement of Liège (628,381 inhabitants on 796 km²,
-Statbel, 1 January 2024): still some 2.3 times too many, the largest share in the
-urban grain at the massing's default storeys.
+Statbel, 1 January 2024): still some 1.7 times too many, with every floor
+counted as homes.
 
 References
 ----------
@@ -63,6 +72,12 @@ References
    Settlements Programme, Nairobi, 2014.
 .. [3] OpenStreetMap Wiki, "Tag:highway=residential" and
    "Tag:highway=unclassified", https://wiki.openstreetmap.org (read November 2026).
+.. [4] Statbel (Statistics Belgium), building stock on 1 January 2018: houses
+   by type (closed, half-open, open building) and built ground area (under
+   45 m², 45-64, 65-104, over 104 m²), https://bestat.statbel.fgov.be (read
+   November 2026).  Wallonia: terraced 30,166 / 102,501 / 190,335 / 95,589;
+   semi-detached 10,193 / 48,602 / 142,577 / 166,919; detached 1,638 / 6,263 /
+   97,232 / 400,878.
 """
 
 from __future__ import annotations
@@ -194,6 +209,27 @@ class BuildingsContext(SENode):
             "int", 2, min=1, max=300, unit="1", doc="storeys of the houses (under rural_grain, and in town)"
         ),
         "rural_typology": Param("str", "house", doc="typologies under rural_grain, and of the houses in town"),
+        "house_depth": Param(
+            "float",
+            10.0,
+            min=0.0,
+            max=200.0,
+            unit="m",
+            doc="depth of the houses and terraces under urban_grain (Statbel 2018, Wallonia: median ground area"
+            " about 81 m2 terraced, 99 m2 semi-detached); 0: the massing's depth",
+        ),
+        "urban_floors": Param(
+            "int",
+            3,
+            min=0,
+            max=300,
+            unit="1",
+            doc="storeys from urban_grain up where no map building says (a town centre of three-storey town houses"
+            " and small blocks of flats); 0: the massing's parameters and the height map",
+        ),
+        "urban_typology": Param(
+            "str", "I:4,L,U", doc="typologies from urban_grain up where no map building says (empty: by land use)"
+        ),
         "village_reach": Param(
             "float",
             150.0,
@@ -207,9 +243,11 @@ class BuildingsContext(SENode):
 
     @classmethod
     def check_params(cls, values, where):
-        """The declared checks, and ``low_rise_typology`` read as ``buildings.massing`` will read it."""
+        """The declared checks, and the typologies read as ``buildings.massing`` will read them."""
         p = super().check_params(values, where)
-        for name in ("low_rise_typology", "rural_typology"):
+        for name in ("low_rise_typology", "rural_typology", "urban_typology"):
+            if name == "urban_typology" and not p.urban_typology:  # empty: by land use
+                continue
             try:
                 parse_choices(getattr(p, name), TYPOLOGIES, what="typology")
             except ValueError as exc:
@@ -265,10 +303,19 @@ class BuildingsContext(SENode):
             rural = ~fitted & (code == FABRICS.index("rural"))
             house = ~fitted & (code == FABRICS.index("houses"))
             rows = ~fitted & (code == FABRICS.index("rows"))
+            urban = ~fitted & (code == FABRICS.index("urban"))
             town = house | rows
             floors[rural | house], floors[rows] = p.rural_floors, p.town_floors
             typology[(rural | house) & untyped] = p.rural_typology
             typology[rows & untyped] = p.low_rise_typology
+            if p.urban_floors:  # a lot's own floors (a rule column) stay: it is fitted
+                floors[urban] = p.urban_floors
+            if p.urban_typology:
+                typology[urban & untyped] = p.urban_typology
+            if p.house_depth:  # houses and terraces are shallower than the massing's blocks of flats
+                depth = np.asarray(lots.get("building_depth", np.full(n, np.nan)), np.float64).copy()
+                depth[(rural | town) & ~(depth > 0)] = p.house_depth
+                columns["building_depth"] = depth
             # houses stand apart: a plot too narrow for one stays a garden rather than take a terrace
             siting = np.asarray(lots.get("siting", np.full(n, "", dtype=object)), dtype=object).copy()
             siting[(rural | house) & ~siting.astype(bool)] = "detached"

@@ -343,10 +343,10 @@ class _Massing(SENode):
         )
         parts = _Drawn(site, typ, p.podium_floors, p.podium_depth, p.min_area)
         # every lot drawn once at its first depth; a typology the building area cannot hold
-        # falls back to a slab, then to the whole area
+        # falls back to a slab, then to the whole area, but a house that does not fit leaves a garden
         rows = np.arange(n)
         main, low = parts.draw(rows, depth, np.ones(n))
-        room = ~shapely.is_empty(area)
+        room = ~shapely.is_empty(area) & (typ != TYPOLOGIES.index("house"))
         for fallback in ("I", "box"):
             bad = np.flatnonzero((main <= 0) & room)
             if not len(bad):

@@ -66,6 +66,18 @@ RULE_PARAMS = {
     "roof": Param("str", None, doc="roof kinds and shares, e.g. 'gable:2,hip' (default: by land use)"),
 }
 
+#: Lot columns that override a rule, and the rule (a lot's own ``depth`` is its depth from the street, not
+#: its building's: ``building_depth`` is).
+LOT_COLUMNS = {
+    "far": "far",
+    "loc": "loc",
+    "floors": "floors",
+    "typology": "typology",
+    "height_class": "height_class",
+    "siting": "siting",
+    "building_depth": "depth",
+}
+
 for _tag in ("district", "landuse"):
     declare_rule(_tag, {k: v for k, v in RULE_PARAMS.items() if not (_tag == "landuse" and k == "use")})
 
@@ -215,9 +227,9 @@ def per_lot(
         sel = mapped == i if (mapped >= 0).any() else out["use"].astype(str) == cls
         if sel.any():
             _apply(out, rule, sel, where, skip=("use",))
-    for col in ("far", "loc", "floors", "typology", "height_class", "siting"):
+    for col, rule in LOT_COLUMNS.items():
         if col in lots:
             vals = np.asarray(lots[col], dtype=object)
             known = np.array([v is not None and v == v and str(v) != "" for v in vals], bool)
-            out[col][known] = vals[known]
+            out[rule][known] = vals[known]
     return out
