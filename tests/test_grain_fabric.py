@@ -52,9 +52,15 @@ def test_blocks_get_their_fabric_grain_and_lot_area_from_the_streets_round_them(
     u = uniform(3, "grain/houses", blocks.ids)
     town = np.where(u[1:7] < (14.0 - grain[1:7]) / 6.0, "houses", "rows")
     assert b["fabric"].tolist() == ["urban", *town, "rural"]
-    want = {"rural": 1200.0, "houses": 800.0, "rows": 250.0, "urban": 0.0}
+    want = {"rural": 1200.0, "houses": 800.0, "rows": 250.0, "urban": 300.0}
     assert np.asarray(b["lot_area"]).tolist() == [want[f] for f in b["fabric"]]
-    assert out.report == {f"blocks_{f}": int((np.asarray(b["fabric"]) == f).sum()) for f in FABRICS}
+    counts = {f"blocks_{f}": int((np.asarray(b["fabric"]) == f).sum()) for f in FABRICS}
+    assert out.report == {**counts, "urban_blocks_with_buildings": 0}
+    # a map building in the urban block and one in the rural block: the urban block keeps the lot node's size
+    houses = Layer.from_geoms([shapely.box(1520, 1520, 1530, 1530), shapely.box(20_020, 1520, 20_030, 1530)])
+    built = Grain("grain", {}, Context(seed=3)).run(blocks=blocks, roads=_grid_roads(), existing=houses)
+    assert np.asarray(built["blocks"]["lot_area"]).tolist() == [0.0, *np.asarray(b["lot_area"])[1:]]
+    assert built.report["urban_blocks_with_buildings"] == 1
     # per block, not per batch: each block alone gets the same fabric
     for i in range(len(blocks)):
         one = Grain("grain", {}, Context(seed=3)).run(blocks=blocks.take([i]), roads=_grid_roads())["blocks"]

@@ -41,7 +41,12 @@ their ``max_area``; 0 leaves the node's own); lots carry their block's
 ``grain`` and ``fabric``, and ``buildings.context`` builds houses on
 ``rural`` and ``houses`` lots and rows on ``rows`` lots.  With the defaults,
 the recursive lots of whole Liège come out with a median frontage of 8 m in ``rows``, 18 m in ``houses``
-and 26 m in ``rural`` blocks (under 1 % thinner than 1:10); ``urban`` blocks keep the lot node's size.
+and 26 m in ``rural`` blocks (under 1 % thinner than 1:10).  An ``urban``
+block is cut into town houses' plots of ``urban_lot_area`` (300 m²: 10 m
+of frontage on a 30 m deep plot, as in the nineteenth-century quarters of
+Belgian towns) unless it holds one of the map's buildings, which say how
+that centre is built better than any default: then it keeps the lot
+node's own size (Helsinki's perimeter blocks stand on lots of 20 m and more).
 
 References
 ----------
@@ -72,7 +77,7 @@ from sengine.errors import ParameterError
 from sengine.geom.grain import street_density
 from sengine.random import uniform
 
-__all__ = ["FABRICS", "GRAIN_PARAMS", "NO_FRONTAGE", "check_bands", "fabric_of", "BlocksGrain"]
+__all__ = ["FABRICS", "GRAIN_PARAMS", "NO_FRONTAGE", "check_bands", "fabric_of", "holds_buildings", "BlocksGrain"]
 
 log = logging.getLogger(__name__)
 
@@ -110,6 +115,16 @@ def check_bands(p, where):
     return p
 
 
+def holds_buildings(blocks: np.ndarray, buildings: Layer | None) -> np.ndarray:
+    """Which ``blocks`` (polygons) hold a point of one of the map's ``buildings`` (none without any)."""
+    out = np.zeros(len(blocks), bool)
+    if buildings is None or not len(buildings) or not len(blocks):
+        return out
+    _, inside = shapely.STRtree(blocks).query(shapely.point_on_surface(buildings.geometry), predicate="within")
+    out[inside] = True
+    return out
+
+
 def fabric_of(grain: np.ndarray, u: np.ndarray, rural_grain: float, urban_grain: float) -> np.ndarray:
     """The fabric of each block from its street grain and a uniform draw.
 
@@ -145,6 +160,9 @@ class BlocksGrain(SENode):
     inputs = {
         "blocks": Port("blocks", "blocks to size"),
         "roads": Port("roads", "street centre lines (with 'class'): the street grain round the blocks"),
+        "existing": Port(
+            "buildings", "the map's buildings: an urban block holding one keeps the lot node's size", required=False
+        ),
     }
     outputs = {"blocks": Port("blocks", "the blocks with 'grain' (km/km2), 'fabric' and 'lot_area' (m2) columns")}
     params = {
@@ -159,7 +177,12 @@ class BlocksGrain(SENode):
             "float", 250.0, min=0.0, max=1e7, unit="m2", doc="largest lot of a block of rows (0: the lot node's own)"
         ),
         "urban_lot_area": Param(
-            "float", 0.0, min=0.0, max=1e7, unit="m2", doc="largest lot of an urban block (0: the lot node's own)"
+            "float",
+            300.0,
+            min=0.0,
+            max=1e7,
+            unit="m2",
+            doc="largest lot of an urban block that holds no map building: a town house's plot (0: the lot node's own)",
         ),
     }
 
@@ -168,7 +191,7 @@ class BlocksGrain(SENode):
         """The declared checks, and the bands in order."""
         return check_bands(super().check_params(values, where), where)
 
-    def run(self, *, blocks: Layer, roads: Layer) -> NodeResult:
+    def run(self, *, blocks: Layer, roads: Layer, existing: Layer | None = None) -> NodeResult:
         p = self.p
         n = len(blocks)
         sites = shapely.get_coordinates(shapely.point_on_surface(blocks.geometry)) if n else np.zeros((0, 2))
@@ -178,7 +201,11 @@ class BlocksGrain(SENode):
         code = fabric_of(grain, u, p.rural_grain, p.urban_grain)
         fabric = np.asarray(FABRICS)[code]
         lot_area = np.array([p.rural_lot_area, p.house_lot_area, p.row_lot_area, p.urban_lot_area])[code]
+        # the map's own buildings say how a centre is built better than a town house's plot: keep the node's size
+        built = holds_buildings(blocks.geometry, existing) & (fabric == "urban")
+        lot_area[built] = 0.0
         report = {f"blocks_{f}": int((fabric == f).sum()) for f in FABRICS}
+        report["urban_blocks_with_buildings"] = int(built.sum())
         log.info("%s: %s", self.where, ", ".join(f"{v} {k[7:]}" for k, v in report.items()))
         out = blocks.with_columns(grain=grain, fabric=fabric.astype(str), lot_area=lot_area)
         return NodeResult({"blocks": out}, report)
