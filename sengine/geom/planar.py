@@ -56,12 +56,28 @@ log = logging.getLogger(__name__)
 
 
 def _angular_order(xy: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Half-edges (``2 e``: u -> v, ``2 e + 1``: v -> u) sorted by origin node, then angle."""
+    """Half-edges (``2 e``: u -> v, ``2 e + 1``: v -> u) sorted by origin node, then angle.
+
+    ``np.lexsort((angle, org))``, the same permutation (equal angles in
+    half-edge order): the half-edges grouped by origin (an integer radix
+    sort), then each node's few sorted by angle, all nodes of one degree at
+    once as the rows of a matrix, instead of one sort of every angle (most
+    nodes of a face graph have 2 or 3 half-edges).
+    """
     org = np.stack([u, v], axis=1).ravel()
     dst = np.stack([v, u], axis=1).ravel()
     d = xy[dst] - xy[org]
-    by_angle = np.argsort(np.arctan2(d[:, 1], d[:, 0]), kind="stable")
-    return by_angle[argsort_int(org[by_angle])]  # = np.lexsort((angle, org))
+    angle = np.arctan2(d[:, 1], d[:, 0])
+    order = argsort_int(org)  # stable: within a node, half-edges in increasing order
+    so = org[order]
+    start = np.flatnonzero(np.r_[True, so[1:] != so[:-1]]) if len(so) else np.zeros(0, np.int64)
+    size = np.diff(np.r_[start, len(so)])
+    out = order.copy()
+    for k in np.unique(size[size > 1]):
+        at = start[size == k][:, None] + np.arange(k)  # the nodes of degree k, one row each
+        rows = order[at]
+        out[at] = np.take_along_axis(rows, np.argsort(angle[rows], axis=1, kind="stable"), axis=1)
+    return out
 
 
 def _cycle_min(nxt: np.ndarray) -> np.ndarray:
@@ -615,6 +631,14 @@ class PlanarFaces:
     walk_polygon : ndarray of int64, shape (w,)
         The polygon whose shell is the walk, vertex for vertex (simple
         bounded walks), else ``-1``.
+    walk_edge : ndarray of int64, same length as ``walk_vertex``
+        The edge each half-edge of the walks runs along, as a distinct edge
+        (an index into the input's edges with duplicates counted once, the
+        numbers of ``edge_unique``).
+    edge_unique : ndarray of int64, shape (m,)
+        Each input edge's distinct edge (``-1`` for a self-loop): an edge
+        flag of the input reaches the walks as
+        ``flag_u[edge_unique[flag]] = True; flag_u[walk_edge]``.
     spur_trace : dict
         The first trace, before the bridges were removed (what
         :func:`spur_polygons` needs): ``u``, ``v`` (the unique edges), ``next``
@@ -635,6 +659,8 @@ class PlanarFaces:
     walk_area: np.ndarray = field(default_factory=lambda: np.empty(0))
     walk_polygon: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
     spur_trace: dict = field(default_factory=dict)
+    walk_edge: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+    edge_unique: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
 
 
 def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
@@ -829,6 +855,8 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
         area,
         np.where(simple, face_poly, -1),
         first,
+        live[ordered >> 1],  # half-edges 2 k and 2 k + 1 of the bridgeless graph run along its edge k
+        emap,
     )
 
 

@@ -185,7 +185,7 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part, f
     okp = (a >= 0) & (b >= 0)
     adj = _pair_sums(np.r_[a[okp], b[okp]], np.r_[b[okp], a[okp]], np.r_[el[both][okp], el[both][okp]], len(kept))
     # per boundary segment of each face, whether it is a block edge: the face's walk, step by step
-    marks, known = _walk_marks(pf, faces, u[kind == 0], v[kind == 0], len(xy))
+    marks, known = _walk_marks(pf, faces, kind == 0)
     faces, fpart, inner = faces[kept], fpart[kept], inner[kept]
     marks, known = marks.take(kept), known[kept]
     total = np.bincount(fpart, weights=shapely.area(faces), minlength=P)
@@ -204,8 +204,8 @@ def _pair_sums(i, j, w, n):
     return i[o][first], j[o][first], np.bincount(grp, weights=w[o])
 
 
-def _walk_marks(pf, faces, bu, bv, n):
-    """Which boundary segment of each face lies on a block edge (``bu``, ``bv``: block edge pieces).
+def _walk_marks(pf, faces, block_edge):
+    """Which boundary segment of each face lies on a block edge (``block_edge``: per edge of the graph).
 
     A face whose shell is one simple walk and that has no hole has its
     segments in walk order (:class:`sengine.geom.planar.PlanarFaces`); the
@@ -223,15 +223,12 @@ def _walk_marks(pf, faces, bu, bv, n):
     known[wp[w]] = True
     flat = np.zeros(int(nseg.sum()), bool)
     if len(w):
-        bkey = np.unique(np.minimum(bu, bv) * n + np.maximum(bu, bv))
+        # a walk's segment is on the block when its edge is a block edge (or one of its duplicates is)
+        on_edge = np.zeros(int(pf.edge_unique.max()) + 1 if len(pf.edge_unique) else 0, bool)
+        on_edge[pf.edge_unique[np.asarray(block_edge, bool) & (pf.edge_unique >= 0)]] = True
         row = np.repeat(np.arange(len(w)), wlen)
         k = ramp(wlen)
-        start = pf.walk_start[w][row]
-        a = pf.walk_vertex[start + k]
-        b = pf.walk_vertex[start + np.mod(k + 1, wlen[row])]
-        key = np.minimum(a, b) * n + np.maximum(a, b)
-        pos = np.minimum(np.searchsorted(bkey, key), max(len(bkey) - 1, 0))
-        on = (bkey[pos] == key) if len(bkey) else np.zeros(len(key), bool)
+        on = on_edge[pf.walk_edge[pf.walk_start[w][row] + k]]
         fstart = np.cumsum(nseg) - nseg
         flat[fstart[wp[w]][row] + k] = on
     return Marks(flat, nseg), known
