@@ -281,7 +281,9 @@ def _neighbours(faces, fpart, want=None):
     sel = np.arange(len(faces))
     if want is not None:  # the wanted faces and those whose boxes meet theirs
         w = np.flatnonzero(want)
-        near = shapely.STRtree(faces).query(faces[w])[1] if len(w) else np.zeros(0, np.int64)
+        # the tree on the few wanted faces, asked by all (the same pairs as the other way round, for a
+        # tree of a few boxes instead of one of every face)
+        near = shapely.STRtree(faces[w]).query(faces)[0] if len(w) else np.zeros(0, np.int64)
         sel = np.unique(np.r_[w, near])
     p0, p1, idx, _ = ring_segments(faces[sel])
     if len(idx) == 0:
@@ -312,7 +314,9 @@ def _touching(faces, fpart, sel):
     """Neighbours of faces ``sel`` found geometrically (boundaries within 1 um), with the length shared."""
     if len(sel) == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
-    qi, j = shapely.STRtree(faces).query(faces[sel], predicate="dwithin", distance=1e-6)
+    j, qi = shapely.STRtree(faces[sel]).query(faces, predicate="dwithin", distance=1e-6)  # a tree of the few
+    o = np.lexsort((j, qi))  # pairs by face sought, as asking the tree of all faces gave them
+    qi, j = qi[o], j[o]
     i = sel[qi]
     ok = (i != j) & (fpart[i] == fpart[j])
     i, j = i[ok], j[ok]
