@@ -829,7 +829,10 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     pts = shapely.points(xy[unit_vid[first_entry[outer_units]]])
     host = np.full(len(outer_units), -1, np.int64)
     if len(shells) and len(outer_units):
-        pi, si = shapely.STRtree(shell_polys).query(pts, predicate="within")
+        # a tree of the few outer walks' points asked by every shell (not a tree of every shell): the same pairs
+        si, pi = shapely.STRtree(pts).query(shell_polys, predicate="contains")
+        o = np.lexsort((si, pi))
+        pi, si = pi[o], si[o]
         if len(pi):
             o = np.lexsort((np.abs(uarea[shells[si]]), pi))
             pi, si = pi[o], si[o]

@@ -64,14 +64,35 @@ def unique_rows(key):
     return o[new], inv
 
 
-def _chain(item_seg, item_par, item_node, seg_end, nseg):
+def _along(seg, par) -> np.ndarray:
+    """``np.lexsort((par, seg))``, the same permutation: items grouped by segment (an integer radix sort),
+    then the segments with as many items sorted by parameter at once, as the rows of a matrix.
+
+    Faster where many segments hold several items (block edges cut by
+    their rays: 0.08 -> 0.04 s on whole Liège); a lexsort of items nearly
+    in order already (rays cut at their few crossings) is faster still.
+    """
+    o = argsort_int(seg)
+    s = seg[o]
+    start = np.flatnonzero(np.r_[True, s[1:] != s[:-1]]) if len(s) else np.zeros(0, np.int64)
+    size = np.diff(np.r_[start, len(s)])
+    out = o.copy()
+    for k in np.unique(size[size > 1]):
+        at = start[size == k][:, None] + np.arange(k)
+        rows = o[at]
+        out[at] = np.take_along_axis(rows, np.argsort(par[rows], axis=1, kind="stable"), axis=1)
+    return out
+
+
+def _chain(item_seg, item_par, item_node, seg_end, nseg, grouped=False):
     """Edges along segments cut at points: for each segment, its start, the points in order, its end.
 
     ``item_*``: one item per segment start (parameter -1) and per point on
     a segment; ``seg_end``: the end node of each segment.  Returns the
-    edges ``u, v`` and the segment of each.
+    edges ``u, v`` and the segment of each.  ``grouped``: sort the items
+    with :func:`_along` (many segments with several points).
     """
-    o = np.lexsort((item_par, item_seg))
+    o = _along(item_seg, item_par) if grouped else np.lexsort((item_par, item_seg))
     sg, nd = item_seg[o], item_node[o]
     last = np.r_[sg[1:] != sg[:-1], True]
     nxt = np.r_[nd[1:], 0]
@@ -143,7 +164,12 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part, f
     xy = np.r_[xy, cxy[cfirst]]
     # edges: segments cut at the ray ends, rays cut at their crossings
     su, sv_, sg = _chain(
-        np.r_[seg_start, ev_seg], np.r_[np.full(N + NI, -1.0), ev_par], np.r_[seg_start, ev_node], seg_end, N + NI
+        np.r_[seg_start, ev_seg],
+        np.r_[np.full(N + NI, -1.0), ev_par],
+        np.r_[seg_start, ev_node],
+        seg_end,
+        N + NI,
+        grouped=True,
     )
     ru, rv, rg = _chain(
         np.r_[np.arange(R), i, j], np.r_[np.full(R, -1.0), ta, tb], np.r_[start_node, cnode, cnode], end_node, R
