@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from functools import cache
+
 import numpy as np
 import pytest
 import shapely
+from _lotcases import MINOR
 from conftest import ROOT
 from test_context import _street_grid
+from test_lots_skeleton import check_partition
 from test_massing import row_block
 
 import sengine
@@ -301,3 +305,95 @@ def test_semi_detached_houses_share_one_wall_and_keep_the_other_setback():
     np.testing.assert_allclose([b["height"][x] - b["height"][y] for x, y in pair_ids], 0.0, atol=1e-9)
     none = Massing("buildings", {**params, "semi_detached": "0"}, Context(seed=1)).run(lots=lots, blocks=blocks)
     assert none.report["semi_detached"] == 0 and (party_walls(none["buildings"].geometry) == 0).all()
+
+
+# -- skeleton and paris lots take the block's lot size too ------------------------------------------
+
+Skeleton = get("lots.skeleton")
+Paris = get("lots.paris")
+District = get("lots.district")
+
+
+@cache
+def _monaco_grain_blocks() -> Layer:
+    """Monaco's blocks (load-map nodes) through blocks.grain with the town band 0-40 km/km2: rows and houses.
+
+    Moved to a local frame (south-west corner at the origin) after the grain is measured, for the overlays.
+    """
+    ctx = Context(seed=1)
+    read = {"path": str(ROOT / "configs/data/monaco.osm.pbf"), "extras": "", "minor": MINOR}
+    roads = get("osm.read")("majorRoads", read, ctx).run()["roads"]
+    roads = get("roads.clean")("clean", {"sliver_width": 6}, ctx).run(roads=roads)["roads"]
+    blocks = get("blocks.circuits")("blocks", {"node": False, "sidewalk": 2, "min_area": 50}, ctx).run(roads=roads)
+    grain = Grain("grain", {"rural_grain": "0", "urban_grain": "40"}, ctx).run(blocks=blocks["blocks"], roads=roads)
+    b = grain["blocks"]
+    origin = shapely.bounds(b.geometry)[:, :2].min(axis=0)
+    return Layer.from_geoms(
+        shapely.transform(b.geometry, lambda xy: xy - origin),
+        ids=b.ids,
+        **{c: np.asarray(b[c]) for c in ("grain", "fabric", "lot_area")},
+    )
+
+
+def _without_lot_area(blocks: Layer) -> Layer:
+    return Layer.from_geoms(blocks.geometry, ids=blocks.ids, grain=blocks["grain"], fabric=blocks["fabric"])
+
+
+def _street_median(lots: Layer, fabric: str, column: str) -> float:
+    sel = (np.asarray(lots["fabric"]) == fabric) & (np.asarray(lots["kind"]) != "inner")
+    value = shapely.area(lots.geometry) if column == "area" else np.asarray(lots[column])
+    return float(np.median(value[sel]))
+
+
+@pytest.mark.parametrize("node", [Skeleton, Paris])
+def test_skeleton_and_paris_lots_follow_each_blocks_lot_area_on_monaco(node):
+    blocks = _monaco_grain_blocks()
+    fabric = np.asarray(blocks["fabric"])
+    assert (fabric == "rows").sum() >= 10 and (fabric == "houses").sum() >= 20  # both fabrics on real blocks
+    lots = node("lots", {}, Context(seed=1)).run(blocks=blocks)["lots"]
+    check_partition(blocks, lots)
+    # a 250 m2 row plot at the node's 22 m depth is 11.4 m wide, an 800 m2 house plot 36 m: 0.31 of it
+    rows, houses = (_street_median(lots, f, "frontage") for f in ("rows", "houses"))
+    assert 9.0 <= rows <= 14.0 and 0.2 <= rows / houses <= 0.4
+    rows_a, houses_a = (_street_median(lots, f, "area") for f in ("rows", "houses"))
+    assert rows_a <= 300.0 and 0.2 <= rows_a / houses_a <= 0.45
+    # without the column every block gets the node's own size (15 m skeleton lots, 20 m Paris segments)
+    same = node("lots", {}, Context(seed=1)).run(blocks=_without_lot_area(blocks))["lots"]
+    one = _street_median(same, "rows", "frontage") / _street_median(same, "houses", "frontage")
+    assert 0.7 <= one <= 1.4
+
+
+@pytest.mark.parametrize("node", [Skeleton, Paris])
+def test_blocks_without_a_lot_area_get_the_same_bytes_as_before(node):
+    blocks = _monaco_grain_blocks()
+    # rows blocks keep their 250 m2; the others are set to 0 (the node's own size)
+    own = np.where(np.asarray(blocks["fabric"]) == "rows", 250.0, 0.0)
+    mixed = node("lots", {}, Context(seed=1)).run(blocks=blocks.with_columns(lot_area=own))["lots"]
+    plain = node("lots", {}, Context(seed=1)).run(blocks=_without_lot_area(blocks))["lots"]
+    zero = np.asarray(blocks.ids)[own == 0]
+    a, b = np.isin(mixed["block"], zero), np.isin(plain["block"], zero)
+    assert a.sum() > 100 and a.sum() == b.sum()
+    assert shapely.to_wkb(mixed.geometry[a]).tolist() == shapely.to_wkb(plain.geometry[b]).tolist()
+    np.testing.assert_array_equal(np.asarray(mixed.ids)[a], np.asarray(plain.ids)[b])
+    # and the rows blocks did change
+    assert (~a).sum() != (~b).sum()
+
+
+@pytest.mark.parametrize("method,node", [("skeleton", Skeleton), ("paris", Paris)])
+def test_district_lots_by_skeleton_or_paris_take_the_lot_area_as_their_nodes_do(method, node):
+    blocks = _monaco_grain_blocks()
+    got = District("lots", {"default": method}, Context(seed=1)).run(blocks=blocks)["lots"]
+    want = node("lots", {}, Context(seed=1)).run(blocks=blocks)["lots"]
+    assert shapely.to_wkb(got.geometry).tolist() == shapely.to_wkb(want.geometry).tolist()
+
+
+@pytest.mark.parametrize(
+    "node,params,name", [(Skeleton, {}, "lot_area_min=50"), (Paris, {"min_area": "100"}, "min_area=100")]
+)
+def test_a_lot_area_below_the_skeleton_or_paris_minimum_is_refused_in_one_line(node, params, name):
+    blocks = (
+        _sized_blocks([20.0, 800.0], ["rows", "rural"]) if not params else _sized_blocks([80.0, 0.0], ["rows", "urban"])
+    )
+    with pytest.raises(ParameterError, match=f"lot_area .* m2 is below {name} m2") as err:
+        node("lots", params, Context(seed=1)).run(blocks=blocks)
+    assert "lots" in str(err.value) and "\n" not in str(err.value)

@@ -231,3 +231,40 @@ def test_ring_crossings_are_the_edge_pairs_geos_sees_meet(sizes, seed, chain):
                     want.add((s + a, s + b))
     assert got == want
     assert (i < j).all()
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(1, 40), st.integers(0, 5000), st.integers(0, 2**32 - 1))
+def test_angular_order_is_the_lexsort_of_origin_and_angle(npts, nedges, seed):
+    """Half-edges grouped by origin and sorted by angle per degree are np.lexsort((angle, origin)), ties included.
+
+    Points on a 4 x 4 grid repeat directions (equal angles at one node) and
+    give nodes of every degree; above 4096 half-edges the radix sort runs.
+    """
+    from sengine.geom.planar import _angular_order
+
+    rng = np.random.default_rng(seed)
+    xy = rng.integers(0, 4, (npts, 2)).astype(float)
+    u, v = rng.integers(0, npts, nedges), rng.integers(0, npts, nedges)
+    org, dst = np.stack([u, v], axis=1).ravel(), np.stack([v, u], axis=1).ravel()
+    d = xy[dst] - xy[org]
+    want = np.lexsort((np.arctan2(d[:, 1], d[:, 0]), org))
+    assert np.array_equal(_angular_order(xy, u, v), want)
+
+
+def test_walk_edges_name_the_edge_each_walk_step_runs_along():
+    """Two squares sharing an edge, given twice (a duplicate) and with a self-loop: each walk step's edge."""
+    xy = np.array([[0, 0], [1, 0], [2, 0], [2, 1], [1, 1], [0, 1]], float)
+    edges = [(0, 1), (1, 2), (2, 3), (3, 4), (4, 5), (5, 0), (1, 4), (4, 1), (3, 3)]
+    u, v = np.array(edges).T
+    pf = planar_faces(xy, u, v)
+    assert pf.edge_unique[8] == -1 and pf.edge_unique[6] == pf.edge_unique[7] >= 0
+    for k in range(len(pf.walk_start) - 1):
+        walk = pf.walk_vertex[pf.walk_start[k] : pf.walk_start[k + 1]]
+        step = pf.walk_edge[pf.walk_start[k] : pf.walk_start[k + 1]]
+        for a, b, e in zip(walk, np.roll(walk, -1), step):
+            ends = {(int(x), int(y)) for x, y in zip(u, v) if x != y}
+            # the step a -> b runs along input edges whose distinct edge is e
+            mine = [i for i in range(len(u)) if pf.edge_unique[i] == e]
+            assert mine and all({int(u[i]), int(v[i])} == {int(a), int(b)} for i in mine)
+            assert (int(a), int(b)) in ends or (int(b), int(a)) in ends

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from .grid import box_pairs
+from .grid import _ramp, box_pairs
 from .segments import argsort_int
 from .sorting import unique_int
 
@@ -56,12 +56,28 @@ log = logging.getLogger(__name__)
 
 
 def _angular_order(xy: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Half-edges (``2 e``: u -> v, ``2 e + 1``: v -> u) sorted by origin node, then angle."""
+    """Half-edges (``2 e``: u -> v, ``2 e + 1``: v -> u) sorted by origin node, then angle.
+
+    ``np.lexsort((angle, org))``, the same permutation (equal angles in
+    half-edge order): the half-edges grouped by origin (an integer radix
+    sort), then each node's few sorted by angle, all nodes of one degree at
+    once as the rows of a matrix, instead of one sort of every angle (most
+    nodes of a face graph have 2 or 3 half-edges).
+    """
     org = np.stack([u, v], axis=1).ravel()
     dst = np.stack([v, u], axis=1).ravel()
     d = xy[dst] - xy[org]
-    by_angle = np.argsort(np.arctan2(d[:, 1], d[:, 0]), kind="stable")
-    return by_angle[argsort_int(org[by_angle])]  # = np.lexsort((angle, org))
+    angle = np.arctan2(d[:, 1], d[:, 0])
+    order = argsort_int(org)  # stable: within a node, half-edges in increasing order
+    so = org[order]
+    start = np.flatnonzero(np.r_[True, so[1:] != so[:-1]]) if len(so) else np.zeros(0, np.int64)
+    size = np.diff(np.r_[start, len(so)])
+    out = order.copy()
+    for k in np.unique(size[size > 1]):
+        at = start[size == k][:, None] + np.arange(k)  # the nodes of degree k, one row each
+        rows = order[at]
+        out[at] = np.take_along_axis(rows, np.argsort(angle[rows], axis=1, kind="stable"), axis=1)
+    return out
 
 
 def _cycle_min(nxt: np.ndarray) -> np.ndarray:
@@ -162,10 +178,9 @@ def _trace(xy, u, v, order=None):
     # start and size of each node's group in sorted order
     brk = np.flatnonzero(np.r_[True, so[1:] != so[:-1]])
     size = np.diff(np.r_[brk, 2 * m])
-    grp = np.repeat(np.arange(len(brk)), size)
-    start = brk[grp]
-    cnt = size[grp]
-    prev_pos = start + (h - start - 1) % cnt  # clockwise neighbour in sorted order
+    prev_pos = h - 1  # clockwise neighbour in sorted order: the one before, the group's last for its first
+    if len(h):
+        prev_pos[brk] = brk + size - 1
     cw = np.empty(2 * m, np.int64)
     cw[order] = order[prev_pos]
     nxt = cw[h ^ 1]
@@ -615,6 +630,14 @@ class PlanarFaces:
     walk_polygon : ndarray of int64, shape (w,)
         The polygon whose shell is the walk, vertex for vertex (simple
         bounded walks), else ``-1``.
+    walk_edge : ndarray of int64, same length as ``walk_vertex``
+        The edge each half-edge of the walks runs along, as a distinct edge
+        (an index into the input's edges with duplicates counted once, the
+        numbers of ``edge_unique``).
+    edge_unique : ndarray of int64, shape (m,)
+        Each input edge's distinct edge (``-1`` for a self-loop): an edge
+        flag of the input reaches the walks as
+        ``flag_u[edge_unique[flag]] = True; flag_u[walk_edge]``.
     spur_trace : dict
         The first trace, before the bridges were removed (what
         :func:`spur_polygons` needs): ``u``, ``v`` (the unique edges), ``next``
@@ -635,6 +658,40 @@ class PlanarFaces:
     walk_area: np.ndarray = field(default_factory=lambda: np.empty(0))
     walk_polygon: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
     spur_trace: dict = field(default_factory=dict)
+    walk_edge: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+    edge_unique: np.ndarray = field(default_factory=lambda: np.empty(0, np.int64))
+
+
+def _pinched(org: np.ndarray, face: np.ndarray, nf: int) -> np.ndarray:
+    """Faces that leave some node by two half-edges (their walk passes it twice), from half-edges grouped by node.
+
+    The repeated (face, node) pairs a sort of all of them finds, found
+    within each node's few half-edges, all nodes of one degree at once.
+    """
+    out = np.zeros(nf, bool)
+    if len(org) == 0:
+        return out
+    start = np.flatnonzero(np.r_[True, org[1:] != org[:-1]])
+    size = np.diff(np.r_[start, len(org)])
+    for k in np.unique(size[size > 1]):
+        rows = np.sort(face[start[size == k][:, None] + np.arange(k)], axis=1)
+        out[rows[:, 1:][rows[:, 1:] == rows[:, :-1]]] = True
+    return out
+
+
+def _unit_polygons(xy, vid, start, size, units) -> np.ndarray:
+    """Polygons of the rings ``units`` (vertices ``vid[start:start + size]``, not closed), in one call.
+
+    ``shapely.polygons(shapely.linearrings(...))``, the same bytes, without
+    making each ring first and copying it into its polygon.
+    """
+    n = size[units]
+    closed = n + 1
+    row = np.repeat(np.arange(len(units)), closed)
+    k = _ramp(closed)
+    at = start[units][row] + np.where(k == n[row], 0, k)  # each ring's vertices, then its first again
+    offsets = np.r_[0, np.cumsum(closed)]
+    return shapely.from_ragged_array(shapely.GeometryType.POLYGON, xy[vid[at]], (offsets, np.arange(len(units) + 1)))
 
 
 def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
@@ -721,12 +778,11 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     fsize = np.bincount(face, minlength=nf)
     degenerate = np.abs(area) <= area_eps
     counts["degenerate"] = int(degenerate.sum())
-    # pinched walks: a vertex repeated within one face
-    pair = face * n + org
-    ps = np.sort(pair)
-    rep = ps[1:][ps[1:] == ps[:-1]] // n
-    pinched = np.zeros(nf, bool)
-    pinched[rep] = True
+    # pinched walks: a vertex repeated within one face, i.e. two of its half-edges leaving in one face
+    if br.any():  # the bridgeless graph's half-edges in the first trace's order (by node, then angle)
+        gone_h = np.repeat(br, 2)
+        order = (np.cumsum(~gone_h) - 1)[order[~gone_h[order]]]
+    pinched = _pinched(org[order], face[order], nf)
     pinched &= ~degenerate
     counts["pinched"] = int(pinched.sum())
     # ring units: simple faces directly, pinched faces split into simple cycles
@@ -763,17 +819,20 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     sh_face = unit_face[shells]
     srt = np.argsort(uarea[shells], kind="stable")
     face_poly[sh_face[srt]] = np.arange(len(shells))[srt]
-    rings_all = shapely.linearrings(xy[unit_vid], indices=unit_idx)
-    shell_polys = shapely.polygons(rings_all[shells])
+    first_entry = np.r_[0, np.flatnonzero(unit_idx[1:] != unit_idx[:-1]) + 1]
+    unit_size = np.diff(np.r_[first_entry, len(unit_idx)])
+    shell_polys = _unit_polygons(xy, unit_vid, first_entry, unit_size, shells)
     hole_units = np.flatnonzero(is_fhole)
     hole_poly = face_poly[unit_face[hole_units]]
     # outer walks: hole of the smallest shell strictly containing a vertex
     outer_units = np.flatnonzero(is_outer)
-    first_entry = np.r_[0, np.flatnonzero(unit_idx[1:] != unit_idx[:-1]) + 1]
     pts = shapely.points(xy[unit_vid[first_entry[outer_units]]])
     host = np.full(len(outer_units), -1, np.int64)
     if len(shells) and len(outer_units):
-        pi, si = shapely.STRtree(shell_polys).query(pts, predicate="within")
+        # a tree of the few outer walks' points asked by every shell (not a tree of every shell): the same pairs
+        si, pi = shapely.STRtree(pts).query(shell_polys, predicate="contains")
+        o = np.lexsort((si, pi))
+        pi, si = pi[o], si[o]
         if len(pi):
             o = np.lexsort((np.abs(uarea[shells[si]]), pi))
             pi, si = pi[o], si[o]
@@ -787,6 +846,13 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
     ring_hole = np.r_[np.zeros(len(shells), bool), np.ones(len(hole_units) + int((host >= 0).sum()), bool)]
     ok = ring_poly >= 0
     ring_units, ring_poly, ring_hole = ring_units[ok], ring_poly[ok], ring_hole[ok]
+    # rings only of the units that are no shell or a holed face's shell (few): the shells are polygons already
+    need = np.unique(np.r_[ring_units[ring_hole], outer_units])
+    rings_all = np.full(nunit, None, dtype=object)
+    if len(need):
+        row = np.repeat(np.arange(len(need)), unit_size[need])
+        at = first_entry[need][row] + _ramp(unit_size[need])
+        rings_all[need] = shapely.linearrings(xy[unit_vid[at]], indices=row)
     # polygons without holes are their shells, already built; only the holed ones are built again
     polygons = shell_polys.copy() if len(shells) else np.empty(0, object)
     holed = np.zeros(len(shells), bool)
@@ -795,9 +861,9 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
         sel = holed[ring_poly]
         ru, rp, rh = ring_units[sel], ring_poly[sel], ring_hole[sel]
         o = np.lexsort((rh, rp))
-        polygons[np.flatnonzero(holed)] = shapely.polygons(
-            rings_all[ru[o]], indices=np.searchsorted(np.flatnonzero(holed), rp[o])
-        )
+        rings = rings_all[ru[o]]
+        rings[~rh[o]] = shapely.get_exterior_ring(shell_polys[rp[o][~rh[o]]])  # the shell: the polygon's ring
+        polygons[np.flatnonzero(holed)] = shapely.polygons(rings, indices=np.searchsorted(np.flatnonzero(holed), rp[o]))
     outline = shapely.polygons(shapely.reverse(rings_all[outer_units[host < 0]]))
     # per-edge faces
     hface = np.where(bounded_face[face], face_poly[face], face_host[face])
@@ -829,6 +895,8 @@ def planar_faces(xy, u, v, *, area_eps: float = 1e-9) -> PlanarFaces:
         area,
         np.where(simple, face_poly, -1),
         first,
+        live[ordered >> 1],  # half-edges 2 k and 2 k + 1 of the bridgeless graph run along its edge k
+        emap,
     )
 
 

@@ -37,7 +37,9 @@ both sides of its block, not a house between two terraces.
 
 ``lot_area`` is the largest lot the lot nodes cut the block into
 (``lots.recursive`` and ``lots.district``'s recursive blocks take it as
-their ``max_area``; 0 leaves the node's own); lots carry their block's
+their ``max_area``; ``lots.skeleton`` as its ``lot_area_max``, with lots
+``lot_area / depth`` wide; ``lots.paris`` cuts its contour into segments
+``lot_area / depth`` long; 0 leaves the node's own); lots carry their block's
 ``grain`` and ``fabric``, and ``buildings.context`` builds houses on
 ``rural`` and ``houses`` lots and rows on ``rows`` lots.  With the defaults,
 the recursive lots of whole Liège come out with a median frontage of 8 m in ``rows``, 18 m in ``houses``

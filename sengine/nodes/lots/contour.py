@@ -132,7 +132,7 @@ class Contour:
     ``j`` of polygon ``p`` lies at arc length ``j * perim / m`` (m = 3 nseg).
     """
 
-    def __init__(self, rs: RingSet, segment: float):
+    def __init__(self, rs: RingSet, segment: float | np.ndarray):
         P = rs.n
         first_ring = _first_of(rs.poly, P)[:-1]
         has = np.bincount(rs.poly, minlength=P) > 0

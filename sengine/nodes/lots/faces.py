@@ -64,14 +64,35 @@ def unique_rows(key):
     return o[new], inv
 
 
-def _chain(item_seg, item_par, item_node, seg_end, nseg):
+def _along(seg, par) -> np.ndarray:
+    """``np.lexsort((par, seg))``, the same permutation: items grouped by segment (an integer radix sort),
+    then the segments with as many items sorted by parameter at once, as the rows of a matrix.
+
+    Faster where many segments hold several items (block edges cut by
+    their rays: 0.08 -> 0.04 s on whole Liège); a lexsort of items nearly
+    in order already (rays cut at their few crossings) is faster still.
+    """
+    o = argsort_int(seg)
+    s = seg[o]
+    start = np.flatnonzero(np.r_[True, s[1:] != s[:-1]]) if len(s) else np.zeros(0, np.int64)
+    size = np.diff(np.r_[start, len(s)])
+    out = o.copy()
+    for k in np.unique(size[size > 1]):
+        at = start[size == k][:, None] + np.arange(k)
+        rows = o[at]
+        out[at] = np.take_along_axis(rows, np.argsort(par[rows], axis=1, kind="stable"), axis=1)
+    return out
+
+
+def _chain(item_seg, item_par, item_node, seg_end, nseg, grouped=False):
     """Edges along segments cut at points: for each segment, its start, the points in order, its end.
 
     ``item_*``: one item per segment start (parameter -1) and per point on
     a segment; ``seg_end``: the end node of each segment.  Returns the
-    edges ``u, v`` and the segment of each.
+    edges ``u, v`` and the segment of each.  ``grouped``: sort the items
+    with :func:`_along` (many segments with several points).
     """
-    o = np.lexsort((item_par, item_seg))
+    o = _along(item_seg, item_par) if grouped else np.lexsort((item_par, item_seg))
     sg, nd = item_seg[o], item_node[o]
     last = np.r_[sg[1:] != sg[:-1], True]
     nxt = np.r_[nd[1:], 0]
@@ -143,7 +164,12 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part, f
     xy = np.r_[xy, cxy[cfirst]]
     # edges: segments cut at the ray ends, rays cut at their crossings
     su, sv_, sg = _chain(
-        np.r_[seg_start, ev_seg], np.r_[np.full(N + NI, -1.0), ev_par], np.r_[seg_start, ev_node], seg_end, N + NI
+        np.r_[seg_start, ev_seg],
+        np.r_[np.full(N + NI, -1.0), ev_par],
+        np.r_[seg_start, ev_node],
+        seg_end,
+        N + NI,
+        grouped=True,
     )
     ru, rv, rg = _chain(
         np.r_[np.arange(R), i, j], np.r_[np.full(R, -1.0), ta, tb], np.r_[start_node, cnode, cnode], end_node, R
@@ -185,7 +211,7 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part, f
     okp = (a >= 0) & (b >= 0)
     adj = _pair_sums(np.r_[a[okp], b[okp]], np.r_[b[okp], a[okp]], np.r_[el[both][okp], el[both][okp]], len(kept))
     # per boundary segment of each face, whether it is a block edge: the face's walk, step by step
-    marks, known = _walk_marks(pf, faces, u[kind == 0], v[kind == 0], len(xy))
+    marks, known = _walk_marks(pf, faces, kind == 0)
     faces, fpart, inner = faces[kept], fpart[kept], inner[kept]
     marks, known = marks.take(kept), known[kept]
     total = np.bincount(fpart, weights=shapely.area(faces), minlength=P)
@@ -204,8 +230,8 @@ def _pair_sums(i, j, w, n):
     return i[o][first], j[o][first], np.bincount(grp, weights=w[o])
 
 
-def _walk_marks(pf, faces, bu, bv, n):
-    """Which boundary segment of each face lies on a block edge (``bu``, ``bv``: block edge pieces).
+def _walk_marks(pf, faces, block_edge):
+    """Which boundary segment of each face lies on a block edge (``block_edge``: per edge of the graph).
 
     A face whose shell is one simple walk and that has no hole has its
     segments in walk order (:class:`sengine.geom.planar.PlanarFaces`); the
@@ -223,15 +249,12 @@ def _walk_marks(pf, faces, bu, bv, n):
     known[wp[w]] = True
     flat = np.zeros(int(nseg.sum()), bool)
     if len(w):
-        bkey = np.unique(np.minimum(bu, bv) * n + np.maximum(bu, bv))
+        # a walk's segment is on the block when its edge is a block edge (or one of its duplicates is)
+        on_edge = np.zeros(int(pf.edge_unique.max()) + 1 if len(pf.edge_unique) else 0, bool)
+        on_edge[pf.edge_unique[np.asarray(block_edge, bool) & (pf.edge_unique >= 0)]] = True
         row = np.repeat(np.arange(len(w)), wlen)
         k = ramp(wlen)
-        start = pf.walk_start[w][row]
-        a = pf.walk_vertex[start + k]
-        b = pf.walk_vertex[start + np.mod(k + 1, wlen[row])]
-        key = np.minimum(a, b) * n + np.maximum(a, b)
-        pos = np.minimum(np.searchsorted(bkey, key), max(len(bkey) - 1, 0))
-        on = (bkey[pos] == key) if len(bkey) else np.zeros(len(key), bool)
+        on = on_edge[pf.walk_edge[pf.walk_start[w][row] + k]]
         fstart = np.cumsum(nseg) - nseg
         flat[fstart[wp[w]][row] + k] = on
     return Marks(flat, nseg), known
@@ -284,7 +307,9 @@ def _neighbours(faces, fpart, want=None):
     sel = np.arange(len(faces))
     if want is not None:  # the wanted faces and those whose boxes meet theirs
         w = np.flatnonzero(want)
-        near = shapely.STRtree(faces).query(faces[w])[1] if len(w) else np.zeros(0, np.int64)
+        # the tree on the few wanted faces, asked by all (the same pairs as the other way round, for a
+        # tree of a few boxes instead of one of every face)
+        near = shapely.STRtree(faces[w]).query(faces)[0] if len(w) else np.zeros(0, np.int64)
         sel = np.unique(np.r_[w, near])
     p0, p1, idx, _ = ring_segments(faces[sel])
     if len(idx) == 0:
@@ -315,7 +340,9 @@ def _touching(faces, fpart, sel):
     """Neighbours of faces ``sel`` found geometrically (boundaries within 1 um), with the length shared."""
     if len(sel) == 0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
-    qi, j = shapely.STRtree(faces).query(faces[sel], predicate="dwithin", distance=1e-6)
+    j, qi = shapely.STRtree(faces[sel]).query(faces, predicate="dwithin", distance=1e-6)  # a tree of the few
+    o = np.lexsort((j, qi))  # pairs by face sought, as asking the tree of all faces gave them
+    qi, j = qi[o], j[o]
     i = sel[qi]
     ok = (i != j) & (fpart[i] == fpart[j])
     i, j = i[ok], j[ok]

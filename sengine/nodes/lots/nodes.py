@@ -446,9 +446,10 @@ def _paris(self, geoms, ids, report, *, segment, depth, deviation, min_frontage,
     return LotSplit(lots, owner, np.full(len(lots), "paris"), inner, on, known)
 
 
-def _skeleton(self, geoms, ids, report, *, where=None, fronts=None, box=None, **p):
+def _skeleton(self, geoms, ids, report, *, where=None, fronts=None, box=None, lot_area=None, **p):
     """Skeleton lots of ``geoms``; a block whose whole boundary is shorter than ``lot_width_min`` is
-    kept whole (counted), and when every block is so, the parameter cannot hold: an error."""
+    kept whole (counted), and when every block is so, the parameter cannot hold: an error.  ``lot_area``
+    (per block, m2, 0: unset): each block's own lot size (:func:`_skeleton_sizes`)."""
     where = where or self.where
     if p["lot_width_min"] > p["width"]:
         raise ParameterError(
@@ -472,6 +473,7 @@ def _skeleton(self, geoms, ids, report, *, where=None, fronts=None, box=None, **
         log.warning("%s: %d block(s) shorter all round than lot_width_min are kept whole", where, int(short.sum()))
     go = np.flatnonzero(~short)
     fr = None if fronts is None else np.asarray(fronts, dtype=object)[go]
+    p = {k: v[go] if isinstance(v, np.ndarray) else v for k, v in _skeleton_sizes(lot_area, p).items()}
     res = skeleton_lots(geoms[go], seeds=_seeds(self, ids[go]), fronts=fr, box=box, **p)
     for k, v in res.report.items():
         report[k] = report.get(k, 0) + v
@@ -601,15 +603,54 @@ _P_SKELETON = {
 INHERITED = ("grain", "fabric")
 
 
-def _max_area(blocks: Layer, sel, max_area: float, min_area: float, where) -> np.ndarray | float:
-    """The largest lot of each block ``sel``: its ``lot_area`` column (blocks.grain) where positive, else ``max_area``."""
+def _lot_area(blocks: Layer, sel, min_area: float, where, name: str = "min_area") -> np.ndarray | None:
+    """The ``lot_area`` column (m2, blocks.grain) of blocks ``sel``, 0 where unset; ``None`` without the column.
+
+    A positive lot area under the node's least lot (``name``: its
+    parameter, ``min_area``) cannot hold: a one-line :class:`ParameterError`.
+    """
     if "lot_area" not in blocks:
-        return max_area
+        return None
     own = np.asarray(blocks["lot_area"], np.float64)[sel]
     small = own[(own > 0) & (own < min_area)]
     if len(small):
-        raise ParameterError(f"the blocks' lot_area {small.min():g} m2 is below min_area={min_area:g} m2", where=where)
-    return np.where(own > 0, own, max_area)
+        raise ParameterError(f"the blocks' lot_area {small.min():g} m2 is below {name}={min_area:g} m2", where=where)
+    return np.where(own > 0, own, 0.0)
+
+
+def _max_area(blocks: Layer, sel, max_area: float, min_area: float, where) -> np.ndarray | float:
+    """The largest lot of each block ``sel``: its ``lot_area`` column (blocks.grain) where positive, else ``max_area``."""
+    own = _lot_area(blocks, sel, min_area, where)
+    return max_area if own is None else np.where(own > 0, own, max_area)
+
+
+def _skeleton_sizes(lot_area: np.ndarray | None, p: dict) -> dict:
+    """Skeleton parameters ``p`` with each block's ``lot_area`` (m2, blocks.grain) where positive, per block.
+
+    The block's lot area is its ``lot_area_max``, and its lots are as wide
+    as that area at the node's ``depth`` (``lot_area / depth``, m, at least
+    ``lot_width_min``): a 250 m2 row plot 22 m deep is 11.4 m wide, an
+    800 m2 house plot 36 m.  Blocks without one (0) keep the node's
+    ``width`` and ``lot_area_max``; without any, ``p`` is returned as it is.
+    """
+    if lot_area is None or not (lot_area > 0).any():
+        return p
+    own = lot_area > 0
+    width = np.maximum(lot_area / max(p["depth"], 1e-9), p["lot_width_min"])
+    return {
+        **p,
+        "lot_area_max": np.where(own, lot_area, p["lot_area_max"]),
+        "width": np.where(own, width, p["width"]),
+    }
+
+
+def _paris_segment(blocks: Layer, sel, segment: float, depth: float, min_area: float, where) -> np.ndarray | float:
+    """The lot frontage of each block ``sel`` for Paris lots: its ``lot_area`` (blocks.grain) / ``depth``
+    where positive (m, at least the parameter's 1 m), else ``segment``."""
+    own = _lot_area(blocks, sel, min_area, where)
+    if own is None or not (own > 0).any():
+        return segment
+    return np.where(own > 0, np.maximum(own / max(depth, 1e-9), _P_PARIS["segment"].min), segment)
 
 
 def _streets_of(blocks: Layer) -> dict:
@@ -649,7 +690,9 @@ class LotsParis(_Lots):
     params = dict(_P_PARIS)
 
     def split(self, blocks, report):
-        return _paris(self, blocks.geometry, blocks.ids, report, **_streets_of(blocks), **dict(self.p))
+        p = dict(self.p)
+        p["segment"] = _paris_segment(blocks, slice(None), p["segment"], p["depth"], p["min_area"], self.where)
+        return _paris(self, blocks.geometry, blocks.ids, report, **_streets_of(blocks), **p)
 
 
 @register
@@ -660,7 +703,9 @@ class LotsSkeleton(_Lots):
     params = dict(_P_SKELETON)
 
     def split(self, blocks, report):
-        return _skeleton(self, blocks.geometry, blocks.ids, report, **_streets_of(blocks), **dict(self.p))
+        p = dict(self.p)
+        own = _lot_area(blocks, slice(None), p["lot_area_min"], self.where, "lot_area_min")
+        return _skeleton(self, blocks.geometry, blocks.ids, report, **_streets_of(blocks), lot_area=own, **p)
 
 
 # district rule attribute -> node parameter
@@ -781,6 +826,7 @@ class LotsDistrict(_Lots):
                     blocks.ids[sel],
                     report,
                     where=where,
+                    lot_area=_lot_area(blocks, sel, v["lot_area_min"], where, "lot_area_min"),
                     width=v["skeleton_width"],
                     force_street_access=v["force_street_access"],
                     fronts=fronts,
@@ -793,7 +839,7 @@ class LotsDistrict(_Lots):
                     geoms[sel],
                     blocks.ids[sel],
                     report,
-                    segment=v["segment"],
+                    segment=_paris_segment(blocks, sel, v["segment"], v["depth"], v["min_area"], where),
                     depth=v["depth"],
                     deviation=v["deviation"],
                     min_frontage=min(v["min_frontage"], 2.0),

@@ -328,7 +328,7 @@ def _inner_crossings(C, cand: _Candidates) -> np.ndarray:
 
 
 def _pass(rs, depth, segment, min_frontage, C):
-    """Paris lots of the polygons of ``rs`` that the certificate accepts.
+    """Paris lots of the polygons of ``rs`` that the certificate accepts (``segment``: m, per polygon).
 
     Returns lots, their polygon, inner flags, the accepted polygons, the
     number of corner lots, the lots' segment marks and whether each lot's
@@ -354,7 +354,7 @@ def _pass(rs, depth, segment, min_frontage, C):
     ]
     has_core = np.flatnonzero(done)
     small = np.zeros(P, bool)
-    small[has_core] = shapely.area(core_of[has_core]) < 0.5 * depth * segment
+    small[has_core] = shapely.area(core_of[has_core]) < 0.5 * depth * segment[has_core]
     small &= ~all_merged
     merged = np.zeros(P, bool)
     cand_j = np.flatnonzero(small[lpoly])
@@ -446,8 +446,9 @@ def paris_lots(
     Parameters
     ----------
     blocks : array_like of shapely.Polygon (n,)
-    segment : float
-        Length of the contour segments (m); each becomes one perimeter lot.
+    segment : float or array_like (n,)
+        Length of the contour segments (m), one for all blocks or one each;
+        each segment becomes one perimeter lot.
     depth, deviation : float
         Mean and standard deviation (m) of the inward displacement of the
         three sub-segments' ends (clipped to [0.2, 3] x depth, and to
@@ -511,6 +512,7 @@ def paris_lots(
             else np.zeros(n, np.uint64)
         )
     seeds = np.asarray(seeds, np.uint64)
+    seg_b = np.broadcast_to(np.asarray(segment, np.float64), (n,))  # per block (blocks.grain's lot sizes)
     parts, own = polygon_parts(blocks, np.arange(n))
     rs = RingSet.from_polygons(parts, flag=True)  # every block edge faces a street ...
     if fronts is not None or box is not None:  # ... but those on open land or the extract's edge
@@ -524,6 +526,7 @@ def paris_lots(
     for level in range(max_cuts + 1):
         if rs.n == 0:
             break
+        segment = seg_b[own]  # per piece
         C = Contour(rs, segment)
         with np.errstate(over="ignore"):
             z = _normal(seeds[own][C.sp], key[C.sp] * np.uint64(1_000_003) + C.sj.astype(np.uint64))
@@ -546,7 +549,7 @@ def paris_lots(
         fail = np.flatnonzero(~done)
         if len(fail) and level < max_cuts:
             # a refused piece under one nominal lot (segment x depth) is one lot: cut, it gives slivers
-            tiny = fail[shapely.area(rs.take(fail).polygons()) < segment * depth]
+            tiny = fail[shapely.area(rs.take(fail).polygons()) < segment[fail] * depth]
             if len(tiny):
                 sub = rs.take(tiny)
                 out_l.append(sub.polygons())

@@ -130,8 +130,10 @@ class SkeletonLots:
 def _after_merge(marks: Marks, faces, changed) -> Marks:
     """Marks of the faces left by a merge: a face that took in others has a new ring (another number of
     segments), so its marks are reset to unknown, keeping the flat marks aligned with every later face."""
-    fresh = Marks.unknown(faces)
-    fresh.flat[np.repeat(~changed, fresh.counts)] = marks.flat[np.repeat(~changed, marks.counts)]
+    counts = marks.counts.copy()
+    counts[changed] = Marks.unknown(faces[changed]).counts  # the others' outlines, and so counts, are as they were
+    fresh = Marks(np.zeros(int(counts.sum()), bool), counts)
+    fresh.flat[np.repeat(~changed, counts)] = marks.flat[np.repeat(~changed, marks.counts)]
     return fresh
 
 
