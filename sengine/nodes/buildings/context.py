@@ -56,11 +56,12 @@ The defaults were read off the shipped extracts: the six- to eight-storey
 perimeter blocks of Helsinki's centre have a median grain of 17 and Monaco
 16, whole Liège's lots a median of 8 (quartiles 5.7 and 11.4;
 its villages about 4); so 14 and 8.  With them, the fabrics of
-``blocks.grain``, the house depth and the urban storeys, whole Liège's street
-network (no buildings) houses 1.06 million in the planning report instead of
+``blocks.grain`` (town houses' plots in the urban grain), the house depth and
+the urban storeys, whole Liège's street
+network (no buildings) houses 1.01 million in the planning report instead of
 5.3 million (every lot built), where its streets serve about 530 km², about
 the size of the arrondissement of Liège (628,381 inhabitants on 796 km²,
-Statbel, 1 January 2024): still some 1.7 times too many, with every floor
+Statbel, 1 January 2024): still some 1.6 times too many, with every floor
 counted as homes.
 
 References
