@@ -166,6 +166,8 @@ def test_tables_in_order_and_parquet_only_with_rows(tmp_path):
     table = pq.read_table(tmp_path / "batch.parquet")
     assert table.column_names == cols and table.to_pylist() == rows
     assert sorted(p.name for p in tmp_path.iterdir()) == ["batch.csv", "batch.parquet"]
+    _write_tables(tmp_path, cols, [])  # no row now: no table that still lists the old ones
+    assert (tmp_path / "batch.csv").read_text() == "id,seed,far\n" and not (tmp_path / "batch.parquet").exists()
 
 
 def test_file_hashes_follow_the_contents(tmp_path):
