@@ -142,6 +142,7 @@ def test_columns_rows_and_csv_lines():
         "inputs_hash": "0123456789abcdef",
     }
     assert _row(b, {}, "ab", [])["seed"] is None and _row(b, {}, "ab", [])["seconds"] is None
+    assert _row(b, {}, "ab", ["lots"])["n_lots"] is None  # stats without counts
     assert _csv_line(["id", "far", "x", "c"], {"id": "a,b", "far": 0.0, "x": None}) == '"a,b",0.0,,\n'
 
 
@@ -350,6 +351,10 @@ def test_a_batch_makes_skips_redoes_and_forces(config, tmp_path):
     assert len({r["inputs_hash"] for r in rows}) == 3
     assert _dirs(out) == ["d18", "s1", "s2"] and (out / "contact.png").exists() and (out / "batch.parquet").exists()
     assert (out / "s1" / "preview.png").exists()
+    from sengine.contact import contact_sheet  # the sheet shows each variant's preview with its caption
+
+    tiles = [(out / r["id"] / "preview.png", r["id"], _caption(r)) for r in rep.rows]
+    assert contact_sheet(tiles, tmp_path / "sheet.png").read_bytes() == (out / "contact.png").read_bytes()
     names = sorted(p.name for p in out.iterdir() if not p.is_dir())
     assert names == [".batch.lock", "batch.csv", "batch.parquet", "contact.png"]
     mtime = (out / "s1" / "variant.json").stat().st_mtime_ns
