@@ -255,7 +255,7 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 
 def _write_tables(out: Path, columns: list[str], rows: list[dict]) -> None:
-    """``batch.csv`` in the batch's order, and ``batch.parquet`` when pyarrow is installed."""
+    """``batch.csv`` in the batch's order, and ``batch.parquet`` when pyarrow is installed and a row is made."""
     text = _csv_line(columns, dict(zip(columns, columns))) + "".join(_csv_line(columns, r) for r in rows)
     _write_atomic(out / "batch.csv", text.encode())
     try:
@@ -263,9 +263,10 @@ def _write_tables(out: Path, columns: list[str], rows: list[dict]) -> None:
         import pyarrow.parquet as pq
     except ImportError:
         return
-    table = pa.table({c: [r.get(c) for r in rows] for c in columns}) if rows else None
-    if table is None:
+    if not rows:  # no variant made: no table (one left by an earlier run would list variants csv does not)
+        (out / "batch.parquet").unlink(missing_ok=True)
         return
+    table = pa.table({c: [r.get(c) for r in rows] for c in columns})
     tmp = out / f".batch.parquet.{uuid.uuid4().hex[:8]}.tmp"
     pq.write_table(table, tmp)
     os.replace(tmp, out / "batch.parquet")
