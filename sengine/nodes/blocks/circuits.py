@@ -376,7 +376,8 @@ def cost_chunks(cost, parts: int) -> list[np.ndarray]:
         return []
     order = np.argsort(-cost, kind="stable")
     before = np.cumsum(cost[order]) - cost[order]  # running total before each item
-    share = max(float(cost.sum()) / max(int(parts), 1), 1e-300)
+    total = float(cost.sum())
+    share = total / max(int(parts), 1) if total > 0 else 1.0  # all free: one chunk (a subnormal share still cuts)
     bin_ = np.minimum(np.floor(before / share), max(int(parts), 1) - 1).astype(np.int64)
     cut = np.flatnonzero(np.r_[True, bin_[1:] != bin_[:-1]])
     return np.split(order, cut[1:])
