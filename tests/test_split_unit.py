@@ -467,6 +467,22 @@ def test_a_vertex_touching_the_line_from_either_end_of_its_ring():
     assert split_(RingSet.from_polygons([notch]), [(0, 1)], [(1, 0)])[3].tolist() == [True]
 
 
+def _sides_match_geos(polys, pts, dirs, *, atol, counts=False):
+    """``split`` cuts every polygon, and each side's area per parent (and with ``counts``, its
+    number of pieces) is GEOS's ``split_by_line``'s."""
+    pieces, parent, side, failed = split(RingSet.from_polygons(polys), pts, dirs)
+    assert not failed.any()
+    left, right = split_by_line(polys, pts, dirs)
+    out = pieces.polygons()
+    for s, ref in ((1, left), (0, right)):
+        got = np.bincount(parent[side == s], weights=shapely.area(out[side == s]), minlength=len(polys))
+        assert np.allclose(got, shapely.area(ref), rtol=0, atol=atol)
+        if counts:
+            assert np.bincount(parent[side == s], minlength=len(polys)).tolist() == [
+                len(shapely.get_parts(g)) for g in ref
+            ]
+
+
 def test_sliver_cuts_at_shallow_angles():
     """Thin quadrilaterals cut along their length at a shallow angle: the crossings lie close together along
     the line while the crossed edges run far along it (their order must be exact)."""
@@ -486,13 +502,7 @@ def test_sliver_cuts_at_shallow_angles():
         pts.append(c)
         dirs.append((np.cos(a), np.sin(a)))
     polys, pts, dirs = np.array(polys, dtype=object), np.array(pts), np.array(dirs)
-    pieces, parent, side, failed = split(RingSet.from_polygons(polys), pts, dirs)
-    assert not failed.any()
-    left, right = split_by_line(polys, pts, dirs)
-    out = pieces.polygons()
-    for s, ref in ((1, left), (0, right)):
-        got = np.bincount(parent[side == s], weights=shapely.area(out[side == s]), minlength=len(polys))
-        assert np.allclose(got, shapely.area(ref), rtol=0, atol=1e-9)
+    _sides_match_geos(polys, pts, dirs, atol=1e-9)
 
 
 def test_chords_along_marked_edges_of_a_three_armed_comb():
@@ -578,14 +588,7 @@ def test_a_comb_cut_obliquely_matches_geos():
     lines += [((5.0, y0), (-1.0, -slope)) for (_, y0), (_, slope) in lines[:9]]
     polys = np.array([COMB] * len(lines), dtype=object)
     pts, dirs = np.array([p for p, _ in lines]), np.array([d for _, d in lines])
-    pieces, parent, side, failed = split(RingSet.from_polygons(polys), pts, dirs)
-    assert not failed.any()
-    left, right = split_by_line(polys, pts, dirs)
-    out = pieces.polygons()
-    for s, ref in ((1, left), (0, right)):
-        got = np.bincount(parent[side == s], weights=shapely.area(out[side == s]), minlength=len(polys))
-        assert np.allclose(got, shapely.area(ref), rtol=0, atol=1e-12)
-        assert np.bincount(parent[side == s], minlength=len(polys)).tolist() == [len(shapely.get_parts(g)) for g in ref]
+    _sides_match_geos(polys, pts, dirs, atol=1e-12, counts=True)
 
 
 def test_an_apex_touching_the_line_with_both_edges_ahead():

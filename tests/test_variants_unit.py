@@ -256,22 +256,15 @@ def test_variant_conflicts_are_exact(tmp_path):
         manifest=rows,
         fixed_maps=("landuse=x.png",),
     )
-    _raises(
-        ConfigError,
-        f"{w}: column lots.depth: lots.depth is given by the manifest and by --set",
-        plan_variants,
-        config_seed=0,
-        manifest=rows,
-        sweeps=[("lots.depth", ["1", "2"])],
-    )
-    _raises(
-        ConfigError,
-        f"{w}: column lots.depth: lots.depth is given by the manifest and by --set",
-        plan_variants,
-        config_seed=0,
-        manifest=rows,
-        fixed_sets=(" lots.depth =4",),
-    )
+    for given in ({"sweeps": [("lots.depth", ["1", "2"])]}, {"fixed_sets": (" lots.depth =4",)}):
+        _raises(
+            ConfigError,
+            f"{w}: column lots.depth: lots.depth is given by the manifest and by --set",
+            plan_variants,
+            config_seed=0,
+            manifest=rows,
+            **given,
+        )
     _raises(
         ConfigError,
         "--maps: the landuse map is given by --maps and by --map",
