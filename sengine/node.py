@@ -131,7 +131,7 @@ class Param:
                 value = _TYPES[self.type](value)
         except SEngineError as exc:  # first: InputDataError is a ValueError too (parse_colour's own message)
             raise ParameterError(f"{name}: {exc.message}", where=where) from None
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):  # OverflowError: int(inf)
             raise ParameterError(f"{name}={value!r} is not a valid {self.type}", where=where) from None
         if self.type in ("float", "int"):
             if not math.isfinite(value):

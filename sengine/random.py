@@ -25,7 +25,7 @@ import hashlib
 
 import numpy as np
 
-__all__ = ["stable_hash", "generator", "splitmix64", "mix64", "hash01", "uniform"]
+__all__ = ["stable_hash", "generator", "splitmix64", "mix64", "hash01", "uniform", "normal"]
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _MASK = 0xFFFFFFFFFFFFFFFF
@@ -99,3 +99,20 @@ def uniform(seed: int, key: str, ids) -> np.ndarray:
     k = splitmix64(k ^ np.uint64(stable_hash(key)))
     u = splitmix64(k ^ splitmix64(np.asarray(ids, np.int64).astype(np.uint64)))
     return (u >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
+
+
+def normal(seed: int, key: str, ids) -> np.ndarray:
+    """One standard normal number per feature id, from ``(seed, key, id)`` (Box-Muller on two :func:`uniform` draws).
+
+    Parameters
+    ----------
+    seed : int
+        The network seed.
+    key : str
+        Node id and purpose, separating streams (two streams, ``key + "/u1"`` and ``key + "/u2"``, are drawn).
+    ids : array of int
+        Feature ids.
+    """
+    u1 = uniform(seed, f"{key}/u1", ids)
+    u2 = uniform(seed, f"{key}/u2", ids)
+    return np.sqrt(-2.0 * np.log1p(-u1)) * np.cos(2.0 * np.pi * u2)  # 1 - u1 in (0, 1]: never log(0)

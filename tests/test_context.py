@@ -13,7 +13,7 @@ import sengine
 from sengine import Context, Layer
 from sengine.errors import ParameterError
 from sengine.nodes.buildings.context import neighbour_floors, open_land
-from sengine.random import uniform
+from sengine.random import normal, uniform
 from sengine.registry import get
 
 Node = get("buildings.context")
@@ -141,10 +141,17 @@ def test_the_street_grain_sets_storeys_and_typologies_where_the_map_has_no_build
     # urban: a town centre of three storeys in perimeter blocks; houses and terraces 10 m deep
     assert out["floors"][0] == 3.0 and out["typology"][0] == "I:4,L,U"
     assert out["floors"][1:].tolist() == [2.0, 2.0]
-    assert np.isnan(out["building_depth"][0]) and out["building_depth"][1:].tolist() == [10.0, 10.0]
     # the town lot is a house with the chance (14 - grain) / (14 - 8), drawn from (seed 1, "context", lot 1)
     house = uniform(1, "context/town-house", [1])[0] < (14.0 - grain[1]) / 6.0
     assert out["typology"][1:].tolist() == ["house" if house else "I:3,L", "house"]
+    # a terrace is 10 m deep; a house is its own ground area, 138 m2 x exp(0.35 z), 1.2 times wider than deep
+    depth, width = out["building_depth"], out["house_width"]
+    assert np.isnan(depth[0]) and np.isnan(width[0])
+    houses = np.array([house, True])
+    ground = 138.0 * np.exp(0.35 * normal(1, "context/house", [1, 2]))
+    assert depth[1:][~houses].tolist() == [10.0] and np.isnan(width[1:][~houses]).all()
+    assert depth[1:][houses] * width[1:][houses] == pytest.approx(ground[houses])
+    assert width[1:][houses] / depth[1:][houses] == pytest.approx(np.full(houses.sum(), 1.2))
     # the country road lot is 5 km from the nearest street lived on: a field
     assert out["open"].tolist() == [False, False, True]
     assert report == {
@@ -155,6 +162,30 @@ def test_the_street_grain_sets_storeys_and_typologies_where_the_map_has_no_build
         "town_houses": int(house),
         "open_lots": 1,
     }
+
+
+def test_houses_ground_areas_follow_statbel_classes_for_wallonia():
+    """4,000 country lots: their houses' ground areas fall in Statbel's classes as Wallonia's detached houses do.
+
+    Statbel, 1 January 2018, Wallonia's detached houses: 1,638 + 6,263 of 506,011 under 65 m² (1.6 %), and
+    97,232 more up to 104 m² (20.8 % under 104 m²).
+    """
+    road = shapely.LineString([(0.0, 0.0), (0.0, 100_000.0)])
+    roads = Layer.from_geoms([road], **{"class": np.array(["residential"], dtype=object)})
+    lots = Layer.from_geoms(
+        [shapely.box(5.0, y, 35.0, y + 20.0) for y in np.arange(4000) * 25.0], ids=np.arange(4000) * 7 + 3
+    )
+    out, report = run(lots, roads=roads)
+    assert report["rural_lots"] == 4000
+    ground = out["building_depth"] * out["house_width"]
+    assert np.median(ground) == pytest.approx(138.0, rel=0.05)
+    assert (ground < 104.0).mean() == pytest.approx(0.208, abs=0.03)
+    assert (ground < 65.0).mean() == pytest.approx(0.016, abs=0.01)
+    inner = (ground > 138.0 * np.exp(-1.05) + 1e-6) & (ground < 138.0 * np.exp(1.05) - 1e-6)  # z within 3
+    assert inner.mean() > 0.99 and len(np.unique(np.round(ground[inner], 6))) == inner.sum()  # no two alike
+    # house_area 0: every house the house depth, the width left to the massing
+    flat, _ = run(lots, roads=roads, house_area=0.0)
+    assert (flat["building_depth"] == 10.0).all() and "house_width" not in flat
 
 
 @pytest.mark.parametrize("spacing", [150.0, 200.0, 250.0])
@@ -221,13 +252,17 @@ def test_a_village_from_its_streets_alone_gets_detached_houses():
     tree = shapely.STRtree(houses)
     a, b = tree.query(houses, predicate="dwithin", distance=1.0)
     assert (a == b).all()
-    # massing's `house`: at most 10 m along its street (the roof's direction is the street's)
+    # each house at most its lot's drawn width along its street (the roof's direction is the street's), and
+    # no larger than its drawn ground area (a narrow plot makes it deeper, never wider)
     angle = np.radians(np.asarray(gen["roof_direction"])[typ == "house"])
     xy, which = shapely.get_coordinates(houses, return_index=True)
     t = xy[:, 0] * np.cos(angle[which]) + xy[:, 1] * np.sin(angle[which])
     along = np.maximum.reduceat(t, np.r_[0, np.flatnonzero(np.diff(which)) + 1])
     along -= np.minimum.reduceat(t, np.r_[0, np.flatnonzero(np.diff(which)) + 1])
-    assert (along <= 10.0 + 1e-6).all()
+    row = lots.rows_of(np.asarray(gen["lot"], np.int64)[typ == "house"])
+    width, depth = np.asarray(lots["house_width"])[row], np.asarray(lots["building_depth"])[row]
+    assert (along <= width + 1e-6).all() and (shapely.area(houses) <= width * depth * (1 + 1e-9)).all()
+    assert len(np.unique(np.round(width, 6))) == len(width)  # no two houses alike
 
 
 def test_open_land_is_beyond_reach_of_every_street_lived_on():

@@ -133,9 +133,12 @@ def test_the_context_builds_what_the_blocks_fabric_says():
     assert np.asarray(got["floors"]).tolist() == [2.0, 2.0, 2.0, 3.0]  # a town centre of three storeys
     assert got["typology"].tolist() == ["house", "house", "I:3,L", "I:4,L,U"]  # no towers on the streets' word
     assert got["siting"].tolist() == ["detached", "detached", "", ""]  # houses stand apart
-    depth = np.asarray(got["building_depth"])  # houses and terraces 10 m deep, flats the massing's
-    assert depth[:3].tolist() == [10.0, 10.0, 10.0] and np.isnan(depth[3])
-    off = Context_("context", {"urban_floors": "0", "urban_typology": "", "house_depth": "0"}, Context(seed=1))
+    depth = np.asarray(got["building_depth"])  # terraces 10 m deep, houses as deep as their drawn area makes them
+    width = np.asarray(got["house_width"])
+    assert depth[2] == 10.0 and np.isnan(depth[3]) and np.isnan(width[2:]).all()
+    assert (width[:2] / depth[:2]) == pytest.approx([1.2, 1.2]) and (width[:2] * depth[:2] > 48.0).all()
+    params = {"urban_floors": "0", "urban_typology": "", "house_depth": "0", "house_area": "0"}
+    off = Context_("context", params, Context(seed=1))
     got = off.run(lots=lots)["lots"]
     assert np.isnan(got["floors"][3]) and got["typology"][3] == "" and "building_depth" not in got
     assert out.report["rural_lots"] == 1 and out.report["town_lots"] == 2 and out.report["town_houses"] == 1
@@ -288,8 +291,8 @@ def test_semi_detached_houses_share_one_wall_and_keep_the_other_setback():
     # the corner houses face two streets and stand alone; the six between pair off, one 14 m wall each
     assert out.report["semi_detached"] == 12 and (walls[corner] == 0).all()
     np.testing.assert_allclose(walls[~corner], 14.0, rtol=1e-6)
-    # each is at most a house (10 m) wide and keeps 4 m from its other side line
-    np.testing.assert_allclose(shapely.area(b.geometry[~corner]), 10.0 * 14.0, rtol=1e-6)
+    # each is 0.7 of a house (10 m) wide and keeps 4 m from its other side line
+    np.testing.assert_allclose(shapely.area(b.geometry[~corner]), 0.7 * 10.0 * 14.0, rtol=1e-6)
     sides = [shapely.boundary(lots.geometry[k]) for k in np.asarray(b["lot"])[~corner]]
     gap = shapely.distance(b.geometry[~corner], np.asarray(sides, dtype=object))
     assert (gap < 1e-6).all()  # on one side line (its partner's) ...

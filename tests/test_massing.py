@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from sengine import CityPlan, Context, Layer, Rule
 from sengine.errors import ParameterError
+from sengine.geom.polygons import obb_frame
 from sengine.nodes.buildings.edges import FRONT, REAR, SIDE, lot_edges
 from sengine.nodes.buildings.far import depth_for, far_height, far_to_building, floors_for
 from sengine.nodes.buildings.typology import TYPOLOGIES
@@ -287,6 +288,51 @@ def test_district_and_landuse_rules_and_lot_columns(tmp_path):
         run(lots, blocks, plan=CityPlan(rules=[Rule("district", {"typology": "I,Q"}, "x.xml:3")]))
     with pytest.raises(ParameterError, match=r"x.xml:3.*height-class"):
         run(lots, blocks, plan=CityPlan(rules=[Rule("district", {"height-class": "IX"}, "x.xml:3")]))
+
+
+@pytest.mark.parametrize(
+    "column, value, message",
+    [
+        (
+            "building_depth",
+            "deep",
+            r"^node 'buildings' \(buildings.massing\): lot column building_depth='deep' is not a valid float$",
+        ),
+        ("far", -1.0, r"^node 'buildings' \(buildings.massing\): lot column far=-1.0 is below the minimum 0.0$"),
+        ("floors", np.inf, r"^node 'buildings' \(buildings.massing\): lot column floors=inf is not a valid int$"),
+        (
+            "house_width",
+            2.0,
+            r"^node 'buildings' \(buildings.massing\): lot column house_width=2.0 m is below the minimum 4.0 m$",
+        ),
+        ("typology", "I,Q", r"^node 'buildings' \(buildings.massing\): unknown typology 'Q' \(expected .*\)$"),
+        (
+            "siting",
+            "terrace",
+            r"^node 'buildings' \(buildings.massing\): lot column siting='terrace' is not one of auto, attached, detached$",
+        ),
+    ],
+)
+def test_a_lot_file_value_its_rule_would_refuse_is_a_one_line_error(column, value, message):
+    lots, blocks = row_block(15.0)
+    vals = np.full(len(lots), None, dtype=object)
+    vals[2] = value  # one bad lot among lots that give none
+    with pytest.raises(ParameterError, match=message) as err:
+        run(lots.with_columns(**{column: vals}), blocks)
+    assert "\n" not in str(err.value)
+
+
+def test_a_detached_house_is_its_width_by_its_depth_on_a_corner_plot_too():
+    """A corner plot's front band runs along both streets; the house stays one rectangle on its main front."""
+    lots, blocks = row_block(30.0, depth=40.0, count=3, rows=1, angle=17.0)
+    width, depth = np.array([14.0, 12.0, 16.0]), np.array([10.0, 11.0, 9.0])
+    lots = lots.with_columns(typology=np.full(3, "house", dtype=object), house_width=width, building_depth=depth)
+    b, _ = run(lots, blocks, loc=1, siting="detached", semi_detached=0.0, setback_front=3.0)
+    row = np.asarray(b["lot"], np.int64)
+    assert sorted(row.tolist()) == [0, 1, 2]
+    _, _, long_, short = obb_frame(b.geometry)
+    assert long_ == pytest.approx(width[row]) and short == pytest.approx(depth[row])
+    assert shapely.area(b.geometry) == pytest.approx(width[row] * depth[row])
 
 
 def test_custom_footprints_are_level_of_control_2():

@@ -85,6 +85,9 @@ def test_coerce_bounds_messages_with_and_without_units():
     for bad in ("nan", "inf", float("-inf")):
         with pytest.raises(ParameterError, match=r"^w: k=(nan|inf|-inf) is not a finite number$"):
             Param("float").coerce(bad, "w", "k")
+    for bad in (float("inf"), float("nan"), "inf"):  # int(inf) overflows, int(nan) and int("inf") are no number
+        with pytest.raises(ParameterError, match=r"^w: k=(inf|nan|'inf') is not a valid int$"):
+            Param("int").coerce(bad, "w", "k")
 
 
 def test_coerce_bool():

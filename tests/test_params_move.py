@@ -329,6 +329,10 @@ def _building_depth_sum(out):
     return float(np.nansum(out["lots"]["building_depth"]))
 
 
+def _building_depth_spread(out):
+    return float(np.nanstd(out["lots"]["building_depth"]))
+
+
 def _bars_only(out):
     return int((np.asarray(out["lots"]["typology"]).astype(str) == "I").sum())
 
@@ -367,6 +371,16 @@ for _node, _extra in (("buildings.massing", ()), ("buildings.far", (("loc", 1), 
             +1,
             on_lots,
             _extra + (("typology", "house"), ("siting", "detached")),
+        ),
+        Case(
+            _node,
+            "semi_width",
+            0.5,
+            1.0,
+            area(B),
+            +1,
+            on_lots,
+            _extra + (("typology", "house"), ("siting", "detached"), ("semi_detached", 1.0)),
         ),
         Case(_node, "podium_floors", 1, 4, podium("height"), +1, on_lots, _extra + (("typology", "towers"),)),
         Case(_node, "podium_depth", 8.0, 24.0, podium("area"), +1, on_lots, _extra + (("typology", "towers"),)),
@@ -551,6 +565,26 @@ CASES: list[Case] = [
         8.0,
         12.0,
         _building_depth_sum,
+        +1,
+        on_grain,
+        base=(("rural_grain", 200.0), ("urban_grain", 200.0), ("house_area", 0.0)),
+    ),
+    Case(
+        "buildings.context",
+        "house_area",
+        80.0,
+        200.0,
+        _building_depth_sum,
+        +1,
+        on_grain,
+        base=(("rural_grain", 200.0), ("urban_grain", 200.0)),
+    ),
+    Case(
+        "buildings.context",
+        "house_spread",
+        0.0,
+        0.5,
+        _building_depth_spread,
         +1,
         on_grain,
         base=(("rural_grain", 200.0), ("urban_grain", 200.0)),

@@ -42,7 +42,13 @@ flats: ``house_depth`` (10 m) becomes their lots' ``building_depth`` rule
 column.  Wallonia's houses (Statbel, 1 January 2018) stand on a median
 ground area of about 81 m² terraced, 99 m² semi-detached and over 104 m²
 detached [4]_; a 14 m deep terrace on an 8 m plot (112 m²) is a third too
-large.  The lots carry the grain as a ``grain`` column (km/km²).
+large.  Nor are two houses alike: each house lot (rural, and the houses
+among the rows) draws its own ground area, log-normal about ``house_area``
+with ``house_spread`` (drawn from the seed, the node id and the lot id),
+and takes it as a house 1.2 times wider than deep (``house_width`` and
+``building_depth``).  Statbel's classes for Wallonia's detached houses
+(1.6 % under 65 m², 20.8 % under 104 m²) fix both: a median of 138 m² and
+a spread of 0.35.  The lots carry the grain as a ``grain`` column (km/km²).
 Nor is every rural road lined with houses: villages cluster round the
 streets they live on, and the roads between them cross fields.  OpenStreetMap
 says which is which: ``highway=residential`` (with ``living_street`` and
@@ -91,7 +97,7 @@ import shapely
 from sengine import Layer, NodeResult, Param, Port, SENode, register
 from sengine.errors import InputDataError, ParameterError
 from sengine.geom.grain import street_density
-from sengine.random import uniform
+from sengine.random import normal, uniform
 
 from ..blocks.grain import FABRICS, GRAIN_PARAMS, NO_FRONTAGE, check_bands, fabric_of
 from .typology import TYPOLOGIES, parse_choices
@@ -105,6 +111,8 @@ TAGGED = ("height", "levels")
 #: Road classes of streets people live on (OSM: ``highway=residential`` is "used for accessing
 #: residential areas and in residential areas", ``unclassified`` and above link settlements [3]_).
 LIVED_ON = ("residential", "living_street", "pedestrian")
+#: A detached house's width along the street to its depth: a little wider than deep (12 x 10 m at 120 m²).
+HOUSE_ASPECT = 1.2
 
 
 def open_land(sites: np.ndarray, lived_on: np.ndarray, reach: float) -> np.ndarray:
@@ -219,6 +227,19 @@ class BuildingsContext(SENode):
             doc="depth of the houses and terraces under urban_grain (Statbel 2018, Wallonia: median ground area"
             " about 81 m2 terraced, 99 m2 semi-detached); 0: the massing's depth",
         ),
+        "house_area": Param(
+            "float",
+            138.0,
+            min=0.0,
+            max=5000.0,
+            unit="m2",
+            doc="median ground area of the detached houses under urban_grain, drawn log-normal per lot (Statbel 2018,"
+            " Wallonia's detached houses: 1.6 % under 65 m2, 21 % under 104 m2, which a median of 138 m2 and a"
+            " spread of 0.35 fit); 0: house_depth and the massing's house width",
+        ),
+        "house_spread": Param(
+            "float", 0.35, min=0.0, max=2.0, unit="1", doc="standard deviation of the log of the houses' ground area"
+        ),
         "urban_floors": Param(
             "int",
             3,
@@ -313,9 +334,19 @@ class BuildingsContext(SENode):
                 floors[urban] = p.urban_floors
             if p.urban_typology:
                 typology[urban & untyped] = p.urban_typology
-            if p.house_depth:  # houses and terraces are shallower than the massing's blocks of flats
+            if p.house_depth or p.house_area:  # houses and terraces are shallower than blocks of flats
                 depth = np.asarray(lots.get("building_depth", np.full(n, np.nan)), np.float64).copy()
-                depth[(rural | town) & ~(depth > 0)] = p.house_depth
+                free = ~(depth > 0)
+                if p.house_depth:
+                    depth[(rural | town) & free] = p.house_depth
+                if p.house_area:  # no two houses alike: each its own ground area, as Statbel counts them
+                    width = np.asarray(lots.get("house_width", np.full(n, np.nan)), np.float64).copy()
+                    z = np.clip(normal(self.context.seed, f"{self.id}/house", lots.ids), -3.0, 3.0)
+                    ground = p.house_area * np.exp(p.house_spread * z)
+                    drawn = (rural | house) & free & ~(width > 0)
+                    width[drawn] = np.sqrt(HOUSE_ASPECT * ground[drawn])
+                    depth[drawn] = ground[drawn] / width[drawn]
+                    columns["house_width"] = width
                 columns["building_depth"] = depth
             # houses stand apart: a plot too narrow for one stays a garden rather than take a terrace
             siting = np.asarray(lots.get("siting", np.full(n, "", dtype=object)), dtype=object).copy()

@@ -116,6 +116,10 @@ class LotEdges:
         Whether the lot touches the street (else its longest edge stands in).
     corner : ndarray of bool (n,)
         Whether the lot has fronts in two directions.
+    street : ndarray (n,)
+        Where each lot's main front line lies across ``axis``: its coordinate (m) along the left normal.
+    facing : ndarray of float (n,)
+        ``+1`` where the lot lies on the left normal's side of its main front line, ``-1`` on the other.
     """
 
     p0: np.ndarray
@@ -126,6 +130,8 @@ class LotEdges:
     axis: np.ndarray
     has_front: np.ndarray
     corner: np.ndarray
+    street: np.ndarray
+    facing: np.ndarray
 
     @property
     def front_angle(self) -> np.ndarray:
@@ -272,4 +278,6 @@ def lot_edges(lots, *, blocks=None, owner=None, box=None, fronts=None, tol: floa
     is_shell[rings[shell]] = True
     left = (signed > 0) == is_shell
     inward = np.where(left[rings], 1.0, -1.0)
-    return LotEdges(p0, p1, idx, kind, inward, axis, has_front, corner)
+    street = np.einsum("ij,ij->i", origin, nrm) if n else np.zeros(0)
+    facing = np.where(ok, inward[fo], 1.0) if len(inward) else np.ones(n)
+    return LotEdges(p0, p1, idx, kind, inward, axis, has_front, corner, street, facing)

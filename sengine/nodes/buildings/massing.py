@@ -168,6 +168,15 @@ class _Massing(SENode):
                 doc="chance two neighbouring detached houses are built as a semi-detached pair (Wallonia 2018: "
                 "28 % of buildings semi-detached, 38 % detached)",
             ),
+            "semi_width": Param(
+                "float",
+                0.7,
+                min=0.1,
+                max=1.0,
+                unit="1",
+                doc="width of each house of a semi-detached pair, as a share of a detached house's (Statbel 2018,"
+                " Wallonia: median ground area about 99 m2 semi-detached, 138 m2 detached)",
+            ),
             "podium_floors": Param("int", 2, min=1, max=20, unit="1", doc="floors of podiums and linking corridors"),
             "podium_depth": Param("float", 20.0, min=4.0, max=200.0, unit="m", doc="depth of podiums from the street"),
             "floors": Param(
@@ -202,6 +211,7 @@ class _Massing(SENode):
             "setback_side": p.setback_side,
             "setback_rear": p.setback_rear,
             "depth": p.depth,
+            "house": p.house,
             "roof": p.roof,
         }
         return per_lot(
@@ -287,6 +297,7 @@ class _Massing(SENode):
         fs = r["setback_front"].astype(np.float64)
         ss = np.where(siting == "attached", 0.0, r["setback_side"].astype(np.float64))
         rs = r["setback_rear"].astype(np.float64)
+        house = r["house"].astype(np.float64)  # each detached house's width (m)
         owner = None
         if blocks is not None and "block" in L:
             owner = blocks.rows_of(np.asarray(L["block"], np.int64))
@@ -330,8 +341,9 @@ class _Massing(SENode):
                     sub = _sub_edges(edges, on)
                     paired = building_area(L.geometry[on], sub, fs[on], side[on], rs[on], party=party[on])
                     # the house runs from the shared line, at most a house long (not centred on the front)
-                    area[on] = band(paired, side_lines(sub, int(on.sum()), hand), p.house)
-        site = Site(area, edges, fs, ss, rs, podium_depth=p.podium_depth, house=p.house)
+                    house[on] *= p.semi_width  # each house of a pair narrower than a detached one
+                    area[on] = band(paired, side_lines(sub, int(on.sum()), hand), house[on])
+        site = Site(area, edges, fs, ss, rs, podium_depth=p.podium_depth, house=house)
         lot_area = shapely.area(L.geometry) if n else np.zeros(0)
         far = np.array([np.nan if v is None else float(v) for v in r["far"]], np.float64)
         _, hmax = class_bounds(np.where(r["height_class"] == None, "", r["height_class"]).astype(str))  # noqa: E711
@@ -610,6 +622,8 @@ def _sub_edges(edges, mask):
         edges.axis[rows],
         edges.has_front[rows],
         edges.corner[rows],
+        edges.street[rows],
+        edges.facing[rows],
     )
 
 

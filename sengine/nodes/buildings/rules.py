@@ -4,7 +4,9 @@ A planner states the rules of a zone once (``<district far="2.5"
 typology="I,L" siting="attached"/>``, ``<landuse class="industrial"
 setback-side="6"/>``) and may override them lot by lot with columns of the
 lots layer (``far``, ``loc``, ``floors``, ``typology``, ``use``,
-``height_class``), as CityEngine users set a rule attribute per shape.  The
+``height_class``, ``siting``, ``building_depth``, ``house_width``), as
+CityEngine users set a rule attribute per shape; a lot's value is checked as
+the rule's would be in the XML.  The
 most specific source wins: the lot's column, then its land-use rule, then its
 district rule, then the node's parameter.
 
@@ -63,6 +65,7 @@ RULE_PARAMS = {
     "setback-side": Param("float", None, min=0.0, max=100.0, unit="m", doc="side setback of detached buildings"),
     "setback-rear": Param("float", None, min=0.0, max=100.0, unit="m", doc="setback from the rear lot line"),
     "depth": Param("float", None, min=4.0, max=200.0, unit="m", doc="building depth (loc 1)"),
+    "house": Param("float", None, min=4.0, max=100.0, unit="m", doc="greatest width of a detached house"),
     "roof": Param("str", None, doc="roof kinds and shares, e.g. 'gable:2,hip' (default: by land use)"),
 }
 
@@ -76,6 +79,7 @@ LOT_COLUMNS = {
     "height_class": "height_class",
     "siting": "siting",
     "building_depth": "depth",
+    "house_width": "house",
 }
 
 for _tag in ("district", "landuse"):
@@ -231,5 +235,43 @@ def per_lot(
         if col in lots:
             vals = np.asarray(lots[col], dtype=object)
             known = np.array([v is not None and v == v and str(v) != "" for v in vals], bool)
-            out[rule][known] = vals[known]
+            out[rule][known] = _lot_values(vals[known], rule, col, where)
     return out
+
+
+def _lot_values(vals: np.ndarray, rule: str, col: str, where: str) -> np.ndarray:
+    """A lot column's given values, checked against their rule's declaration (a lot file may hold anything).
+
+    Numbers are checked as one array, text by its distinct values; a value
+    the rule would refuse in the XML is a :class:`ParameterError` naming the
+    column.
+    """
+    attr = rule.replace("_", "-")
+    decl = RULE_PARAMS[attr]
+    name = f"lot column {col}"
+    if decl.type in ("float", "int"):
+        try:
+            num = np.asarray(vals, np.float64)
+        except (TypeError, ValueError):
+            bad = next(v for v in vals if not _is_number(v))
+            raise ParameterError(f"{name}={bad!r} is not a valid {decl.type}", where=where or None) from None
+        lo = -np.inf if decl.min is None else decl.min
+        hi = np.inf if decl.max is None else decl.max
+        for v in num[~((num >= lo) & (num <= hi))][:1]:  # NaN and inf fail too: the declaration says why
+            decl.coerce(float(v), where or None, name)
+        return num.astype(object)
+    for v in np.unique(vals.astype(str)):
+        decl.coerce(v, where or None, name)
+        if attr in ("typology", "roof"):
+            _coerce_choices(
+                v, TYPOLOGIES if attr == "typology" else ROOF_KINDS, attr.replace("roof", "roof kind"), where
+            )
+    return vals
+
+
+def _is_number(v) -> bool:
+    try:
+        float(v)
+    except (TypeError, ValueError):
+        return False
+    return True

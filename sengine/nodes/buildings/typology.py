@@ -27,8 +27,10 @@ code       paper 004 type   footprint
                             low corridor between them
 ``box``    (CityEngine's    the whole building area
            extrusion)
-``house``  (detached house) the street band, ``house`` m long at most, centred
-                            on the front; it keeps its side setbacks
+``house``  (detached house) a ``house`` x ``d`` rectangle on the main front,
+                            centred on it; it keeps its side setbacks, and on a
+                            plot narrower than itself grows deeper (at most
+                            1.5 times) to keep its ground area
 ========== ================ ====================================================
 
 The detached house is not one of paper 004's types, which build city
@@ -63,7 +65,7 @@ from sengine.geom.polygons import inset, obb_frame, threaded
 from sengine.random import uniform
 
 from .edges import FRONT, REAR, LotEdges
-from .siting import _convex_rings, axis_extent, band, centred_boxes, limit_length, polygonal, ring, side_lines
+from .siting import _convex_rings, axis_extent, band, centred_boxes, clip_box, limit_length, polygonal, ring, side_lines
 
 __all__ = [
     "TYPOLOGIES",
@@ -125,6 +127,7 @@ HALL_MARGIN = 8.0  #: m: width of the podium round a main hall (at most a fifth 
 MIN_WIDTH = 4.0  #: m: building parts narrower than this are not built
 COURT_MIN = 12.0  #: m: the narrowest court an O is built round
 RING_MIN = 8.0  #: m: the thinnest ring of an O (000's least building depth)
+HOUSE_DEEPER = 1.5  #: a house on a plot narrower than itself grows at most this much deeper to keep its area
 LOW, MAIN = 0, 1  #: part roles: of fixed height (podium, corridor) or taking the floors
 
 
@@ -138,12 +141,13 @@ class Site:
     side: np.ndarray  # side setback (m) per lot
     rear: np.ndarray  # rear setback (m) per lot
     podium_depth: float = 20.0
-    house: float = 10.0  # greatest length of a detached house along the street (m)
+    house: np.ndarray | float = 10.0  # greatest length of a detached house along the street (m, per lot)
     #: footprints already drawn, per typology: (depth per lot row, footprint per lot row); see :func:`_footprints`
     memo: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
         n = len(self.area)
+        self.house = np.broadcast_to(np.asarray(self.house, np.float64), (n,))
         self.front_lines = self.edges.lines(FRONT, n)
         self.rear_lines = self.edges.lines(REAR, n)
         self.left_lines = side_lines(self.edges, n, "left")
@@ -254,8 +258,21 @@ def _generate(code: str, site: Site, rows, d, frac, *, podium_depth: float):
     if code == "house":
         g = _footprints("I", site, rows, d)
         lo_, hi_ = _axis_extent(g, ax)
-        cap = np.where(hi_ > lo_, site.house / np.maximum(hi_ - lo_, 1e-9), 1.0)
-        return limit_length(g, ax, np.minimum(frac, cap)), np.asarray(rows), np.full(len(rows), MAIN)
+        width = site.house[rows]
+        # a plot narrower than the house: it keeps its ground area by growing deeper (at most HOUSE_DEEPER)
+        squeezed = (hi_ > lo_) & (hi_ - lo_ < width)
+        if squeezed.any():
+            d = np.where(squeezed, d * np.minimum(width / np.maximum(hi_ - lo_, 1e-9), HOUSE_DEEPER), d)
+            g = _footprints("I", site, rows, d)
+            lo_, hi_ = _axis_extent(g, ax)
+        # a rectangle: the house's width along its main front, about the band's middle, and from that front
+        # no deeper than the setback and the house (a corner plot's band runs along its side street too)
+        half = 0.5 * np.minimum(width, frac * (hi_ - lo_))
+        mid = 0.5 * (lo_ + hi_)
+        s0 = site.edges.street[rows]
+        s1 = s0 + site.edges.facing[rows] * (fs + d)
+        g = clip_box(g, np.zeros((len(g), 2)), ax, mid - half, mid + half, np.minimum(s0, s1), np.maximum(s0, s1))
+        return polygonal(g), np.asarray(rows), np.full(len(rows), MAIN)
     if code == "tower":
         g, r = centred_boxes(A, ax, d, d)
         return limit_length(g, ax[r], frac[r]), np.asarray(rows)[r], np.full(len(r), MAIN)
