@@ -261,7 +261,7 @@ def test_a_village_from_its_streets_alone_gets_detached_houses():
     along -= np.minimum.reduceat(t, np.r_[0, np.flatnonzero(np.diff(which)) + 1])
     row = lots.rows_of(np.asarray(gen["lot"], np.int64)[typ == "house"])
     width, depth = np.asarray(lots["house_width"])[row], np.asarray(lots["building_depth"])[row]
-    assert (along <= width + 1e-6).all() and (shapely.area(houses) <= width * depth * (1 + 1e-9)).all()
+    assert (along <= width + 1e-6).all() and (shapely.area(houses) <= width * depth * (1 + 1e-6)).all()
     assert len(np.unique(np.round(width, 6))) == len(width)  # no two houses alike
 
 

@@ -335,6 +335,30 @@ def test_a_detached_house_is_its_width_by_its_depth_on_a_corner_plot_too():
     assert shapely.area(b.geometry) == pytest.approx(width[row] * depth[row])
 
 
+def test_a_house_on_a_wedge_plot_is_a_rectangle_not_a_triangle():
+    """Wedge plots fanning to a point behind the street: a house keeps four square corners or stays a garden."""
+    tip = (60.0, 60.0)  # six wedges, 20 m of street front each, meeting 60 m behind it
+    xs = np.arange(0.0, 121.0, 20.0)
+    geoms = [shapely.Polygon([(a, 0.0), (b, 0.0), tip]) for a, b in zip(xs[:-1], xs[1:])]
+    n = len(geoms)
+    lots = Layer.from_geoms(
+        geoms,
+        block=np.zeros(n, np.int64),
+        district=np.zeros(n, np.int64),
+        typology=np.full(n, "house", dtype=object),
+        house_width=np.full(n, 13.0),
+        building_depth=np.full(n, 10.0),
+    )
+    block = Layer.from_geoms([shapely.union_all(geoms)], ids=[0])
+    b, _ = run(lots, block, loc=1, siting="detached", semi_detached=0.0)
+    assert len(b) >= 2
+    _, _, long_, short = obb_frame(b.geometry)
+    assert (shapely.area(b.geometry) >= 0.8 * long_ * short).all()  # near rectangles: a corner trimmed at most
+    own = lots.geometry[lots.rows_of(np.asarray(b["lot"], np.int64))]
+    assert shapely.covers(shapely.buffer(own, 1e-6), b.geometry).all()
+    assert (shapely.area(b.geometry) <= 13.0 * 10.0 * (1 + 1e-6)).all()
+
+
 def test_custom_footprints_are_level_of_control_2():
     lots, blocks = row_block(20.0, depth=30.0, count=3, rows=1)
     mine = shapely.box(2, 2, 18, 20)

@@ -128,6 +128,8 @@ MIN_WIDTH = 4.0  #: m: building parts narrower than this are not built
 COURT_MIN = 12.0  #: m: the narrowest court an O is built round
 RING_MIN = 8.0  #: m: the thinnest ring of an O (000's least building depth)
 HOUSE_DEEPER = 1.5  #: a house on a plot narrower than itself grows at most this much deeper to keep its area
+HOUSE_FILL = 0.8  #: a house the plot cuts to less than this share of its oriented box is refitted whole
+HOUSE_SHRINK = 0.8  #: ... or, where it does not fit whole, shrunk by this factor each way (one step)
 LOW, MAIN = 0, 1  #: part roles: of fixed height (podium, corridor) or taking the floors
 
 
@@ -246,6 +248,62 @@ def _footprints(code: str, site: Site, rows, d):
     return out
 
 
+def _house(site: Site, rows: np.ndarray, d: np.ndarray, frac: np.ndarray) -> np.ndarray:
+    """Detached houses on lots ``rows``: a ``site.house`` x ``d`` rectangle each (m), or nothing.
+
+    The rectangle stands on the lot's main front, about the middle of the
+    building area's street band.  On a plot narrower than the house it grows
+    deeper to keep its ground area (at most :data:`HOUSE_DEEPER`).  Where the
+    building area cuts it to under :data:`HOUSE_FILL` of its oriented box (a
+    triangle on a wedge plot), the house moves to the middle of the building area (the
+    centre of its largest inscribed circle), turned end-on to the street if
+    that fits, else shrunk by :data:`HOUSE_SHRINK` each way; a plot that
+    holds none of these whole stays a garden.  A house is a rectangle, never
+    the sliver of one, nor a shed: Statbel counts 0.3 % of Wallonia's
+    detached houses under 45 m².
+    """
+    ax = site.axis[rows]
+    g = _footprints("I", site, rows, d)
+    lo_, hi_ = _axis_extent(g, ax)
+    width = site.house[rows]
+    squeezed = (hi_ > lo_) & (hi_ - lo_ < width)
+    if squeezed.any():
+        deeper = d * np.minimum(width / np.maximum(hi_ - lo_, 1e-9), HOUSE_DEEPER)
+        g = _footprints("I", site, rows, np.where(squeezed, deeper, d))
+        lo_, hi_ = _axis_extent(g, ax)
+        # the deeper band may be wider (a tapering plot): deep enough to keep the area at that width, no more
+        d = np.where(squeezed, d * np.clip(width / np.maximum(hi_ - lo_, 1e-9), 1.0, HOUSE_DEEPER), d)
+    # the house's width along its main front, about the band's middle, and from that front no deeper than
+    # the setback and the house (a corner plot's band runs along its side street too)
+    w = np.minimum(width, frac * (hi_ - lo_))
+    mid = 0.5 * (lo_ + hi_)
+    s0 = site.edges.street[rows]
+    s1 = s0 + site.edges.facing[rows] * (site.front[rows] + d)
+    g = polygonal(
+        clip_box(g, np.zeros((len(g), 2)), ax, mid - w / 2, mid + w / 2, np.minimum(s0, s1), np.maximum(s0, s1))
+    )
+    _, _, long_, short = obb_frame(g)
+    cut = np.flatnonzero(~shapely.is_empty(g) & (shapely.area(g) < HOUSE_FILL * long_ * short))
+    if len(cut):
+        area = site.area[rows[cut]]
+        centre = shapely.get_coordinates(shapely.get_point(shapely.maximum_inscribed_circle(area), 0))
+        fit = np.full(len(cut), shapely.Polygon(), dtype=object)
+        todo = np.arange(len(cut))
+        # whole, then turned end-on to the street, then a step smaller each way
+        for scale, turn in ((1.0, False), (1.0, True), (HOUSE_SHRINK, False), (HOUSE_SHRINK, True)):
+            hw, hd = 0.5 * scale * w[cut[todo]], 0.5 * scale * d[cut[todo]]
+            if turn:
+                hw, hd = hd, hw
+            box = clip_box(area[todo], centre[todo], ax[cut[todo]], -hw, hw, -hd, hd)
+            whole = shapely.area(box) >= (1.0 - 1e-6) * 4.0 * hw * hd
+            fit[todo[whole]] = box[whole]
+            todo = todo[~whole]
+            if not len(todo):
+                break
+        g[cut] = polygonal(fit)
+    return g
+
+
 def _generate(code: str, site: Site, rows, d, frac, *, podium_depth: float):
     """Parts of typology ``code`` on lots ``rows``: (geometries, row of each, role of each)."""
     A = site.area[rows]
@@ -256,23 +314,7 @@ def _generate(code: str, site: Site, rows, d, frac, *, podium_depth: float):
         g = _footprints(code, site, rows, d)
         return limit_length(g, ax, frac), np.asarray(rows), np.full(len(rows), MAIN)
     if code == "house":
-        g = _footprints("I", site, rows, d)
-        lo_, hi_ = _axis_extent(g, ax)
-        width = site.house[rows]
-        # a plot narrower than the house: it keeps its ground area by growing deeper (at most HOUSE_DEEPER)
-        squeezed = (hi_ > lo_) & (hi_ - lo_ < width)
-        if squeezed.any():
-            d = np.where(squeezed, d * np.minimum(width / np.maximum(hi_ - lo_, 1e-9), HOUSE_DEEPER), d)
-            g = _footprints("I", site, rows, d)
-            lo_, hi_ = _axis_extent(g, ax)
-        # a rectangle: the house's width along its main front, about the band's middle, and from that front
-        # no deeper than the setback and the house (a corner plot's band runs along its side street too)
-        half = 0.5 * np.minimum(width, frac * (hi_ - lo_))
-        mid = 0.5 * (lo_ + hi_)
-        s0 = site.edges.street[rows]
-        s1 = s0 + site.edges.facing[rows] * (fs + d)
-        g = clip_box(g, np.zeros((len(g), 2)), ax, mid - half, mid + half, np.minimum(s0, s1), np.maximum(s0, s1))
-        return polygonal(g), np.asarray(rows), np.full(len(rows), MAIN)
+        return _house(site, np.asarray(rows), d, frac), np.asarray(rows), np.full(len(rows), MAIN)
     if code == "tower":
         g, r = centred_boxes(A, ax, d, d)
         return limit_length(g, ax[r], frac[r]), np.asarray(rows)[r], np.full(len(r), MAIN)
