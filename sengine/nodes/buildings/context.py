@@ -64,7 +64,7 @@ perimeter blocks of Helsinki's centre have a median grain of 17 and Monaco
 its villages about 4); so 14 and 8.  With them, the fabrics of
 ``blocks.grain`` (town houses' plots in the urban grain), the house depth and
 the urban storeys, whole Liège's street
-network (no buildings) houses 1.01 million in the planning report instead of
+network (no buildings) houses 1.03 million in the planning report instead of
 5.3 million (every lot built), where its streets serve about 530 km², about
 the size of the arrondissement of Liège (628,381 inhabitants on 796 km²,
 Statbel, 1 January 2024): still some 1.6 times too many, with every floor

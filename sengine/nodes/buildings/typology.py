@@ -255,8 +255,9 @@ def _house(site: Site, rows: np.ndarray, d: np.ndarray, frac: np.ndarray) -> np.
     building area's street band.  On a plot narrower than the house it grows
     deeper to keep its ground area (at most :data:`HOUSE_DEEPER`).  Where the
     building area cuts it to under :data:`HOUSE_FILL` of its oriented box (a
-    triangle on a wedge plot), the house moves to the middle of the building area (the
-    centre of its largest inscribed circle), turned end-on to the street if
+    triangle on a wedge plot), the house moves to the widest place of the building area within
+    two and a half houses' depth of the street (the centre of its largest
+    inscribed circle there), else of the whole area, turned end-on to the street if
     that fits, else shrunk by :data:`HOUSE_SHRINK` each way; a plot that
     holds none of these whole stays a garden.  A house is a rectangle, never
     the sliver of one, nor a shed: Statbel counts 0.3 % of Wallonia's
@@ -286,11 +287,18 @@ def _house(site: Site, rows: np.ndarray, d: np.ndarray, frac: np.ndarray) -> np.
     cut = np.flatnonzero(~shapely.is_empty(g) & (shapely.area(g) < HOUSE_FILL * long_ * short))
     if len(cut):
         area = site.area[rows[cut]]
-        centre = shapely.get_coordinates(shapely.get_point(shapely.maximum_inscribed_circle(area), 0))
+        # the widest place of the area near the street (within two and a half houses' depth of it), then
+        # that of the whole area (the far end of a deep plot)
+        near = band(area, site.front_lines[rows[cut]], site.front[rows[cut]] + 2.5 * d[cut])
+        near = np.where(shapely.is_empty(near), area, near)
+        centres = [
+            shapely.get_coordinates(shapely.get_point(shapely.maximum_inscribed_circle(a), 0)) for a in (near, area)
+        ]
         fit = np.full(len(cut), shapely.Polygon(), dtype=object)
         todo = np.arange(len(cut))
         # whole, then turned end-on to the street, then a step smaller each way
-        for scale, turn in ((1.0, False), (1.0, True), (HOUSE_SHRINK, False), (HOUSE_SHRINK, True)):
+        steps = ((1.0, False), (1.0, True), (HOUSE_SHRINK, False), (HOUSE_SHRINK, True))
+        for (scale, turn), centre in ((step, c) for step in steps for c in centres):
             hw, hd = 0.5 * scale * w[cut[todo]], 0.5 * scale * d[cut[todo]]
             if turn:
                 hw, hd = hd, hw
