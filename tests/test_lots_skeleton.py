@@ -98,8 +98,7 @@ def thin_share(lots: Layer) -> float:
     st.sampled_from(["merge", "split"]),
 )
 def test_skeleton_partitions_generated_blocks(polys, interior, corner):
-    # blocks of a street graph never overlap: each drawn block 30 km from the one before
-    polys = [shapely.affinity.translate(p, 3e4 * i, 0.0) for i, p in enumerate(polys)]
+    # drawn blocks may lie over each other (a user's file): each is cut as if alone (passes of lots.skeleton)
     blocks = Layer.from_geoms(polys, ids=np.arange(len(polys)) * 7 + 2, district=np.zeros(len(polys), int))
     node = get("lots.skeleton")("lots", {"interior": interior, "corner": corner}, Context(seed=3))
     if (shapely.length(shapely.boundary(blocks.geometry)) < node.p.lot_width_min).all():
@@ -121,6 +120,28 @@ def test_skeleton_partitions_generated_blocks(polys, interior, corner):
     if interior == "split":  # inner lots under lot_area_max, but the counted pieces no cut could halve
         over = inner & (shapely.area(lots.geometry) > node.p.lot_area_max + 1e-6)
         assert int(over.sum()) == ran.report["skeleton_inner_over_max"]
+
+
+def test_overlapping_user_blocks_are_each_cut_as_if_alone():
+    """A user's blocks may lie over each other (a street graph's never do): each is cut whole, as alone."""
+    polys = [
+        shapely.box(0.0, 0.0, 120.0, 80.0),
+        shapely.box(60.0, 20.0, 200.0, 110.0),  # overlaps the first
+        shapely.box(20.0, 10.0, 70.0, 60.0),  # inside the first, overlapping the second
+        shapely.box(500.0, 0.0, 600.0, 90.0),  # apart
+        shapely.box(0.0, 0.0, 120.0, 80.0),  # the first again
+    ]
+    ids = np.array([3, 5, 8, 13, 21])
+    blocks = Layer.from_geoms(polys, ids=ids, district=np.zeros(len(polys), int))
+    node = get("lots.skeleton")("lots", {}, Context(seed=3))
+    lots = node.run(blocks=blocks)["lots"]
+    check_partition(blocks, lots)
+    assert len(lots) > 3 * len(polys)
+    for k in range(len(polys)):
+        alone = node.run(blocks=blocks.take([k]))["lots"]
+        mine = lots.geometry[lots["block"] == ids[k]]
+        assert len(mine) == len(alone) >= 1
+        assert shapely.equals_exact(mine, alone.geometry, tolerance=0.0).all()
 
 
 @pytest.mark.parametrize("name", ["helsinki", "monaco"])

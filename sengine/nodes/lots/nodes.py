@@ -389,6 +389,33 @@ def _seeds(self, ids) -> np.ndarray:
     return mix64(base, np.asarray(ids).astype(np.uint64))
 
 
+def _apart(geoms) -> list[np.ndarray]:
+    """Positions of ``geoms`` in passes whose polygons never overlap (touching is no overlap).
+
+    Blocks cut from one street graph never overlap and make one pass; a
+    polygon overlapping earlier ones goes to the first pass holding none of
+    them (greedy colouring of the overlap graph, in order).
+    """
+    n = len(geoms)
+    if n < 2:
+        return [np.arange(n)]
+    tree = shapely.STRtree(geoms)
+    a, b = tree.query(geoms, predicate="overlaps")
+    also, into = tree.query(geoms, predicate="contains")  # equal or nested: not 'overlaps'
+    a, b = np.minimum(np.r_[a, also], np.r_[b, into]), np.maximum(np.r_[a, also], np.r_[b, into])
+    pair = a < b
+    if not pair.any():
+        return [np.arange(n)]
+    later: dict[int, list[int]] = {}
+    for i, j in zip(a[pair].tolist(), b[pair].tolist()):
+        later.setdefault(j, []).append(i)
+    colour = np.zeros(n, np.int64)
+    for j in sorted(later):
+        taken = {int(colour[i]) for i in later[j]}
+        colour[j] = next(c for c in range(n) if c not in taken)
+    return [np.flatnonzero(colour == c) for c in range(int(colour.max()) + 1)]
+
+
 def _recursive(
     self,
     geoms,
@@ -472,17 +499,33 @@ def _skeleton(self, geoms, ids, report, *, where=None, fronts=None, box=None, lo
     if short.any():
         log.warning("%s: %d block(s) shorter all round than lot_width_min are kept whole", where, int(short.sum()))
     go = np.flatnonzero(~short)
-    fr = None if fronts is None else np.asarray(fronts, dtype=object)[go]
-    p = {k: v[go] if isinstance(v, np.ndarray) else v for k, v in _skeleton_sizes(lot_area, p).items()}
-    res = skeleton_lots(geoms[go], seeds=_seeds(self, ids[go]), fronts=fr, box=box, **p)
-    for k, v in res.report.items():
-        report[k] = report.get(k, 0) + v
+    sizes = _skeleton_sizes(lot_area, p)
+    seeds = _seeds(self, ids)
     keep = np.flatnonzero(short)
-    lots = np.r_[res.lots, geoms[keep]]
-    owner = np.r_[go[res.owner], keep].astype(np.int64)
-    inner = np.r_[res.inner, np.zeros(len(keep), bool)]
-    park = np.r_[res.park, np.zeros(len(keep), bool)]
-    flags = _SegmentFlags(res.lots, res.on, res.known).append(geoms[keep])
+    parts = []
+    # one face graph is traced for all the blocks of a pass, so blocks lying over each other (a user's
+    # file; a street graph's never do) go to different passes
+    for run in _apart(geoms[go]):
+        sel = go[run]
+        fr = None if fronts is None else np.asarray(fronts, dtype=object)[sel]
+        res = skeleton_lots(
+            geoms[sel],
+            seeds=seeds[sel],
+            fronts=fr,
+            box=box,
+            **{k: v[sel] if isinstance(v, np.ndarray) else v for k, v in sizes.items()},
+        )
+        for k, v in res.report.items():
+            report[k] = report.get(k, 0) + v
+        parts.append((res, sel))
+    lots = np.concatenate([res.lots for res, _ in parts] + [geoms[keep]])
+    owner = np.concatenate([sel[res.owner] for res, sel in parts] + [keep]).astype(np.int64)
+    inner = np.concatenate([res.inner for res, _ in parts] + [np.zeros(len(keep), bool)])
+    park = np.concatenate([res.park for res, _ in parts] + [np.zeros(len(keep), bool)])
+    flags = _SegmentFlags(np.zeros(0, dtype=object))
+    for res, _ in parts:
+        flags = flags.join(_SegmentFlags(res.lots, res.on, res.known))
+    flags = flags.append(geoms[keep])
     o = np.argsort(owner, kind="stable")
     flags = flags.take(o)
     meth = np.full(len(lots), "skeleton")
