@@ -503,19 +503,33 @@ def _orient(p, q, r):
     return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
 
 
+COARSE = 4  # runs per box of the far pass of ring_crossings (sets the cost only)
+
+
+def _box_meet(lo, hi, a, b):
+    """Whether the boxes ``a`` and ``b`` (rows of ``lo``, ``hi``) meet (closed), pair by pair."""
+    return (lo[a, 0] <= hi[b, 0]) & (lo[b, 0] <= hi[a, 0]) & (lo[a, 1] <= hi[b, 1]) & (lo[b, 1] <= hi[a, 1])
+
+
 def ring_crossings(xy: np.ndarray, sizes: np.ndarray, chain: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """Pairs of edges of the same closed ring that cross or touch, neighbours along the ring excepted.
 
     Edge ``i`` of a ring runs from its vertex ``i`` to the next one (the
     last back to the first).  Runs of ``chain`` consecutive edges are boxed
-    and the boxes that meet paired on a grid
-    (:func:`sengine.geom.grid.box_pairs`); two neighbouring runs whose
-    ``2 chain + 1`` vertices advance strictly along their chord cannot meet
-    (a strictly monotone line is simple) and are passed over; the edges of
-    the other pairs are tested two by two with the signs of their turns
-    (edges that share a vertex, or collinear edges that overlap, touch).
-    Numpy throughout; the sign test is in floating point, so a pair
-    touching within rounding may be reported or not.
+    and the pairs of runs whose boxes meet are found in two passes: runs
+    near one another along the ring (up to ``2 COARSE - 1`` runs apart) are
+    compared directly, and runs farther apart through boxes of ``COARSE``
+    runs paired on a grid (:func:`sengine.geom.grid.box_pairs`; two boxes
+    of runs that meet lie in coarse boxes that meet, and runs of the same
+    or neighbouring coarse boxes are near), so the grid sees a quarter of
+    the boxes and none of the pairs every ring has (each run with itself
+    and its neighbours).  Two neighbouring runs whose ``2 chain + 1``
+    vertices advance strictly along their chord cannot meet (a strictly
+    monotone line is simple) and are passed over; the edges of the other
+    pairs are tested two by two with the signs of their turns (edges that
+    share a vertex, or collinear edges that overlap, touch).  Numpy
+    throughout; the sign test is in floating point, so a pair touching
+    within rounding may be reported or not.
 
     Parameters
     ----------
@@ -543,35 +557,80 @@ def ring_crossings(xy: np.ndarray, sizes: np.ndarray, chain: int = 3) -> tuple[n
     nxt = start[ring] + np.mod(k + 1, sizes[ring])
     # runs of `chain` edges: run r of a ring covers its edges chain r .. chain r + chain - 1 (fewer at the end)
     nrun = -(-sizes // chain)
+    rstart = np.cumsum(nrun) - nrun
     rr = np.repeat(np.arange(len(sizes)), nrun)
-    rk = np.arange(int(nrun.sum())) - np.repeat(np.cumsum(nrun) - nrun, nrun)
+    rk = np.arange(int(nrun.sum())) - rstart[rr]
     cnt = np.minimum(chain, sizes[rr] - chain * rk)
     off = np.arange(chain + 1)
     pos = np.minimum(off[None, :], cnt[:, None])  # vertices of the run (the last repeated where shorter)
     at = start[rr][:, None] + np.mod(chain * rk[:, None] + pos, sizes[rr][:, None])
-    pts = xy[at]
-    lo, hi = pts.min(axis=1), pts.max(axis=1)
-    ia, ib = box_pairs(lo, hi, lo, hi, group_a=rr, group_b=rr)
-    keep = ib >= ia
-    ia, ib = ia[keep], ib[keep]
+    lo = hi = first = prev = xy[at[:, 0]]
+    steps = []
+    for c in range(1, chain + 1):  # column by column: faster than a reduction over a short axis
+        p = xy[at[:, c]]
+        lo, hi = np.minimum(lo, p), np.maximum(hi, p)
+        steps.append(p - prev)
+        prev = p
+    # a whole run strictly monotone along its chord meets itself nowhere (as two neighbouring runs, below)
+    chord = prev - first
+    bent = cnt < chain
+    for s in steps:
+        bent |= s[:, 0] * chord[:, 0] + s[:, 1] * chord[:, 1] <= 0
+    # near pairs: each run and the next ones round its ring, up to 2 COARSE - 1 runs on (fewer in short rings)
+    span = np.minimum(2 * COARSE - 1, nrun - 1)
+    nd = span[rr] + 1
+    ia = np.repeat(np.arange(len(rr)), nd)
+    d = _ramp(nd)
+    ring_a = rr[ia]
+    ib = rstart[ring_a] + np.mod(rk[ia] + d, nrun[ring_a])
+    meet = _box_meet(lo, hi, ia, ib)
+    ia, ib, d = ia[meet], ib[meet], d[meet]
+    # far pairs: boxes of COARSE runs that are not neighbours round the ring, paired on the grid
+    nco = -(-nrun // COARSE)
+    cfirst = np.flatnonzero(rk % COARSE == 0)  # first run of each coarse box (a ring's runs are contiguous)
+    cring = rr[cfirst]
+    ck = rk[cfirst] // COARSE
+    clo = np.minimum.reduceat(lo, cfirst, axis=0)
+    chi = np.maximum.reduceat(hi, cfirst, axis=0)
+    ca, cb = box_pairs(clo, chi, clo, chi, group_a=cring, group_b=cring)
+    gap = ck[cb] - ck[ca]
+    far = (gap >= 2) & (gap <= nco[cring[ca]] - 2)
+    ca, cb = ca[far], cb[far]
+    na, nb = (
+        np.minimum(COARSE, nrun[cring[ca]] - COARSE * ck[ca]),
+        np.minimum(COARSE, nrun[cring[cb]] - COARSE * ck[cb]),
+    )
+    row = np.repeat(np.arange(len(ca)), na * nb)
+    q = _ramp(na * nb)
+    fa = cfirst[ca][row] + q // nb[row]
+    fb = cfirst[cb][row] + q % nb[row]
+    n_f = nrun[rr[fa]]
+    fwd = rk[fb] - rk[fa]
+    keep = (fwd > span[rr[fa]]) & (n_f - fwd > span[rr[fa]])  # the near pass has the others
+    fa, fb = fa[keep], fb[keep]
+    meet = _box_meet(lo, hi, fa, fb)
+    fa, fb = fa[meet], fb[meet]
     # neighbouring runs (the next one round the ring) strictly monotone along their chord: no crossing
     n = nrun[rr[ia]]
-    fwd = np.mod(rk[ia] + 1, n) == rk[ib]
-    adj = (ia != ib) & (fwd | (np.mod(rk[ib] + 1, n) == rk[ia])) & (n > 2)
-    f = np.where(fwd, ia, ib)[adj]
-    g = np.where(fwd, ib, ia)[adj]
-    line = np.concatenate([at[f], at[g][:, 1:]], axis=1)  # both runs' vertices in ring order
+    adj = ((d == 1) | (d == n - 1)) & (n > 2)
+    f = np.where(d == 1, ia, ib)[adj]
+    g = np.where(d == 1, ib, ia)[adj]
     whole = (cnt[f] == chain) & (cnt[g] == chain)
-    step = np.diff(xy[line], axis=1)
-    chord = xy[line[:, -1]] - xy[line[:, 0]]
-    mono = whole & (np.einsum("ikj,ij->ik", step, chord) > 0).all(axis=1)
+    chord = prev[g] - first[f]  # from the first run's first vertex to the second's last
+    steps = np.stack(steps, axis=1)
+    mono = whole & (np.einsum("ikj,ij->ik", steps[f], chord) > 0).all(axis=1)
+    mono &= (np.einsum("ikj,ij->ik", steps[g], chord) > 0).all(axis=1)
     keep = np.ones(len(ia), bool)
     keep[np.flatnonzero(adj)[mono]] = False
-    ia, ib = ia[keep], ib[keep]
-    # edge pairs of the remaining run pairs
-    ka = np.tile(np.repeat(np.arange(chain), chain), len(ia))
-    kb = np.tile(np.arange(chain), chain * len(ia))
-    ia, ib = np.repeat(ia, chain * chain), np.repeat(ib, chain * chain)
+    self_ = keep & (d == 0) & bent[ia]
+    other = keep & (d > 0)
+    # edge pairs: a run with itself (edges two or more apart), and of the other pairs all of them
+    sa, sb = np.triu_indices(chain, 2)
+    ss = np.flatnonzero(self_)
+    ka = np.r_[np.tile(sa, len(ss)), np.tile(np.repeat(np.arange(chain), chain), int(other.sum()) + len(fa))]
+    kb = np.r_[np.tile(sb, len(ss)), np.tile(np.arange(chain), chain * (int(other.sum()) + len(fa)))]
+    ia = np.r_[np.repeat(ia[ss], len(sa)), np.repeat(np.r_[ia[other], fa], chain * chain)]
+    ib = np.r_[np.repeat(ib[ss], len(sa)), np.repeat(np.r_[ib[other], fb], chain * chain)]
     ok = (ka < cnt[ia]) & (kb < cnt[ib])
     ea, eb = at[ia[ok], ka[ok]], at[ib[ok], kb[ok]]
     i, j = np.minimum(ea, eb), np.maximum(ea, eb)
