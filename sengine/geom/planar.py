@@ -62,11 +62,14 @@ def _angular_order(xy: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     half-edge order): the half-edges grouped by origin (an integer radix
     sort), then each node's few sorted by angle, all nodes of one degree at
     once as the rows of a matrix, instead of one sort of every angle (most
-    nodes of a face graph have 2 or 3 half-edges).
+    nodes of a face graph have 2 or 3 half-edges: up to 4, each one's rank
+    by comparing it with the others, no sort).
     """
     org = np.stack([u, v], axis=1).ravel()
-    dst = np.stack([v, u], axis=1).ravel()
-    d = xy[dst] - xy[org]
+    de = xy[v] - xy[u]
+    d = np.empty((2 * len(u), 2))
+    d[0::2] = de
+    d[1::2] = -de + 0.0  # the twin's direction, as xy[u] - xy[v] gives it to the bit (+ 0.0: no -0.0)
     angle = np.arctan2(d[:, 1], d[:, 0])
     order = argsort_int(org)  # stable: within a node, half-edges in increasing order
     so = org[order]
@@ -76,7 +79,17 @@ def _angular_order(xy: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     for k in np.unique(size[size > 1]):
         at = start[size == k][:, None] + np.arange(k)  # the nodes of degree k, one row each
         rows = order[at]
-        out[at] = np.take_along_axis(rows, np.argsort(angle[rows], axis=1, kind="stable"), axis=1)
+        x = angle[rows]
+        if k <= 4:  # a few: each one's rank is how many of its row come before it (ties: in row order)
+            rank = np.zeros(x.shape, np.int64)
+            for i in range(k):
+                for j in range(i + 1, k):
+                    jfirst = x[:, j] < x[:, i]
+                    rank[:, i] += jfirst
+                    rank[:, j] += ~jfirst
+            out[np.take_along_axis(at, rank, axis=1)] = rows
+            continue
+        out[at] = np.take_along_axis(rows, np.argsort(x, axis=1, kind="stable"), axis=1)
     return out
 
 
@@ -260,12 +273,16 @@ def _cycle_order(
     succ = nxt.copy()
     succ[tail] = tail
     dist = (succ != h).astype(np.int64)
-    while True:
-        ss = succ[succ]
-        if np.array_equal(ss, succ):
-            break
-        dist = dist + dist[succ]
-        succ = ss
+    # pointer jumping on the half-edges not yet at their tail only: the many short faces drop out
+    # after a few rounds, the long ones (a block's interior) go on alone (the same sums)
+    act = np.flatnonzero(succ != h)
+    while len(act):
+        s = succ[act]
+        ss = succ[s]
+        live = ss != s
+        act, s, ss = act[live], s[live], ss[live]
+        dist[act] += dist[s]
+        succ[act] = ss
     size = np.bincount(face, minlength=nf)
     offset = np.r_[0, np.cumsum(size)[:-1]]
     rank = size[face] - 1 - dist
@@ -504,6 +521,7 @@ def _orient(p, q, r):
 
 
 COARSE = 4  # runs per box of the far pass of ring_crossings (sets the cost only)
+EDGE_PAD = 1e-9  # edge boxes of ring_crossings grow by this times the largest coordinate (0.25 mm at 250 km)
 
 
 def _box_meet(lo, hi, a, b):
@@ -624,15 +642,28 @@ def ring_crossings(xy: np.ndarray, sizes: np.ndarray, chain: int = 3) -> tuple[n
     keep[np.flatnonzero(adj)[mono]] = False
     self_ = keep & (d == 0) & bent[ia]
     other = keep & (d > 0)
-    # edge pairs: a run with itself (edges two or more apart), and of the other pairs all of them
+    # edge pairs: a run with itself (edges two or more apart); of two runs, the edges of each whose box
+    # meets the other run's box, two by two (padded far beyond rounding: the sign test below is not
+    # exact, and a pair it would say touches is kept)
     sa, sb = np.triu_indices(chain, 2)
-    ss = np.flatnonzero(self_)
-    ka = np.r_[np.tile(sa, len(ss)), np.tile(np.repeat(np.arange(chain), chain), int(other.sum()) + len(fa))]
-    kb = np.r_[np.tile(sb, len(ss)), np.tile(np.arange(chain), chain * (int(other.sum()) + len(fa)))]
-    ia = np.r_[np.repeat(ia[ss], len(sa)), np.repeat(np.r_[ia[other], fa], chain * chain)]
-    ib = np.r_[np.repeat(ib[ss], len(sa)), np.repeat(np.r_[ib[other], fb], chain * chain)]
-    ok = (ka < cnt[ia]) & (kb < cnt[ib])
-    ea, eb = at[ia[ok], ka[ok]], at[ib[ok], kb[ok]]
+    srun = ia[self_]
+    sa, sb, srun = np.tile(sa, len(srun)), np.tile(sb, len(srun)), np.repeat(srun, len(sa))
+    whole = sb < cnt[srun]
+    sa, sb, srun = sa[whole], sb[whole], srun[whole]
+    ia, ib = np.r_[ia[other], fa], np.r_[ib[other], fb]
+    pad = EDGE_PAD * max(float(np.abs(xy).max()), 1.0)
+    elo, ehi = np.minimum(xy, xy[nxt]) - pad, np.maximum(xy, xy[nxt]) + pad
+    live = np.arange(chain)
+
+    def near(a, b):  # (pair, k): edge k of run a exists and its box meets run b's box
+        e = at[a, :chain]
+        lo_e, hi_e, lo_b, hi_b = elo[e], ehi[e], lo[b][:, None], hi[b][:, None]
+        ok = (lo_e[..., 0] <= hi_b[..., 0]) & (lo_b[..., 0] <= hi_e[..., 0])
+        ok &= (lo_e[..., 1] <= hi_b[..., 1]) & (lo_b[..., 1] <= hi_e[..., 1])
+        return ok & (live < cnt[a][:, None])
+
+    pair, ka, kb = np.nonzero(near(ia, ib)[:, :, None] & near(ib, ia)[:, None, :])
+    ea, eb = np.r_[at[srun, sa], at[ia[pair], ka]], np.r_[at[srun, sb], at[ib[pair], kb]]
     i, j = np.minimum(ea, eb), np.maximum(ea, eb)
     keep = (i != j) & (nxt[i] != j) & (nxt[j] != i)
     i, j = i[keep], j[keep]
