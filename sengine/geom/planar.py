@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from .grid import _ramp, box_pairs
+from .grid import _ramp, box_self_pairs
 from .segments import argsort_int
 from .sorting import unique_int
 
@@ -537,7 +537,7 @@ def ring_crossings(xy: np.ndarray, sizes: np.ndarray, chain: int = 3) -> tuple[n
     and the pairs of runs whose boxes meet are found in two passes: runs
     near one another along the ring (up to ``2 COARSE - 1`` runs apart) are
     compared directly, and runs farther apart through boxes of ``COARSE``
-    runs paired on a grid (:func:`sengine.geom.grid.box_pairs`; two boxes
+    runs paired on a grid (:func:`sengine.geom.grid.box_self_pairs`; two boxes
     of runs that meet lie in coarse boxes that meet, and runs of the same
     or neighbouring coarse boxes are near), so the grid sees a quarter of
     the boxes and none of the pairs every ring has (each run with itself
@@ -610,7 +610,7 @@ def ring_crossings(xy: np.ndarray, sizes: np.ndarray, chain: int = 3) -> tuple[n
     ck = rk[cfirst] // COARSE
     clo = np.minimum.reduceat(lo, cfirst, axis=0)
     chi = np.maximum.reduceat(hi, cfirst, axis=0)
-    ca, cb = box_pairs(clo, chi, clo, chi, group_a=cring, group_b=cring)
+    ca, cb = box_self_pairs(clo, chi, group=cring)
     gap = ck[cb] - ck[ca]
     far = (gap >= 2) & (gap <= nco[cring[ca]] - 2)
     ca, cb = ca[far], cb[far]

@@ -17,7 +17,7 @@ import numpy as np
 import shapely
 
 from sengine.geom.boundary import ring_segments
-from sengine.geom.grid import box_pairs
+from sengine.geom.grid import box_self_pairs
 from sengine.geom.merge import TOUCH, kept_area
 from sengine.geom.planar import planar_faces
 from sengine.geom.polygons import threaded
@@ -141,9 +141,7 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part, f
     # crossings of rays with rays
     a0, a1 = p, q
     lo, hi = np.minimum(a0, a1), np.maximum(a0, a1)
-    i, j = box_pairs(lo, hi, lo, hi, group_a=ray_part, group_b=ray_part)  # rays of one part whose boxes meet
-    sel = i < j
-    i, j = i[sel], j[sel]
+    i, j = box_self_pairs(lo, hi, group=ray_part)  # rays of one part whose boxes meet, i < j
     shared = (start_node[i] == start_node[j]) | (start_node[i] == end_node[j])
     shared |= (end_node[i] == start_node[j]) | (end_node[i] == end_node[j])
     i, j = i[~shared], j[~shared]
