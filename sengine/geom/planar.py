@@ -498,20 +498,26 @@ def star_simple(xy: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     end = np.cumsum(sizes)
     start = end - sizes
     c = (np.add.reduceat(xy, start, axis=0) - xy[end - 1]) / (sizes - 1)[:, None]
-    d = xy - np.repeat(c, sizes, axis=0)
-    a, b = d[:-1], d[1:]  # edge k: coordinate k to k + 1 (the step from a ring's last coordinate to the next ring's
-    # first is no edge: it is passed over below)
-    cr = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    dx, dy = xy[:, 0] - np.repeat(c[:, 0], sizes), xy[:, 1] - np.repeat(c[:, 1], sizes)
+    ax, ay, bx, by = dx[:-1], dy[:-1], dx[1:], dy[1:]  # edge k: coordinate k to k + 1 (the step from a ring's
+    # last coordinate to the next ring's first is no edge: it is passed over below)
+    cr = ax * by - ay * bx
     delta = STAR_ULPS * np.finfo(np.float64).eps * max(float(np.abs(xy).max()), 1.0)
+    norm = np.abs(dx) + np.abs(dy)  # |a| + |b| of each edge: the L1 norms of its two ends
     with np.errstate(invalid="ignore"):
-        strict = cr > delta * (np.abs(a).sum(axis=1) + np.abs(b).sum(axis=1))
-    same = (a[:, 0] == b[:, 0]) & (a[:, 1] == b[:, 1])
-    up = (a[:, 1] <= 0.0) & (b[:, 1] > 0.0)  # crosses the ray from c along +x, going round counter-clockwise
+        strict = cr > delta * (norm[:-1] + norm[1:])
+    same = (ax == bx) & (ay == by)
+    up = (ay <= 0.0) & (by > 0.0)  # crosses the ray from c along +x, going round counter-clockwise
     between = end[:-1] - 1
     strict[between], same[between], up[between] = True, False, False
-    fail = np.add.reduceat(np.r_[~(strict | same), False].astype(np.int64), start)
-    turns = np.add.reduceat(np.r_[up, False].astype(np.int64), start)
-    edges = np.add.reduceat(np.r_[strict & ~same, False].astype(np.int64), start) - np.r_[np.ones(r - 1, np.int64), 0]
+    # per ring: edges failing, crossings of the ray, edges of positive length (cumulative counts)
+    bad = np.r_[0, np.cumsum(~(strict | same))]
+    turn = np.r_[0, np.cumsum(up)]
+    good = np.r_[0, np.cumsum(strict & ~same)]
+    last = end - 1  # one past each ring's last edge
+    fail = bad[last] - bad[start]
+    turns = turn[last] - turn[start]
+    edges = good[last] - good[start]
     return (fail == 0) & (turns == 1) & (edges >= 3)
 
 
