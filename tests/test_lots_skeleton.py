@@ -394,3 +394,18 @@ def test_unique_rows_gives_numpys_numbers(rows, ncol):
         return
     _, ref_first, ref_inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
     assert np.array_equal(first, ref_first) and np.array_equal(inv, ref_inv.ravel())
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 6000), st.integers(1, 50), st.integers(0, 2**32 - 1))
+def test_unique_along_is_unique_rows_of_segment_and_position(n, nseg, seed):
+    """faces._unique_along: unique_rows of (segment, position) rows, the same first indices and groups, with
+    repeated positions, -0.0 and 0.0, many points on a segment (its row sort) and the radix sort's sizes."""
+    from sengine.nodes.lots.faces import _unique_along, unique_rows
+
+    rng = np.random.default_rng(seed)
+    seg = rng.integers(0, nseg, n)
+    par = rng.choice([0.0, -0.0, 0.25, 1e-9, 3.5, 7.0], n) * rng.choice([1.0, 1.0, 2.0], n)
+    first, inv = _unique_along(seg, par)
+    want_first, want_inv = unique_rows(np.c_[seg.astype(np.float64), par])
+    assert np.array_equal(first, want_first) and np.array_equal(inv, want_inv)

@@ -222,3 +222,21 @@ def test_box_pairs_are_the_strtree_query(na, nb, cell, ngroups, seed):
         want = []
     assert np.all(np.diff(ia) >= 0)
     assert sorted(zip(ia.tolist(), ib.tolist())) == want
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(0, 80), st.sampled_from([0.5, 3.0, 40.0, None]), st.integers(1, 4), st.integers(0, 2**32 - 1))
+def test_box_self_pairs_are_box_pairs_one_way_round(n, cell, ngroups, seed):
+    """grid.box_self_pairs: box_pairs of a set with itself, the pairs i < j only, in the very same order
+    (which crossing of several rays at one point names the node depends on it); boxes flat, shared, empty."""
+    from sengine.geom.grid import box_pairs, box_self_pairs
+
+    rng = np.random.default_rng(seed)
+    lo = rng.integers(-20, 20, (n, 2)).astype(float) * rng.choice([1.0, 0.37], (n, 1))
+    hi = lo + rng.choice([0.0, 0.5, 3.0, 25.0], (n, 2))
+    lo[rng.random(n) < 0.1] = np.nan
+    g = rng.integers(0, ngroups, n)
+    i, j = box_pairs(lo, hi, lo, hi, group_a=g, group_b=g, cell=cell)
+    si, sj = box_self_pairs(lo, hi, group=g, cell=cell)
+    assert (si < sj).all()
+    assert np.array_equal(si, i[i < j]) and np.array_equal(sj, j[i < j])

@@ -423,3 +423,79 @@ def box_pairs(lo_a, hi_a, lo_b, hi_b, *, group_a=None, group_b=None, cell=None):
     cy = np.floor((np.maximum(ya[meet], yb[meet]) - origin[1]) / cell).astype(np.int64)
     once = key_a[at] == key(ga[ia], cx, cy)
     return ia[once], ib[once]
+
+
+def box_self_pairs(lo, hi, *, group=None, cell=None):
+    """Pairs ``i < j`` of boxes of one set that meet (closed), of the same group, found on a grid.
+
+    ``box_pairs(lo, hi, lo, hi, group_a=group, group_b=group)`` with the
+    pairs ``i < j`` kept, in the same order (``i`` non-decreasing, then by
+    cell and number), for half the work: each box is listed in its cells
+    once, and within a cell only the boxes after it (by number) are paired
+    with it, so no pair comes both ways round and no box meets itself.
+
+    Parameters
+    ----------
+    lo, hi : ndarray (n, 2)
+        Lower and upper corners of the boxes (m); NaN: a box that meets nothing.
+    group : ndarray of int, optional
+        Only boxes of one group pair up (default: all one group).
+    cell : float, optional
+        Side of the grid's cells (m; see :func:`box_pairs`): sets the cost only.
+
+    Returns
+    -------
+    i, j : ndarray of int64
+        The pairs, ``i < j``.
+    """
+    lo, hi = np.asarray(lo, np.float64).reshape(-1, 2), np.asarray(hi, np.float64).reshape(-1, 2)
+    n = len(lo)
+    e64 = np.zeros(0, np.int64)
+    if n == 0:
+        return e64, e64
+    g = np.zeros(n, np.int64) if group is None else np.asarray(group, np.int64)
+    fin = np.isfinite(lo).all(axis=1) & np.isfinite(hi).all(axis=1)
+    if not fin.all():  # boxes of empty geometries (NaN) meet nothing
+        k = np.flatnonzero(fin)
+        i, j = box_self_pairs(lo[k], hi[k], group=g[k], cell=cell)
+        return k[i], k[j]
+    gmin = int(g.min())
+    ng = int(g.max()) - gmin + 1
+    if ng > 1 << 20:  # many groups or far apart: numbered 0 .. G-1
+        groups, inv = np.unique(g, return_inverse=True)
+        g, ng = inv.astype(np.int64).ravel(), len(groups)
+    else:
+        g = g - gmin
+    if cell is None:
+        cell = 2.0 * float(np.median((hi - lo).max(axis=1)))
+    origin = lo.min(axis=0)
+    size = hi.max(axis=0) - origin
+    side = max(int(np.sqrt(2.0**62 / ng)) - 2, 1)  # as box_pairs: the same cells
+    big = float((hi - lo).max())
+    cell = max(float(cell), float(size.max()) / min(side, 4096), big / 256.0, 1e-9)
+    ncell = int(np.floor(float(size.max()) / cell)) + 2
+    c0 = np.floor((lo - origin) / cell).astype(np.int64)
+    c1 = np.floor((hi - origin) / cell).astype(np.int64)
+    cx, cy = c1[:, 0] - c0[:, 0] + 1, c1[:, 1] - c0[:, 1] + 1
+    cnt = cx * cy
+    box = np.repeat(np.arange(n), cnt)
+    j = _ramp(cnt)
+    key = (g[box] * ncell + c0[box, 0] + j // cy[box]) * ncell + c0[box, 1] + j % cy[box]
+    o = np.argsort(key, kind="stable")  # within a cell, boxes by number
+    key, box = key[o], box[o]
+    after = np.searchsorted(key, key, side="right") - np.arange(1, len(key) + 1)  # later entries of its cell
+    at = np.repeat(np.arange(len(key)), after)
+    ia, ib = box[at], box[at + 1 + _ramp(after)]
+    # boxes that meet, and only in the cell of the corner where their lower ends meet
+    xa, xb = lo[ia, 0], lo[ib, 0]
+    meet = (xa <= hi[ib, 0]) & (xb <= hi[ia, 0])
+    at, ia, ib, xa, xb = at[meet], ia[meet], ib[meet], xa[meet], xb[meet]
+    ya, yb = lo[ia, 1], lo[ib, 1]
+    meet = (ya <= hi[ib, 1]) & (yb <= hi[ia, 1])
+    at, ia, ib = at[meet], ia[meet], ib[meet]
+    gx = np.floor((np.maximum(xa[meet], xb[meet]) - origin[0]) / cell).astype(np.int64)
+    gy = np.floor((np.maximum(ya[meet], yb[meet]) - origin[1]) / cell).astype(np.int64)
+    once = key[at] == (g[ia] * ncell + gx) * ncell + gy
+    at, ia, ib = at[once], ia[once], ib[once]
+    o = np.lexsort((ib, key[at], ia))  # box_pairs' order: by first box, its cells in order, second box
+    return ia[o], ib[o]

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import shapely
 
-from .grid import _ramp, box_pairs
+from .grid import _ramp, box_self_pairs
 from .segments import argsort_int
 from .sorting import unique_int
 
@@ -62,11 +62,14 @@ def _angular_order(xy: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     half-edge order): the half-edges grouped by origin (an integer radix
     sort), then each node's few sorted by angle, all nodes of one degree at
     once as the rows of a matrix, instead of one sort of every angle (most
-    nodes of a face graph have 2 or 3 half-edges).
+    nodes of a face graph have 2 or 3 half-edges: up to 4, each one's rank
+    by comparing it with the others, no sort).
     """
     org = np.stack([u, v], axis=1).ravel()
-    dst = np.stack([v, u], axis=1).ravel()
-    d = xy[dst] - xy[org]
+    de = xy[v] - xy[u]
+    d = np.empty((2 * len(u), 2))
+    d[0::2] = de
+    d[1::2] = -de + 0.0  # the twin's direction, as xy[u] - xy[v] gives it to the bit (+ 0.0: no -0.0)
     angle = np.arctan2(d[:, 1], d[:, 0])
     order = argsort_int(org)  # stable: within a node, half-edges in increasing order
     so = org[order]
@@ -76,7 +79,17 @@ def _angular_order(xy: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     for k in np.unique(size[size > 1]):
         at = start[size == k][:, None] + np.arange(k)  # the nodes of degree k, one row each
         rows = order[at]
-        out[at] = np.take_along_axis(rows, np.argsort(angle[rows], axis=1, kind="stable"), axis=1)
+        x = angle[rows]
+        if k <= 4:  # a few: each one's rank is how many of its row come before it (ties: in row order)
+            rank = np.zeros(x.shape, np.int64)
+            for i in range(k):
+                for j in range(i + 1, k):
+                    jfirst = x[:, j] < x[:, i]
+                    rank[:, i] += jfirst
+                    rank[:, j] += ~jfirst
+            out[np.take_along_axis(at, rank, axis=1)] = rows
+            continue
+        out[at] = np.take_along_axis(rows, np.argsort(x, axis=1, kind="stable"), axis=1)
     return out
 
 
@@ -260,12 +273,16 @@ def _cycle_order(
     succ = nxt.copy()
     succ[tail] = tail
     dist = (succ != h).astype(np.int64)
-    while True:
-        ss = succ[succ]
-        if np.array_equal(ss, succ):
-            break
-        dist = dist + dist[succ]
-        succ = ss
+    # pointer jumping on the half-edges not yet at their tail only: the many short faces drop out
+    # after a few rounds, the long ones (a block's interior) go on alone (the same sums)
+    act = np.flatnonzero(succ != h)
+    while len(act):
+        s = succ[act]
+        ss = succ[s]
+        live = ss != s
+        act, s, ss = act[live], s[live], ss[live]
+        dist[act] += dist[s]
+        succ[act] = ss
     size = np.bincount(face, minlength=nf)
     offset = np.r_[0, np.cumsum(size)[:-1]]
     rank = size[face] - 1 - dist
@@ -481,20 +498,26 @@ def star_simple(xy: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     end = np.cumsum(sizes)
     start = end - sizes
     c = (np.add.reduceat(xy, start, axis=0) - xy[end - 1]) / (sizes - 1)[:, None]
-    d = xy - np.repeat(c, sizes, axis=0)
-    a, b = d[:-1], d[1:]  # edge k: coordinate k to k + 1 (the step from a ring's last coordinate to the next ring's
-    # first is no edge: it is passed over below)
-    cr = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    dx, dy = xy[:, 0] - np.repeat(c[:, 0], sizes), xy[:, 1] - np.repeat(c[:, 1], sizes)
+    ax, ay, bx, by = dx[:-1], dy[:-1], dx[1:], dy[1:]  # edge k: coordinate k to k + 1 (the step from a ring's
+    # last coordinate to the next ring's first is no edge: it is passed over below)
+    cr = ax * by - ay * bx
     delta = STAR_ULPS * np.finfo(np.float64).eps * max(float(np.abs(xy).max()), 1.0)
+    norm = np.abs(dx) + np.abs(dy)  # |a| + |b| of each edge: the L1 norms of its two ends
     with np.errstate(invalid="ignore"):
-        strict = cr > delta * (np.abs(a).sum(axis=1) + np.abs(b).sum(axis=1))
-    same = (a[:, 0] == b[:, 0]) & (a[:, 1] == b[:, 1])
-    up = (a[:, 1] <= 0.0) & (b[:, 1] > 0.0)  # crosses the ray from c along +x, going round counter-clockwise
+        strict = cr > delta * (norm[:-1] + norm[1:])
+    same = (ax == bx) & (ay == by)
+    up = (ay <= 0.0) & (by > 0.0)  # crosses the ray from c along +x, going round counter-clockwise
     between = end[:-1] - 1
     strict[between], same[between], up[between] = True, False, False
-    fail = np.add.reduceat(np.r_[~(strict | same), False].astype(np.int64), start)
-    turns = np.add.reduceat(np.r_[up, False].astype(np.int64), start)
-    edges = np.add.reduceat(np.r_[strict & ~same, False].astype(np.int64), start) - np.r_[np.ones(r - 1, np.int64), 0]
+    # per ring: edges failing, crossings of the ray, edges of positive length (cumulative counts)
+    bad = np.r_[0, np.cumsum(~(strict | same))]
+    turn = np.r_[0, np.cumsum(up)]
+    good = np.r_[0, np.cumsum(strict & ~same)]
+    last = end - 1  # one past each ring's last edge
+    fail = bad[last] - bad[start]
+    turns = turn[last] - turn[start]
+    edges = good[last] - good[start]
     return (fail == 0) & (turns == 1) & (edges >= 3)
 
 
@@ -503,19 +526,34 @@ def _orient(p, q, r):
     return np.sign((q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (r[:, 0] - p[:, 0]))
 
 
+COARSE = 4  # runs per box of the far pass of ring_crossings (sets the cost only)
+EDGE_PAD = 1e-9  # edge boxes of ring_crossings grow by this times the largest coordinate (0.25 mm at 250 km)
+
+
+def _box_meet(lo, hi, a, b):
+    """Whether the boxes ``a`` and ``b`` (rows of ``lo``, ``hi``) meet (closed), pair by pair."""
+    return (lo[a, 0] <= hi[b, 0]) & (lo[b, 0] <= hi[a, 0]) & (lo[a, 1] <= hi[b, 1]) & (lo[b, 1] <= hi[a, 1])
+
+
 def ring_crossings(xy: np.ndarray, sizes: np.ndarray, chain: int = 3) -> tuple[np.ndarray, np.ndarray]:
     """Pairs of edges of the same closed ring that cross or touch, neighbours along the ring excepted.
 
     Edge ``i`` of a ring runs from its vertex ``i`` to the next one (the
     last back to the first).  Runs of ``chain`` consecutive edges are boxed
-    and the boxes that meet paired on a grid
-    (:func:`sengine.geom.grid.box_pairs`); two neighbouring runs whose
-    ``2 chain + 1`` vertices advance strictly along their chord cannot meet
-    (a strictly monotone line is simple) and are passed over; the edges of
-    the other pairs are tested two by two with the signs of their turns
-    (edges that share a vertex, or collinear edges that overlap, touch).
-    Numpy throughout; the sign test is in floating point, so a pair
-    touching within rounding may be reported or not.
+    and the pairs of runs whose boxes meet are found in two passes: runs
+    near one another along the ring (up to ``2 COARSE - 1`` runs apart) are
+    compared directly, and runs farther apart through boxes of ``COARSE``
+    runs paired on a grid (:func:`sengine.geom.grid.box_self_pairs`; two boxes
+    of runs that meet lie in coarse boxes that meet, and runs of the same
+    or neighbouring coarse boxes are near), so the grid sees a quarter of
+    the boxes and none of the pairs every ring has (each run with itself
+    and its neighbours).  Two neighbouring runs whose ``2 chain + 1``
+    vertices advance strictly along their chord cannot meet (a strictly
+    monotone line is simple) and are passed over; the edges of the other
+    pairs are tested two by two with the signs of their turns (edges that
+    share a vertex, or collinear edges that overlap, touch).  Numpy
+    throughout; the sign test is in floating point, so a pair touching
+    within rounding may be reported or not.
 
     Parameters
     ----------
@@ -543,37 +581,95 @@ def ring_crossings(xy: np.ndarray, sizes: np.ndarray, chain: int = 3) -> tuple[n
     nxt = start[ring] + np.mod(k + 1, sizes[ring])
     # runs of `chain` edges: run r of a ring covers its edges chain r .. chain r + chain - 1 (fewer at the end)
     nrun = -(-sizes // chain)
+    rstart = np.cumsum(nrun) - nrun
     rr = np.repeat(np.arange(len(sizes)), nrun)
-    rk = np.arange(int(nrun.sum())) - np.repeat(np.cumsum(nrun) - nrun, nrun)
+    rk = np.arange(int(nrun.sum())) - rstart[rr]
     cnt = np.minimum(chain, sizes[rr] - chain * rk)
     off = np.arange(chain + 1)
     pos = np.minimum(off[None, :], cnt[:, None])  # vertices of the run (the last repeated where shorter)
     at = start[rr][:, None] + np.mod(chain * rk[:, None] + pos, sizes[rr][:, None])
-    pts = xy[at]
-    lo, hi = pts.min(axis=1), pts.max(axis=1)
-    ia, ib = box_pairs(lo, hi, lo, hi, group_a=rr, group_b=rr)
-    keep = ib >= ia
-    ia, ib = ia[keep], ib[keep]
+    lo = hi = first = prev = xy[at[:, 0]]
+    steps = []
+    for c in range(1, chain + 1):  # column by column: faster than a reduction over a short axis
+        p = xy[at[:, c]]
+        lo, hi = np.minimum(lo, p), np.maximum(hi, p)
+        steps.append(p - prev)
+        prev = p
+    # a whole run strictly monotone along its chord meets itself nowhere (as two neighbouring runs, below)
+    chord = prev - first
+    bent = cnt < chain
+    for s in steps:
+        bent |= s[:, 0] * chord[:, 0] + s[:, 1] * chord[:, 1] <= 0
+    # near pairs: each run and the next ones round its ring, up to 2 COARSE - 1 runs on (fewer in short rings)
+    span = np.minimum(2 * COARSE - 1, nrun - 1)
+    nd = span[rr] + 1
+    ia = np.repeat(np.arange(len(rr)), nd)
+    d = _ramp(nd)
+    ring_a = rr[ia]
+    ib = rstart[ring_a] + np.mod(rk[ia] + d, nrun[ring_a])
+    meet = _box_meet(lo, hi, ia, ib)
+    ia, ib, d = ia[meet], ib[meet], d[meet]
+    # far pairs: boxes of COARSE runs that are not neighbours round the ring, paired on the grid
+    nco = -(-nrun // COARSE)
+    cfirst = np.flatnonzero(rk % COARSE == 0)  # first run of each coarse box (a ring's runs are contiguous)
+    cring = rr[cfirst]
+    ck = rk[cfirst] // COARSE
+    clo = np.minimum.reduceat(lo, cfirst, axis=0)
+    chi = np.maximum.reduceat(hi, cfirst, axis=0)
+    ca, cb = box_self_pairs(clo, chi, group=cring)
+    gap = ck[cb] - ck[ca]
+    far = (gap >= 2) & (gap <= nco[cring[ca]] - 2)
+    ca, cb = ca[far], cb[far]
+    na, nb = (
+        np.minimum(COARSE, nrun[cring[ca]] - COARSE * ck[ca]),
+        np.minimum(COARSE, nrun[cring[cb]] - COARSE * ck[cb]),
+    )
+    row = np.repeat(np.arange(len(ca)), na * nb)
+    q = _ramp(na * nb)
+    fa = cfirst[ca][row] + q // nb[row]
+    fb = cfirst[cb][row] + q % nb[row]
+    n_f = nrun[rr[fa]]
+    fwd = rk[fb] - rk[fa]
+    keep = (fwd > span[rr[fa]]) & (n_f - fwd > span[rr[fa]])  # the near pass has the others
+    fa, fb = fa[keep], fb[keep]
+    meet = _box_meet(lo, hi, fa, fb)
+    fa, fb = fa[meet], fb[meet]
     # neighbouring runs (the next one round the ring) strictly monotone along their chord: no crossing
     n = nrun[rr[ia]]
-    fwd = np.mod(rk[ia] + 1, n) == rk[ib]
-    adj = (ia != ib) & (fwd | (np.mod(rk[ib] + 1, n) == rk[ia])) & (n > 2)
-    f = np.where(fwd, ia, ib)[adj]
-    g = np.where(fwd, ib, ia)[adj]
-    line = np.concatenate([at[f], at[g][:, 1:]], axis=1)  # both runs' vertices in ring order
+    adj = ((d == 1) | (d == n - 1)) & (n > 2)
+    f = np.where(d == 1, ia, ib)[adj]
+    g = np.where(d == 1, ib, ia)[adj]
     whole = (cnt[f] == chain) & (cnt[g] == chain)
-    step = np.diff(xy[line], axis=1)
-    chord = xy[line[:, -1]] - xy[line[:, 0]]
-    mono = whole & (np.einsum("ikj,ij->ik", step, chord) > 0).all(axis=1)
+    chord = prev[g] - first[f]  # from the first run's first vertex to the second's last
+    steps = np.stack(steps, axis=1)
+    mono = whole & (np.einsum("ikj,ij->ik", steps[f], chord) > 0).all(axis=1)
+    mono &= (np.einsum("ikj,ij->ik", steps[g], chord) > 0).all(axis=1)
     keep = np.ones(len(ia), bool)
     keep[np.flatnonzero(adj)[mono]] = False
-    ia, ib = ia[keep], ib[keep]
-    # edge pairs of the remaining run pairs
-    ka = np.tile(np.repeat(np.arange(chain), chain), len(ia))
-    kb = np.tile(np.arange(chain), chain * len(ia))
-    ia, ib = np.repeat(ia, chain * chain), np.repeat(ib, chain * chain)
-    ok = (ka < cnt[ia]) & (kb < cnt[ib])
-    ea, eb = at[ia[ok], ka[ok]], at[ib[ok], kb[ok]]
+    self_ = keep & (d == 0) & bent[ia]
+    other = keep & (d > 0)
+    # edge pairs: a run with itself (edges two or more apart); of two runs, the edges of each whose box
+    # meets the other run's box, two by two (padded far beyond rounding: the sign test below is not
+    # exact, and a pair it would say touches is kept)
+    sa, sb = np.triu_indices(chain, 2)
+    srun = ia[self_]
+    sa, sb, srun = np.tile(sa, len(srun)), np.tile(sb, len(srun)), np.repeat(srun, len(sa))
+    whole = sb < cnt[srun]
+    sa, sb, srun = sa[whole], sb[whole], srun[whole]
+    ia, ib = np.r_[ia[other], fa], np.r_[ib[other], fb]
+    pad = EDGE_PAD * max(float(np.abs(xy).max()), 1.0)
+    elo, ehi = np.minimum(xy, xy[nxt]) - pad, np.maximum(xy, xy[nxt]) + pad
+    live = np.arange(chain)
+
+    def near(a, b):  # (pair, k): edge k of run a exists and its box meets run b's box
+        e = at[a, :chain]
+        lo_e, hi_e, lo_b, hi_b = elo[e], ehi[e], lo[b][:, None], hi[b][:, None]
+        ok = (lo_e[..., 0] <= hi_b[..., 0]) & (lo_b[..., 0] <= hi_e[..., 0])
+        ok &= (lo_e[..., 1] <= hi_b[..., 1]) & (lo_b[..., 1] <= hi_e[..., 1])
+        return ok & (live < cnt[a][:, None])
+
+    pair, ka, kb = np.nonzero(near(ia, ib)[:, :, None] & near(ib, ia)[:, None, :])
+    ea, eb = np.r_[at[srun, sa], at[ia[pair], ka]], np.r_[at[srun, sb], at[ib[pair], kb]]
     i, j = np.minimum(ea, eb), np.maximum(ea, eb)
     keep = (i != j) & (nxt[i] != j) & (nxt[j] != i)
     i, j = i[keep], j[keep]

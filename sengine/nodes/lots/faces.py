@@ -17,7 +17,7 @@ import numpy as np
 import shapely
 
 from sengine.geom.boundary import ring_segments
-from sengine.geom.grid import box_pairs
+from sengine.geom.grid import box_self_pairs
 from sengine.geom.merge import TOUCH, kept_area
 from sengine.geom.planar import planar_faces
 from sengine.geom.polygons import threaded
@@ -84,6 +84,20 @@ def _along(seg, par) -> np.ndarray:
     return out
 
 
+def _unique_along(seg, par):
+    """:func:`unique_rows` of the rows ``(seg, par)`` (integer segment, position along it), sorted by
+    :func:`_along` instead of a lexsort of two float columns: the same first indices and groups."""
+    n = len(seg)
+    if n == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    o = _along(seg, par)
+    s, q = seg[o], par[o]
+    new = np.r_[True, (s[1:] != s[:-1]) | (q[1:] != q[:-1])]
+    inv = np.empty(n, np.int64)
+    inv[o] = np.cumsum(new) - 1
+    return o[new], inv
+
+
 def _chain(item_seg, item_par, item_node, seg_end, nseg, grouped=False):
     """Edges along segments cut at points: for each segment, its start, the points in order, its end.
 
@@ -132,8 +146,7 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part, f
     ev_ray = np.r_[np.flatnonzero(start_node < 0), np.flatnonzero(end_node < 0)]
     ev_is_end = np.r_[np.zeros(int((start_node < 0).sum()), bool), np.ones(int((end_node < 0).sum()), bool)]
     # one node per distinct point of a segment (to a nanometre)
-    key = np.c_[ev_seg.astype(np.float64), np.round(ev_par * slen[ev_seg], 9)]
-    first, inv = unique_rows(key)
+    first, inv = _unique_along(ev_seg, np.round(ev_par * slen[ev_seg], 9))
     ev_node = N + NI + inv
     start_node[ev_ray[~ev_is_end]] = ev_node[~ev_is_end]
     end_node[ev_ray[ev_is_end]] = ev_node[ev_is_end]
@@ -141,9 +154,7 @@ def _graph_faces(rs, rsI, ipart, p, nrm, t, cut_e, toff, hseg, hpar, ray_part, f
     # crossings of rays with rays
     a0, a1 = p, q
     lo, hi = np.minimum(a0, a1), np.maximum(a0, a1)
-    i, j = box_pairs(lo, hi, lo, hi, group_a=ray_part, group_b=ray_part)  # rays of one part whose boxes meet
-    sel = i < j
-    i, j = i[sel], j[sel]
+    i, j = box_self_pairs(lo, hi, group=ray_part)  # rays of one part whose boxes meet, i < j
     shared = (start_node[i] == start_node[j]) | (start_node[i] == end_node[j])
     shared |= (end_node[i] == start_node[j]) | (end_node[i] == end_node[j])
     i, j = i[~shared], j[~shared]
