@@ -46,6 +46,8 @@ def boxes(draw):
     lo = origin + rng.random((n, 2)) * spread
     size = rng.random((n, 2)) * spread * draw(st.sampled_from([0.0, 0.01, 0.5]))  # 0: points
     ids = rng.permutation(n * 3)[:n].astype(np.int64) + draw(st.sampled_from([0, 5_707_200_000, 2**40]))
+    if draw(st.booleans()):  # ascending, as a table's rows come: pack_rtree places them without a sort
+        ids = np.sort(ids)
     return ids, np.column_stack([lo, lo + size])
 
 
@@ -94,7 +96,10 @@ def test_pack_rtree_is_the_same_for_the_same_input_and_full():
     bounds = np.column_stack([lo, lo + 2])
     ids = np.arange(10_000)
     a, b = pack_rtree(ids, bounds), pack_rtree(ids, bounds)
-    assert a["node"] == b["node"] and np.array_equal(a["rowid"], b["rowid"])
+    assert np.array_equal(a["node"], b["node"]) and np.array_equal(a["rowid"], b["rowid"])
+    shuffled = np.random.default_rng(4).permutation(10_000)  # ids in another order: the same rows by id
+    c = pack_rtree(ids[shuffled], bounds[shuffled])
+    assert np.array_equal(np.sort(c["rowid"][:, 0]), a["rowid"][:, 0]) and (np.diff(c["rowid"][:, 0]) > 0).all()
     leaves = len(a["node"]) - len(np.unique(a["parent"][:, 1]))  # nodes no node has for parent
     assert leaves == -(-10_000 // RTREE_MAXCELLS)  # every leaf full but the last
     assert len(a["node"]) == 1 + len(a["parent"])  # a tree: every node but the root has a parent
