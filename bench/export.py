@@ -13,7 +13,9 @@ For each city and format the exporter is run alone (``--workers 1``,
 ``--repeat`` times, the formats interleaved so that background load hits
 them alike) and the best writing seconds (the writer's own clock, as
 reported by :func:`sengine.nodes.export.city.export_layers`) and the megabytes
-written are kept; ``seconds_clean`` is the shared preparation of the layers
+written are kept, with each run's CPU seconds (``cpu_seconds_runs``: the
+ratios ``cpu_ratio_*`` best against best, ``cpu_ratio_worst_run_*`` the
+worst of the runs, each GeoJSON run against the same round's); ``seconds_clean`` is the shared preparation of the layers
 (clean geometry, rounded values), done once per export whatever the formats.
 Issue 16's target: GeoPackage and GeoParquet each at least 3x faster to
 write than GeoJSON on whole Liège (``ratio_geojson_over_gpkg``,
@@ -105,6 +107,7 @@ def time_formats(plan, layers: dict, repeat: int, tmp: Path, formats=FORMATS) ->
     extent, lat_lon = layers_frame(layers)
 
     best: dict[str, float] = {}
+    cpu: dict[str, list] = {fmt: [] for fmt in formats}  # every run's CPU seconds, in run order
     clean: float = float("inf")
     sizes: dict[str, int] = {}
     for k in range(repeat):
@@ -113,6 +116,7 @@ def time_formats(plan, layers: dict, repeat: int, tmp: Path, formats=FORMATS) ->
             out.mkdir()
             rep = export_layers(out, layers, {fmt}, extent=extent, lat_lon=lat_lon)
             best[fmt] = min(best.get(fmt, float("inf")), rep["seconds"][fmt])
+            cpu[fmt].append(rep["cpu_seconds"][fmt])
             clean = min(clean, rep["seconds"]["clean"])
             sizes[fmt] = sum(p.stat().st_size for p in out.iterdir())
             if k < repeat - 1 or fmt not in ("geojson", "gpkg", "parquet"):
@@ -123,8 +127,16 @@ def time_formats(plan, layers: dict, repeat: int, tmp: Path, formats=FORMATS) ->
         "features": {name: len(lay) for name, lay in layers.items()},
         "seconds_clean": round(clean, 3),
         "seconds_per_format": {k: round(v, 3) for k, v in best.items()},
+        "cpu_seconds_per_format": {k: round(min(v), 3) for k, v in cpu.items()},
+        "cpu_seconds_runs": {k: [round(x, 3) for x in v] for k, v in cpu.items()},
         "mb_per_format": mb,
     }
+    for fmt in ("gpkg", "parquet"):  # CPU: best against best, and the worst of the runs (each run's own pair)
+        if {"geojson", fmt} <= set(formats):
+            result[f"cpu_ratio_geojson_over_{fmt}"] = round(min(cpu["geojson"]) / min(cpu[fmt]), 2)
+            result[f"cpu_ratio_worst_run_geojson_over_{fmt}"] = round(
+                min(a / b for a, b in zip(cpu["geojson"], cpu[fmt])), 2
+            )
     if {"geojson", "gpkg", "parquet"} <= set(formats):
         result["ratio_geojson_over_gpkg"] = round(best["geojson"] / best["gpkg"], 2)
         result["ratio_geojson_over_parquet"] = round(best["geojson"] / best["parquet"], 2)

@@ -46,6 +46,8 @@ def boxes(draw):
     lo = origin + rng.random((n, 2)) * spread
     size = rng.random((n, 2)) * spread * draw(st.sampled_from([0.0, 0.01, 0.5]))  # 0: points
     ids = rng.permutation(n * 3)[:n].astype(np.int64) + draw(st.sampled_from([0, 5_707_200_000, 2**40]))
+    if draw(st.booleans()):  # ascending, as a table's rows come: pack_rtree places them without a sort
+        ids = np.sort(ids)
     return ids, np.column_stack([lo, lo + size])
 
 
@@ -94,7 +96,10 @@ def test_pack_rtree_is_the_same_for_the_same_input_and_full():
     bounds = np.column_stack([lo, lo + 2])
     ids = np.arange(10_000)
     a, b = pack_rtree(ids, bounds), pack_rtree(ids, bounds)
-    assert a["node"] == b["node"] and np.array_equal(a["rowid"], b["rowid"])
+    assert np.array_equal(a["node"], b["node"]) and np.array_equal(a["rowid"], b["rowid"])
+    shuffled = np.random.default_rng(4).permutation(10_000)  # ids in another order: the same rows by id
+    c = pack_rtree(ids[shuffled], bounds[shuffled])
+    assert np.array_equal(np.sort(c["rowid"][:, 0]), a["rowid"][:, 0]) and (np.diff(c["rowid"][:, 0]) > 0).all()
     leaves = len(a["node"]) - len(np.unique(a["parent"][:, 1]))  # nodes no node has for parent
     assert leaves == -(-10_000 // RTREE_MAXCELLS)  # every leaf full but the last
     assert len(a["node"]) == 1 + len(a["parent"])  # a tree: every node but the root has a parent
@@ -179,3 +184,42 @@ def test_gdal_adds_rows_to_a_table_whose_index_it_did_not_write(tmp_path):
     assert sorted(hit.column("id").to_pylist()) == list(range(100, 105))
     hit = pyogrio.read_arrow(path, layer="lots", bbox=(0.0, 0.0, 25.0, 8.0), return_fids=True)[1]
     assert sorted(hit.column("id").to_pylist()) == [1, 2, 3]
+
+
+def test_a_table_is_declared_and_keyed_as_gdal_writes_it_alone(tmp_path):
+    """Rows added with AUTOINCREMENT off, then given back: the same declaration, counts, extent and sequence."""
+    rng = np.random.default_rng(5)
+    lo = rng.random((300, 2)) * 1000
+    g = shapely.box(lo[:, 0], lo[:, 1], lo[:, 0] + 5, lo[:, 1] + 5)
+    ids = np.sort(rng.choice(10**9, 300, replace=False)).astype(np.int64)
+    lay = Layer.from_geoms(g, ids=ids, meta={"crs": "EPSG:32631"})
+    lay.attrs["name"] = np.array([f"n{i}" if i % 3 else None for i in range(300)], dtype=object)
+    ours = tmp_path / "ours.gpkg"
+    write_gpkg_layer(ours, "lots", lay, SAME, "EPSG:32631", chunk=64)
+    meta, table = pyogrio.read_arrow(ours, layer="lots", return_fids=True)
+    gdal = tmp_path / "gdal.gpkg"
+    pyogrio.write_arrow(
+        table,
+        gdal,
+        layer="lots",
+        driver="GPKG",
+        geometry_name="geom",
+        geometry_type="Polygon",
+        crs="EPSG:32631",
+        layer_options={"FID": "id"},
+    )
+    a, b = sqlite3.connect(ours), sqlite3.connect(gdal)
+    assert a.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+    ddl = "SELECT sql FROM sqlite_master WHERE type = 'table' AND name = 'lots'"
+    assert "PRIMARY KEY AUTOINCREMENT" in a.execute(ddl).fetchone()[0]
+    assert a.execute(ddl).fetchone() == b.execute(ddl).fetchone()
+    for q in (
+        "SELECT * FROM sqlite_sequence",
+        "SELECT * FROM gpkg_ogr_contents",
+        "SELECT min_x, min_y, max_x, max_y FROM gpkg_contents",
+        "SELECT id, name, geom FROM lots ORDER BY id",
+    ):
+        assert a.execute(q).fetchall() == b.execute(q).fetchall(), q
+    assert a.execute("SELECT seq FROM sqlite_sequence WHERE name = 'lots'").fetchone()[0] == ids.max()
+    a.close()
+    b.close()

@@ -214,7 +214,8 @@ def export_layers(
     -------
     dict
         Counts per format (features, triangles, nodes ...), ``clean`` (what
-        was repaired or dropped per layer) and ``seconds``.
+        was repaired or dropped per layer), ``seconds`` (wall) and
+        ``cpu_seconds`` (CPU of the process that wrote each file) per format.
     """
     import importlib
 
@@ -440,12 +441,14 @@ def export_layers(
         done = [solids.pop() if s else flat.pop() for s in solid]
     report: dict = {fmt: {} for fmt in FORMATS if any(f == fmt for f, _, _ in jobs)}
     seconds = dict.fromkeys(report, 0.0)
-    for (fmt, name, _), (result, dt) in zip(jobs, done, strict=True):
+    cpu = dict.fromkeys(report, 0.0)
+    for (fmt, name, _), (result, dt, dc) in zip(jobs, done, strict=True):
         if name is None:
             report[fmt] = result
         else:
             report[fmt][name] = result
         seconds[fmt] += dt
+        cpu[fmt] += dc
     log.info(
         "exported %s in %.3f s of writing with %d worker(s) (%s), %.3f s cleaning",
         ", ".join(sorted(seconds)),
@@ -457,6 +460,7 @@ def export_layers(
     report["clean"] = cleaned
     seconds["clean"] = t_clean
     report["seconds"] = seconds
+    report["cpu_seconds"] = cpu
     return report
 
 
@@ -515,12 +519,12 @@ def _weight(layers: dict[str, Layer], fmt: str, name: str | None) -> int:
     return sum(len(v) for v in layers.values())
 
 
-def _timed(write: Callable[[], Any], count: int = 0) -> tuple[Any, float]:
-    """Run a writer; return its result and seconds; count ``count`` features done."""
-    t = time.perf_counter()
+def _timed(write: Callable[[], Any], count: int = 0) -> tuple[Any, float, float]:
+    """Run a writer; return its result, wall seconds and CPU seconds (its process'); count ``count`` features done."""
+    t, c = time.perf_counter(), time.process_time()
     result = write()
     progress.advance(count)
-    return result, time.perf_counter() - t
+    return result, time.perf_counter() - t, time.process_time() - c
 
 
 def _outside(layers: dict[str, Layer], extent) -> bool:
@@ -644,6 +648,7 @@ class ExportCity(SENode):
             early_solids=self.early_result if self.early_started() else None,
         )
         report.pop("seconds", None)  # timings would make stats.json differ between runs
+        report.pop("cpu_seconds", None)
         return NodeResult({}, _flat_counts(report))
 
     # a sharded run (sengine.shard): each shard's layers as parts, joined into the files at the end
