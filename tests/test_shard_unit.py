@@ -243,7 +243,7 @@ def _sharded_stats_sum_the_shards(runs):
     assert set(secs) == set(a["seconds"]) | {"shards", "join"}
     assert all(secs[k] > 0 for k in ("shards", "total", "lots", "export", "majorRoads"))
     assert secs["total"] >= secs["shards"] >= secs["lots"] and secs["join"] >= 0
-    assert secs["export"] < secs["shards"]
+    assert secs["export"] != secs["shards"]  # the export is timed on its own, not given the shards' time
 
 
 def _sharded_result_holds_the_whole_citys_layers_only(runs):
